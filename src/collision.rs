@@ -1,0 +1,427 @@
+//! Scene obstacles as `parry` shapes with a pose, a thickness and a Coulomb
+//! friction coefficient, static or moving with a prescribed velocity
+//! (thesis §3.3, §6.4.1.2: objects are thickened for robust contact).
+
+use anyhow::{bail, Context, Result};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use parry3d_f64::shape::{
+    Ball, Capsule, Cone, Cuboid, Cylinder, SharedShape, TriMesh, TriMeshFlags,
+};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Default obstacle thickness (thesis §6.4.1.2: the table is thickened by 6 mm).
+pub const DEFAULT_OBSTACLE_THICKNESS: f64 = 0.006;
+/// Default cloth thickness (thesis: 2 mm).
+pub const DEFAULT_CLOTH_THICKNESS: f64 = 0.002;
+/// Largest triangle mesh accepted for an obstacle.
+pub const MAX_MESH_TRIANGLES: usize = 2_000_000;
+
+/// Geometry of an obstacle, in its own frame. Cylinders, cones and capsules
+/// have their axis along local z (as shape_msgs/SolidPrimitive).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeSpec {
+    /// Box with full side lengths, m.
+    Box {
+        size: [f64; 3],
+    },
+    Sphere {
+        radius: f64,
+    },
+    /// Capsule: cylinder of `length` between the centres of its end caps.
+    Capsule {
+        length: f64,
+        radius: f64,
+    },
+    Cylinder {
+        height: f64,
+        radius: f64,
+    },
+    Cone {
+        height: f64,
+        radius: f64,
+    },
+    /// Triangle mesh from an OBJ file (path relative to the scene file), with
+    /// an optional uniform scale.
+    Mesh {
+        obj: String,
+        #[serde(default = "one")]
+        scale: f64,
+    },
+    /// Triangle mesh given inline (messages).
+    #[serde(skip)]
+    Triangles {
+        vertices: Vec<[f64; 3]>,
+        triangles: Vec<[u32; 3]>,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Clone)]
+pub struct Obstacle {
+    pub id: String,
+    pub spec: ShapeSpec,
+    pub shape: SharedShape,
+    /// Pose of the obstacle frame.
+    pub pose: Isometry3<f64>,
+    /// Pose of the parry shape (pose × axis fix for z-axis primitives).
+    shape_pose_offset: Isometry3<f64>,
+    pub linear_velocity: Vector3<f64>,
+    /// Angular velocity about the obstacle frame's origin, rad/s (world axes).
+    pub angular_velocity: Vector3<f64>,
+    pub thickness: f64,
+    pub friction: f64,
+    /// Mesh data for visualisation (vertices in the obstacle frame).
+    pub mesh: Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)>,
+}
+
+impl std::fmt::Debug for Obstacle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Obstacle")
+            .field("id", &self.id)
+            .field("spec", &self.spec)
+            .field("pose", &self.pose)
+            .finish()
+    }
+}
+
+/// Closest-feature answer of a point query.
+#[derive(Debug, Clone, Copy)]
+pub struct Proximity {
+    /// Signed distance to the obstacle's surface (negative inside), m.
+    pub distance: f64,
+    /// Outward unit normal at the closest point.
+    pub normal: Vector3<f64>,
+    /// Closest point on the surface.
+    pub point: Vector3<f64>,
+    /// Velocity of the obstacle's material at that point.
+    pub velocity: Vector3<f64>,
+}
+
+impl Obstacle {
+    pub fn new(
+        id: &str,
+        spec: ShapeSpec,
+        pose: Isometry3<f64>,
+        thickness: f64,
+        friction: f64,
+        base: &Path,
+    ) -> Result<Obstacle> {
+        if !(thickness.is_finite() && thickness >= 0.0) {
+            bail!("obstacle {id:?}: thickness = {thickness}: must be ≥ 0 m");
+        }
+        if !(friction.is_finite() && friction >= 0.0) {
+            bail!("obstacle {id:?}: friction = {friction}: must be ≥ 0");
+        }
+        let pos = |name: &str, v: f64| -> Result<()> {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("obstacle {id:?}: {name} = {v}: must be > 0 m");
+            }
+            Ok(())
+        };
+        // parry's cylinder, cone and capsule are along y; ROS primitives along z.
+        let y_to_z = Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2),
+        );
+        let mut mesh = None;
+        let (shape, offset) = match &spec {
+            ShapeSpec::Box { size } => {
+                for (k, s) in size.iter().enumerate() {
+                    pos(&format!("size[{k}]"), *s)?;
+                }
+                (
+                    SharedShape::new(Cuboid::new(Vector3::new(size[0], size[1], size[2]) / 2.0)),
+                    Isometry3::identity(),
+                )
+            }
+            ShapeSpec::Sphere { radius } => {
+                pos("radius", *radius)?;
+                (SharedShape::new(Ball::new(*radius)), Isometry3::identity())
+            }
+            ShapeSpec::Capsule { length, radius } => {
+                pos("length", *length)?;
+                pos("radius", *radius)?;
+                (
+                    SharedShape::new(Capsule::new_z(length / 2.0, *radius)),
+                    Isometry3::identity(),
+                )
+            }
+            ShapeSpec::Cylinder { height, radius } => {
+                pos("height", *height)?;
+                pos("radius", *radius)?;
+                (
+                    SharedShape::new(Cylinder::new(height / 2.0, *radius)),
+                    y_to_z,
+                )
+            }
+            ShapeSpec::Cone { height, radius } => {
+                pos("height", *height)?;
+                pos("radius", *radius)?;
+                (SharedShape::new(Cone::new(height / 2.0, *radius)), y_to_z)
+            }
+            ShapeSpec::Mesh { obj, scale } => {
+                pos("scale", *scale)?;
+                let p = base.join(obj);
+                let (v, t) = load_obj(&p).with_context(|| format!("obstacle {id:?}"))?;
+                let v: Vec<[f64; 3]> = v
+                    .iter()
+                    .map(|p| [p[0] * scale, p[1] * scale, p[2] * scale])
+                    .collect();
+                let s = trimesh(id, &v, &t)?;
+                mesh = Some((v, t));
+                (s, Isometry3::identity())
+            }
+            ShapeSpec::Triangles {
+                vertices,
+                triangles,
+            } => {
+                let s = trimesh(id, vertices, triangles)?;
+                mesh = Some((vertices.clone(), triangles.clone()));
+                (s, Isometry3::identity())
+            }
+        };
+        Ok(Obstacle {
+            id: id.to_string(),
+            spec,
+            shape,
+            pose,
+            shape_pose_offset: offset,
+            linear_velocity: Vector3::zeros(),
+            angular_velocity: Vector3::zeros(),
+            thickness,
+            friction,
+            mesh,
+        })
+    }
+
+    /// Signed distance, outward normal and surface velocity at the point
+    /// closest to `p`.
+    pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {
+        let iso = self.pose * self.shape_pose_offset;
+        let pt = Point3::from(*p);
+        let proj = self.shape.project_point(&iso, &pt, false);
+        let c = proj.point.coords;
+        let d = p - c;
+        let dn = d.norm();
+        let (distance, normal) = if dn > 1e-12 {
+            if proj.is_inside {
+                (-dn, -d / dn)
+            } else {
+                (dn, d / dn)
+            }
+        } else {
+            // on the surface: take the direction from the shape's centre
+            let dir = p - iso.translation.vector;
+            let n = if dir.norm() > 1e-12 {
+                dir.normalize()
+            } else {
+                Vector3::z()
+            };
+            (0.0, n)
+        };
+        let velocity = self.linear_velocity
+            + self
+                .angular_velocity
+                .cross(&(c - self.pose.translation.vector));
+        Proximity {
+            distance,
+            normal,
+            point: c,
+            velocity,
+        }
+    }
+
+    /// Advances a moving obstacle by its prescribed velocity over `dt`.
+    pub fn advance(&mut self, dt: f64) {
+        if self.linear_velocity == Vector3::zeros() && self.angular_velocity == Vector3::zeros() {
+            return;
+        }
+        let rot = UnitQuaternion::from_scaled_axis(self.angular_velocity * dt);
+        let t = self.pose.translation.vector;
+        self.pose = Isometry3::from_parts(
+            Translation3::from(t + self.linear_velocity * dt),
+            rot * self.pose.rotation,
+        );
+    }
+
+    pub fn is_moving(&self) -> bool {
+        self.linear_velocity != Vector3::zeros() || self.angular_velocity != Vector3::zeros()
+    }
+}
+
+fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
+    if t.is_empty() {
+        bail!("obstacle {id:?}: mesh has no triangles");
+    }
+    if t.len() > MAX_MESH_TRIANGLES {
+        bail!(
+            "obstacle {id:?}: mesh has {} triangles, more than the limit {MAX_MESH_TRIANGLES}",
+            t.len()
+        );
+    }
+    for (k, tri) in t.iter().enumerate() {
+        for &i in tri {
+            if i as usize >= v.len() {
+                bail!(
+                    "obstacle {id:?}: triangle {k} uses vertex {i} but the mesh has {} vertices",
+                    v.len()
+                );
+            }
+        }
+    }
+    for (k, p) in v.iter().enumerate() {
+        if p.iter().any(|c| !c.is_finite()) {
+            bail!("obstacle {id:?}: mesh vertex {k} is not finite: {p:?}");
+        }
+    }
+    let pts: Vec<Point3<f64>> = v.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect();
+    let m = TriMesh::with_flags(
+        pts.clone(),
+        t.to_vec(),
+        TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES,
+    )
+    .or_else(|_| TriMesh::new(pts, t.to_vec()))
+    .map_err(|e| anyhow::anyhow!("obstacle {id:?}: bad triangle mesh: {e:?}"))?;
+    Ok(SharedShape::new(m))
+}
+
+/// Reads the vertices and faces of a Wavefront OBJ file (faces fan-triangulated).
+pub fn load_obj(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read OBJ file {}", path.display()))?;
+    let mut v = Vec::new();
+    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<f64> = it
+                    .take(3)
+                    .map(|s| s.parse::<f64>())
+                    .collect::<std::result::Result<_, _>>()
+                    .with_context(|| format!("{}:{}: bad vertex", path.display(), ln + 1))?;
+                if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
+                    bail!(
+                        "{}:{}: a vertex needs 3 finite coordinates",
+                        path.display(),
+                        ln + 1
+                    );
+                }
+                v.push([c[0], c[1], c[2]]);
+            }
+            Some("f") => {
+                let idx: Vec<i64> = it
+                    .map(|s| s.split('/').next().unwrap_or("").parse::<i64>())
+                    .collect::<std::result::Result<_, _>>()
+                    .with_context(|| format!("{}:{}: bad face", path.display(), ln + 1))?;
+                if idx.len() < 3 {
+                    bail!(
+                        "{}:{}: a face needs at least 3 vertices",
+                        path.display(),
+                        ln + 1
+                    );
+                }
+                faces.push((ln + 1, idx));
+            }
+            _ => {}
+        }
+    }
+    let nv = v.len() as i64;
+    let mut tris = Vec::new();
+    for (ln, f) in faces {
+        let mut r = Vec::with_capacity(f.len());
+        for i in f {
+            let k = if i > 0 { i - 1 } else { nv + i };
+            if k < 0 || k >= nv {
+                bail!(
+                    "{}:{ln}: face uses vertex {i} but the file has {nv} vertices",
+                    path.display()
+                );
+            }
+            r.push(k as u32);
+        }
+        for k in 1..r.len() - 1 {
+            tris.push([r[0], r[k], r[k + 1]]);
+        }
+    }
+    if tris.is_empty() {
+        bail!("{}: no faces", path.display());
+    }
+    Ok((v, tris))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_and_sphere_distances() {
+        let b = Obstacle::new(
+            "b",
+            ShapeSpec::Box {
+                size: [0.3, 0.2, 0.005],
+            },
+            Isometry3::identity(),
+            0.006,
+            0.3,
+            Path::new("."),
+        )
+        .unwrap();
+        let p = b.proximity(&Vector3::new(0.0, 0.0, 0.01));
+        assert!((p.distance - 0.0075).abs() < 1e-12);
+        assert!((p.normal - Vector3::z()).norm() < 1e-12);
+        let q = b.proximity(&Vector3::new(0.0, 0.0, 0.001));
+        assert!((q.distance + 0.0015).abs() < 1e-12);
+        assert!((q.normal - Vector3::z()).norm() < 1e-12);
+        let s = Obstacle::new(
+            "s",
+            ShapeSpec::Sphere { radius: 0.1 },
+            Isometry3::identity(),
+            0.0,
+            0.0,
+            Path::new("."),
+        )
+        .unwrap();
+        assert!((s.proximity(&Vector3::new(0.0, 0.3, 0.0)).distance - 0.2).abs() < 1e-12);
+        // cylinder axis along z
+        let c = Obstacle::new(
+            "c",
+            ShapeSpec::Cylinder {
+                height: 1.0,
+                radius: 0.1,
+            },
+            Isometry3::identity(),
+            0.0,
+            0.0,
+            Path::new("."),
+        )
+        .unwrap();
+        assert!((c.proximity(&Vector3::new(0.0, 0.0, 0.6)).distance - 0.1).abs() < 1e-9);
+        assert!((c.proximity(&Vector3::new(0.3, 0.0, 0.0)).distance - 0.2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn moving_obstacle_velocity() {
+        let mut s = Obstacle::new(
+            "s",
+            ShapeSpec::Sphere { radius: 0.1 },
+            Isometry3::identity(),
+            0.0,
+            0.0,
+            Path::new("."),
+        )
+        .unwrap();
+        s.linear_velocity = Vector3::new(1.0, 0.0, 0.0);
+        s.advance(0.5);
+        assert!((s.pose.translation.vector.x - 0.5).abs() < 1e-12);
+        s.angular_velocity = Vector3::new(0.0, 0.0, 2.0);
+        let p = s.proximity(&Vector3::new(0.5, 1.0, 0.0));
+        // point (0.5, 0.1, 0): v = (1,0,0) + (0,0,2)×(0,0.1,0) = (0.8, 0, 0)
+        assert!((p.velocity - Vector3::new(0.8, 0.0, 0.0)).norm() < 1e-12);
+    }
+}

@@ -1,0 +1,503 @@
+//! Fabrics: KES data in, SI spring laws out (thesis §2.3.1, §3.4, ch. 4, ch. 5).
+//!
+//! A fabric file (`config/fabrics/*.yaml`) gives, per direction (warp, weft), the
+//! tensile, shear and bending behaviour either as KES summary values or as a raw
+//! KES curve (CSV), plus the areal mass and the Rayleigh damping coefficients.
+//! Everything is converted to SI here, once ([`kes`] holds the factors).
+//! Summary values become curves by the construction of [`kes::tensile_curve`],
+//! [`kes::shear_curve`] and [`kes::bending_curve`]; curves become laws by
+//! [`fit_law`] (least squares, thesis §3.4.2).
+
+pub mod kes;
+pub mod law;
+
+use anyhow::{bail, Context, Result};
+use kes::*;
+pub use law::{ElasticPoly, Hysteresis, Law, LawState};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The three KES behaviours.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Family {
+    Tensile,
+    Shear,
+    Bending,
+}
+
+impl Family {
+    /// Memory length of the hysteresis operator (SI), chosen so that a KES loop
+    /// saturates well before the summary points are read (0.5° / 5° for shear,
+    /// 0.5–1.5 cm⁻¹ for bending) while reversals stay rounded as in KES plots.
+    pub fn memory_length(self, xmax: f64) -> f64 {
+        match self {
+            Family::Tensile => 0.02 * xmax,
+            Family::Shear => 0.25 * DEG,
+            Family::Bending => 0.1 * PER_CM,
+        }
+    }
+}
+
+/// One behaviour in a fabric file: summary values or a curve file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct BehaviourSpec {
+    #[serde(rename = "LT", default, skip_serializing_if = "Option::is_none")]
+    pub lt: Option<f64>,
+    #[serde(rename = "WT", default, skip_serializing_if = "Option::is_none")]
+    pub wt: Option<f64>,
+    #[serde(rename = "RT", default, skip_serializing_if = "Option::is_none")]
+    pub rt: Option<f64>,
+    #[serde(rename = "EMT", default, skip_serializing_if = "Option::is_none")]
+    pub emt: Option<f64>,
+    #[serde(
+        rename = "Fm_gf_per_cm",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub fm_gf_per_cm: Option<f64>,
+    #[serde(rename = "G", default, skip_serializing_if = "Option::is_none")]
+    pub g: Option<f64>,
+    #[serde(rename = "2HG", default, skip_serializing_if = "Option::is_none")]
+    pub hg: Option<f64>,
+    #[serde(rename = "2HG5", default, skip_serializing_if = "Option::is_none")]
+    pub hg5: Option<f64>,
+    #[serde(rename = "B", default, skip_serializing_if = "Option::is_none")]
+    pub b: Option<f64>,
+    #[serde(rename = "2HB", default, skip_serializing_if = "Option::is_none")]
+    pub hb: Option<f64>,
+    /// Raw KES curve (CSV, path relative to the fabric file).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curve: Option<String>,
+    /// Fitted law in SI (written by `fit-kes`); takes precedence when present.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub law: Option<Law>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DirectionSpec {
+    pub tensile: BehaviourSpec,
+    pub shear: BehaviourSpec,
+    pub bending: BehaviourSpec,
+}
+
+/// Rayleigh damping (thesis eq. 5.8–5.9), thesis sign convention: all
+/// coefficients ≤ 0 and `C = α M + β_f K_bend + β_c K_shear + β_t K_tension`,
+/// where each `K` is the family's (positive semi-definite) stiffness matrix
+/// `−∂f/∂x`, so that `F = C·V` opposes motion.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Damping {
+    /// Air friction, 1/s (acrylic: −7.0).
+    pub alpha: f64,
+    /// Bending springs, s.
+    #[serde(default)]
+    pub beta_bend: f64,
+    /// Shear springs, s.
+    #[serde(default)]
+    pub beta_shear: f64,
+    /// Tension springs, s.
+    #[serde(default)]
+    pub beta_tension: f64,
+}
+
+/// A fabric file as written on disk (KES units).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FabricFile {
+    pub name: String,
+    #[serde(default)]
+    pub source: String,
+    #[serde(default)]
+    pub notes: String,
+    /// KES W, mg/cm².
+    pub areal_mass_mg_per_cm2: f64,
+    #[serde(default)]
+    pub thickness_mm: Option<f64>,
+    pub warp: DirectionSpec,
+    pub weft: DirectionSpec,
+    pub damping: Damping,
+}
+
+/// Laws of one thread direction, SI.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DirectionLaws {
+    pub tensile: Law,
+    pub bending: Law,
+    /// The KES curves the laws were fitted to (SI).
+    pub tensile_curve: KesCurve,
+    pub shear_curve: KesCurve,
+    pub bending_curve: KesCurve,
+}
+
+/// A fabric ready for simulation (SI).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fabric {
+    pub name: String,
+    /// kg/m².
+    pub areal_mass: f64,
+    pub warp: DirectionLaws,
+    pub weft: DirectionLaws,
+    /// Shear law of the KES shear curve `FK(θ)`, shared by both diagonals
+    /// (thesis eq. 4.50: the mean of the warp and weft curves), with `x = sin θ`.
+    pub shear: Law,
+    pub damping: Damping,
+    /// The file it came from, for reports.
+    pub file: FabricFile,
+}
+
+impl Fabric {
+    /// Loads and validates a fabric file; errors name the file and the field.
+    pub fn load(path: &Path) -> Result<Fabric> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read fabric file {}", path.display()))?;
+        let file: FabricFile = serde_yaml::from_str(&text)
+            .with_context(|| format!("fabric file {}: invalid YAML or field", path.display()))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Fabric::from_file(file, &dir).with_context(|| format!("fabric file {}", path.display()))
+    }
+
+    /// Builds the SI fabric; `base` resolves relative curve paths.
+    pub fn from_file(file: FabricFile, base: &Path) -> Result<Fabric> {
+        positive("areal_mass_mg_per_cm2", file.areal_mass_mg_per_cm2)?;
+        let d = &file.damping;
+        for (n, v) in [
+            ("damping.alpha", d.alpha),
+            ("damping.beta_bend", d.beta_bend),
+            ("damping.beta_shear", d.beta_shear),
+            ("damping.beta_tension", d.beta_tension),
+        ] {
+            if !v.is_finite() || v > 0.0 {
+                bail!("{n} = {v}: must be finite and ≤ 0 (thesis sign convention: C·V opposes motion)");
+            }
+        }
+        let warp = direction(&file.warp, "warp", base)?;
+        let weft = direction(&file.weft, "weft", base)?;
+        let shear_curve = mean_curve(&warp.shear_curve, &weft.shear_curve);
+        let shear = shear_law(&file.warp.shear, &file.weft.shear, &shear_curve);
+        Ok(Fabric {
+            name: file.name.clone(),
+            areal_mass: file.areal_mass_mg_per_cm2 * MG_PER_CM2,
+            warp,
+            weft,
+            shear,
+            damping: file.damping,
+            file,
+        })
+    }
+
+    /// The same fabric with every hysteretic part removed.
+    pub fn without_hysteresis(&self) -> Fabric {
+        let mut f = self.clone();
+        for d in [&mut f.warp, &mut f.weft] {
+            d.tensile = d.tensile.without_hysteresis();
+            d.bending = d.bending.without_hysteresis();
+        }
+        f.shear = f.shear.without_hysteresis();
+        f
+    }
+
+    /// The same fabric with all damping set to zero.
+    pub fn undamped(&self) -> Fabric {
+        let mut f = self.clone();
+        f.damping = Damping {
+            alpha: 0.0,
+            beta_bend: 0.0,
+            beta_shear: 0.0,
+            beta_tension: 0.0,
+        };
+        f
+    }
+
+    pub fn dir(&self, weft: bool) -> &DirectionLaws {
+        if weft {
+            &self.weft
+        } else {
+            &self.warp
+        }
+    }
+}
+
+fn shear_law(w: &BehaviourSpec, t: &BehaviourSpec, curve: &KesCurve) -> Law {
+    if let (Some(a), Some(b)) = (w.law, t.law) {
+        // average of two fitted laws
+        let mut l = a;
+        for k in 0..4 {
+            l.elastic.c[k] = 0.5 * (a.elastic.c[k] + b.elastic.c[k]);
+        }
+        l.hysteresis.h0 = 0.5 * (a.hysteresis.h0 + b.hysteresis.h0);
+        l.hysteresis.h1 = 0.5 * (a.hysteresis.h1 + b.hysteresis.h1);
+        l.hysteresis.h2 = 0.5 * (a.hysteresis.h2 + b.hysteresis.h2);
+        return l;
+    }
+    fit_law(Family::Shear, curve).0
+}
+
+fn positive(name: &str, v: f64) -> Result<()> {
+    if !v.is_finite() || v <= 0.0 {
+        bail!("{name} = {v}: must be a finite number > 0");
+    }
+    Ok(())
+}
+
+fn need(name: &str, v: Option<f64>) -> Result<f64> {
+    let v =
+        v.with_context(|| format!("{name} is missing (give the KES summary values or `curve:`)"))?;
+    positive(name, v)?;
+    Ok(v)
+}
+
+fn nonneg(name: &str, v: Option<f64>) -> Result<f64> {
+    let v = v.with_context(|| format!("{name} is missing"))?;
+    if !v.is_finite() || v < 0.0 {
+        bail!("{name} = {v}: must be a finite number ≥ 0");
+    }
+    Ok(v)
+}
+
+fn curve_of(spec: &BehaviourSpec, name: &str, base: &Path) -> Result<Option<KesCurve>> {
+    match &spec.curve {
+        Some(c) => {
+            let p: PathBuf = base.join(c);
+            Ok(Some(
+                read_curve_csv(&p).with_context(|| format!("{name}.curve"))?,
+            ))
+        }
+        None => Ok(None),
+    }
+}
+
+fn direction(d: &DirectionSpec, name: &str, base: &Path) -> Result<DirectionLaws> {
+    let tn = format!("{name}.tensile");
+    let tensile_curve = match curve_of(&d.tensile, &tn, base)? {
+        Some(c) => c,
+        None => {
+            let s = TensileSummary {
+                lt: need(&format!("{tn}.LT"), d.tensile.lt)?,
+                wt: need(&format!("{tn}.WT"), d.tensile.wt)?,
+                rt: nonneg(&format!("{tn}.RT"), d.tensile.rt)?,
+                emt: need(&format!("{tn}.EMT"), d.tensile.emt)?,
+            };
+            if s.lt >= 2.0 {
+                bail!(
+                    "{tn}.LT = {}: must be < 2 (a curve above linear by more than 2×)",
+                    s.lt
+                );
+            }
+            if s.rt > 100.0 {
+                bail!("{tn}.RT = {}: a resilience is a percentage ≤ 100", s.rt);
+            }
+            let fm = d.tensile.fm_gf_per_cm.unwrap_or(TENSILE_FM_DEFAULT_GF_CM);
+            positive(&format!("{tn}.Fm_gf_per_cm"), fm)?;
+            tensile_curve(&s, fm)
+        }
+    };
+    let sn = format!("{name}.shear");
+    let shear_curve = match curve_of(&d.shear, &sn, base)? {
+        Some(c) => c,
+        None => kes::shear_curve(&ShearSummary {
+            g: need(&format!("{sn}.G"), d.shear.g)?,
+            hg: nonneg(&format!("{sn}.2HG"), d.shear.hg)?,
+            hg5: nonneg(&format!("{sn}.2HG5"), d.shear.hg5)?,
+        }),
+    };
+    let bn = format!("{name}.bending");
+    let bending_curve = match curve_of(&d.bending, &bn, base)? {
+        Some(c) => c,
+        None => kes::bending_curve(&BendingSummary {
+            b: need(&format!("{bn}.B"), d.bending.b)?,
+            hb: nonneg(&format!("{bn}.2HB"), d.bending.hb)?,
+        }),
+    };
+    let tensile = match d.tensile.law {
+        Some(l) => l,
+        None => fit_law(Family::Tensile, &tensile_curve).0,
+    };
+    let bending = match d.bending.law {
+        Some(l) => l,
+        None => fit_law(Family::Bending, &bending_curve).0,
+    };
+    Ok(DirectionLaws {
+        tensile,
+        bending,
+        tensile_curve,
+        shear_curve,
+        bending_curve,
+    })
+}
+
+/// Pointwise mean of two loops sampled over their common range.
+pub fn mean_curve(a: &KesCurve, b: &KesCurve) -> KesCurve {
+    let avg = |p: &[(f64, f64)], q: &[(f64, f64)]| -> Vec<(f64, f64)> {
+        p.iter()
+            .filter_map(|&(x, y)| interp(q, x).map(|y2| (x, 0.5 * (y + y2))))
+            .collect()
+    };
+    KesCurve {
+        load: avg(&a.load, &b.load),
+        recover: avg(&a.recover, &b.recover),
+    }
+}
+
+/// Fits a law to a KES loop (global least squares, thesis §3.4.2): the elastic
+/// polynomial to the mean of the two branches, the loop half-width
+/// `h0 + h1|x| + h2 x²` to half their difference, all coefficients ≥ 0 so the
+/// law is monotone and the loop never inverts. Returns the law and the RMS
+/// residual of the two branch fits (same unit as the curve's force).
+pub fn fit_law(family: Family, c: &KesCurve) -> (Law, f64) {
+    let (lo, hi) = range(c);
+    let n = 200;
+    let mut xs = Vec::with_capacity(n);
+    let mut mean = Vec::with_capacity(n);
+    let mut half = Vec::with_capacity(n);
+    for k in 0..=n {
+        let x = lo + (hi - lo) * k as f64 / n as f64;
+        if let (Some(a), Some(b)) = (interp(&c.load, x), interp(&c.recover, x)) {
+            xs.push(x);
+            mean.push(0.5 * (a + b));
+            half.push((0.5 * (a - b)).max(0.0));
+        }
+    }
+    let basis: &[fn(f64) -> f64] = match family {
+        Family::Tensile => &[
+            |x| x,
+            |x| x * x.abs(),
+            |x| x * x * x,
+            |x| x * x * x * x.abs(),
+        ],
+        Family::Shear => &[|x| x, |x| x * x * x],
+        Family::Bending => &[|x| x, |x| x * x.abs()],
+    };
+    let (ce, re) = nnls_subsets(&xs, &mean, basis);
+    let mut elastic = ElasticPoly::default();
+    match family {
+        Family::Tensile => elastic.c.copy_from_slice(&ce),
+        Family::Shear => {
+            elastic.c[0] = ce[0];
+            elastic.c[2] = ce[1];
+        }
+        Family::Bending => {
+            elastic.c[0] = ce[0];
+            elastic.c[1] = ce[1];
+        }
+    }
+    let hb: &[fn(f64) -> f64] = &[|_| 1.0, |x| x.abs(), |x| x * x];
+    let (ch, rh) = nnls_subsets(&xs, &half, hb);
+    let xmax = lo.abs().max(hi.abs());
+    let hysteresis = if ch.iter().all(|&v| v == 0.0) {
+        Hysteresis::NONE
+    } else {
+        Hysteresis {
+            h0: ch[0],
+            h1: ch[1],
+            h2: ch[2],
+            xs: family.memory_length(xmax),
+        }
+    };
+    (
+        Law {
+            elastic,
+            hysteresis,
+        },
+        (re * re + rh * rh).sqrt(),
+    )
+}
+
+fn range(c: &KesCurve) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for &(x, _) in c.load.iter() {
+        lo = lo.min(x);
+        hi = hi.max(x);
+    }
+    (lo, hi)
+}
+
+/// Non-negative least squares by enumeration of active sets (at most 4 unknowns).
+/// Returns the coefficients and the RMS residual.
+fn nnls_subsets(xs: &[f64], ys: &[f64], basis: &[fn(f64) -> f64]) -> (Vec<f64>, f64) {
+    let m = basis.len();
+    let mut best = (vec![0.0; m], f64::INFINITY);
+    if xs.is_empty() {
+        return (vec![0.0; m], 0.0);
+    }
+    for mask in 0u32..(1 << m) {
+        let idx: Vec<usize> = (0..m).filter(|k| mask & (1 << k) != 0).collect();
+        let mut coef = vec![0.0; m];
+        if !idx.is_empty() {
+            let a = nalgebra::DMatrix::from_fn(xs.len(), idx.len(), |r, c| basis[idx[c]](xs[r]));
+            // column scaling for conditioning
+            let scale: Vec<f64> = (0..idx.len())
+                .map(|c| a.column(c).norm().max(1e-300))
+                .collect();
+            let mut an = a.clone();
+            for (c, s) in scale.iter().enumerate() {
+                an.column_mut(c).scale_mut(1.0 / s);
+            }
+            let b = nalgebra::DVector::from_column_slice(ys);
+            let Ok(sol) = an.svd(true, true).solve(&b, 1e-12) else {
+                continue;
+            };
+            if sol.iter().any(|&v| v < 0.0 || !v.is_finite()) {
+                continue;
+            }
+            for (c, &k) in idx.iter().enumerate() {
+                coef[k] = sol[c] / scale[c];
+            }
+        }
+        let r = xs
+            .iter()
+            .zip(ys)
+            .map(|(&x, &y)| {
+                let f: f64 = (0..m).map(|k| coef[k] * basis[k](x)).sum();
+                (f - y) * (f - y)
+            })
+            .sum::<f64>()
+            / xs.len() as f64;
+        if r < best.1 - 1e-30 {
+            best = (coef, r);
+        }
+    }
+    (best.0, best.1.sqrt())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fit_recovers_linear_shear_loop_exactly() {
+        let s = ShearSummary {
+            g: 0.8,
+            hg: 1.0,
+            hg5: 2.0,
+        };
+        let c = kes::shear_curve(&s);
+        let (law, res) = fit_law(Family::Shear, &c);
+        assert!(res < 1e-9, "{res}");
+        assert!((law.elastic.c[0] - 0.8 * GF_PER_CM / DEG).abs() < 1e-6);
+        let (h0, h1) = shear_half_width(&s);
+        assert!((law.hysteresis.h0 - h0).abs() < 1e-9);
+        assert!((law.hysteresis.h1 - h1).abs() < 1e-7);
+    }
+
+    #[test]
+    fn tensile_fit_is_monotone_and_close() {
+        let s = TensileSummary {
+            lt: 0.65,
+            wt: 8.68,
+            rt: 62.0,
+            emt: 5.34,
+        };
+        let c = tensile_curve(&s, 500.0);
+        let (law, res) = fit_law(Family::Tensile, &c);
+        let fm = 500.0 * GF_PER_CM;
+        assert!(res < 0.02 * fm, "residual {res}");
+        for k in 0..100 {
+            let e = 0.08 * k as f64 / 100.0;
+            assert!(law.elastic.eval(e).1 >= 0.0);
+        }
+    }
+}

@@ -1,0 +1,14 @@
+//! `garment_sim`: measured-parameter woven-fabric cloth simulation (Charfi 2006)
+//! advanced by the Baraff–Witkin implicit solver at a fixed time step.
+//!
+//! Layers (data flows one way): [`fabric`] (KES data → laws) and [`cloth`]
+//! (the warp/weft grid) feed [`solver`] (forces, Jacobians, implicit step),
+//! which [`collision`] constrains; [`scene`] builds it all from YAML;
+//! [`output`] writes shapes, curves and summaries.
+
+pub mod cloth;
+pub mod collision;
+pub mod fabric;
+pub mod run;
+pub mod scene;
+pub mod solver;

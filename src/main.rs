@@ -1,0 +1,262 @@
+//! The command line: parses, calls the library, reports.
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use garment_sim::run;
+use garment_sim::scene::{Overrides, Scene};
+use garment_sim::solver::LinearSolverKind;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "garment_sim",
+    version,
+    about = "Measured-parameter woven-fabric cloth simulator (Charfi 2006, Baraff–Witkin)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scene headless and write final.ply, energy.csv and summary.json.
+    Drape {
+        /// Scene file, e.g. config/scenes/table_drape.yaml
+        scene: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Grid spacing (both directions), m.
+        #[arg(long)]
+        spacing: Option<f64>,
+        /// Fixed time step, s.
+        #[arg(long)]
+        dt: Option<f64>,
+        /// Simulated duration, s.
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Linear solver: pcg or cholesky.
+        #[arg(long)]
+        solver: Option<LinearSolverKind>,
+        /// Turn the hysteretic parts of the laws off.
+        #[arg(long)]
+        no_hysteresis: bool,
+    },
+    /// Benchmark ms per step and real-time factor of the table drape.
+    Bench {
+        /// Scene to benchmark.
+        #[arg(long, default_value = "config/scenes/table_drape.yaml")]
+        scene: PathBuf,
+        /// Grid spacings, m (comma separated).
+        #[arg(long, value_delimiter = ',', default_values_t = vec![0.02, 0.01, 0.005])]
+        spacing: Vec<f64>,
+        /// Time steps, s (comma separated).
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1e-3, 1e-4])]
+        dt: Vec<f64>,
+        /// Solvers (comma separated).
+        #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky"])]
+        solver: Vec<LinearSolverKind>,
+        /// Steps per measurement (after the warm-up of the same count).
+        #[arg(long, default_value_t = 200)]
+        steps: u64,
+        /// Repetitions; the median is reported.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Simulated time before measuring (the cloth is mid-drape), s.
+        #[arg(long, default_value_t = 0.2)]
+        warmup: f64,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Err(e) = real_main(cli) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn progress_printer(label: String) -> impl FnMut(f64, f64) {
+    let tty = std::io::stderr().is_terminal();
+    let bar = if tty {
+        let b = indicatif::ProgressBar::new(1000);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg} [{bar:40}] {percent:>3}% {elapsed_precise} eta {eta}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        b.set_message(label.clone());
+        Some(b)
+    } else {
+        None
+    };
+    let mut last_decile = -1i64;
+    move |t, d| {
+        let frac = if d > 0.0 { (t / d).min(1.0) } else { 1.0 };
+        if let Some(b) = &bar {
+            b.set_position((frac * 1000.0) as u64);
+            if frac >= 1.0 {
+                b.finish_and_clear();
+            }
+        } else {
+            let dec = (frac * 10.0).floor() as i64;
+            if dec != last_decile {
+                last_decile = dec;
+                eprintln!("{label}: t = {t:.3} s of {d:.3} s ({:.0} %)", 100.0 * frac);
+            }
+        }
+    }
+}
+
+fn real_main(cli: Cli) -> Result<()> {
+    match cli.cmd {
+        Cmd::Drape {
+            scene,
+            out,
+            spacing,
+            dt,
+            duration,
+            solver,
+            no_hysteresis,
+        } => {
+            let sc = Scene::load(&scene)?;
+            let ov = Overrides {
+                spacing,
+                dt,
+                duration,
+                solver,
+                hysteresis: if no_hysteresis { Some(false) } else { None },
+            };
+            let mut pr = progress_printer(format!("drape {}", scene.display()));
+            let (_, s) = run::drape(&sc, &ov, &out, &mut pr)?;
+            let e = &s.final_energies;
+            println!("scene            {}", s.scene);
+            println!("fabric           {}", s.fabric);
+            println!(
+                "grid             {} × {} ({} vertices), spacing {:.4} × {:.4} m",
+                s.grid[0], s.grid[1], s.vertices, s.spacing_m[0], s.spacing_m[1]
+            );
+            println!("solver           {} , dt = {} s", s.linear_solver, s.dt_s);
+            println!(
+                "simulated        {:.3} s in {} steps",
+                s.simulated_s, s.steps
+            );
+            println!(
+                "wall time        {:.2} s ({:.3} ms/step, real-time factor {:.3})",
+                s.wall_s, s.ms_per_step, s.real_time_factor
+            );
+            println!(
+                "  per step       assemble {:.3} ms, solve {:.3} ms, collide {:.3} ms",
+                s.time_split_ms_per_step.assemble,
+                s.time_split_ms_per_step.solve,
+                s.time_split_ms_per_step.collide
+            );
+            println!(
+                "solver iters     mean {:.2}, max {}",
+                s.mean_solver_iterations, s.max_solver_iterations
+            );
+            match s.settle_time_s {
+                Some(t) => println!(
+                    "settle time      {t:.3} s (rms speed < {} m/s from then on)",
+                    s.settle_speed_m_s
+                ),
+                None => println!(
+                    "settle time      not settled (rms speed ≥ {} m/s at the end)",
+                    s.settle_speed_m_s
+                ),
+            }
+            println!(
+                "final energies   kinetic {:.3e} J, tension {:.3e} J, shear {:.3e} J, bending {:.3e} J, dissipated (damping) {:.3e} J",
+                e.kinetic, e.tension, e.shear, e.bending, e.dissipated
+            );
+            println!(
+                "wrote            {}/final.ply, energy.csv, summary.json",
+                out.display()
+            );
+            Ok(())
+        }
+        Cmd::Bench {
+            scene,
+            spacing,
+            dt,
+            solver,
+            steps,
+            repeat,
+            warmup,
+        } => {
+            let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
+            println!(
+                "scene {} ; {} steps per run, median of {} runs, after {} s of simulated warm-up",
+                scene.display(),
+                steps,
+                repeat,
+                warmup
+            );
+            println!(
+                "{:>8} {:>9} {:>9} {:>8} {:>12} {:>10} {:>8} {:>11}",
+                "spacing", "grid", "dt", "solver", "ms/step", "RTF", "iters", "peak RSS MB"
+            );
+            for &sp in &spacing {
+                for &h in &dt {
+                    for &so in &solver {
+                        let ov = Overrides {
+                            spacing: Some(sp),
+                            dt: Some(h),
+                            solver: Some(so),
+                            ..Default::default()
+                        };
+                        let mut sim = sc.build(&ov)?;
+                        let wsteps = (warmup / h).round() as u64;
+                        for _ in 0..wsteps.min(steps * 5) {
+                            sim.step()?;
+                        }
+                        let mut ms = Vec::new();
+                        let mut it = 0.0;
+                        for _ in 0..repeat.max(1) {
+                            let t = std::time::Instant::now();
+                            let mut iters = 0;
+                            for _ in 0..steps {
+                                iters += sim.step()?.iterations;
+                            }
+                            ms.push(1e3 * t.elapsed().as_secs_f64() / steps as f64);
+                            it = iters as f64 / steps as f64;
+                        }
+                        ms.sort_by(|a, b| a.total_cmp(b));
+                        let med = ms[ms.len() / 2];
+                        println!(
+                            "{:>8} {:>9} {:>9} {:>8} {:>12.3} {:>10.3} {:>8.1} {:>11.1}",
+                            sp,
+                            format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                            h,
+                            format!("{so:?}").to_lowercase(),
+                            med,
+                            h * 1e3 / med,
+                            it,
+                            peak_rss_mb()
+                        );
+                    }
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Peak resident memory of this process so far (Linux VmHWM), MB.
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| {
+                l.split_whitespace()
+                    .nth(1)
+                    .and_then(|v| v.parse::<f64>().ok())
+            })
+        })
+        .map(|kb| kb / 1024.0)
+        .unwrap_or(f64::NAN)
+}

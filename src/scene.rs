@@ -1,0 +1,402 @@
+//! Scenes (`config/scenes/*.yaml`): the cloth (fabric file, size, spacing,
+//! pose), obstacles, pins, gravity, time step, duration and output rate.
+//! Errors name the file, the field and what is wrong.
+
+use crate::cloth::{Cloth, GridSpec};
+use crate::collision::{Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_OBSTACLE_THICKNESS};
+use crate::fabric::Fabric;
+use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
+use anyhow::{bail, Context, Result};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Orientation: either roll/pitch/yaw (rad, ROS convention: R = Rz(yaw) Ry(pitch) Rx(roll))
+/// or the direction the local +z axis should point to (minimal rotation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PoseSpec {
+    #[serde(default)]
+    pub position: [f64; 3],
+    #[serde(default)]
+    pub rpy: Option<[f64; 3]>,
+    #[serde(default)]
+    pub normal: Option<[f64; 3]>,
+}
+
+impl PoseSpec {
+    pub fn isometry(&self, what: &str) -> Result<Isometry3<f64>> {
+        let p = self.position;
+        if p.iter().any(|c| !c.is_finite()) {
+            bail!("{what}.position = {p:?}: must be finite");
+        }
+        let rot = match (self.rpy, self.normal) {
+            (Some(_), Some(_)) => bail!("{what}: give either rpy or normal, not both"),
+            (Some(r), None) => {
+                if r.iter().any(|c| !c.is_finite()) {
+                    bail!("{what}.rpy = {r:?}: must be finite");
+                }
+                UnitQuaternion::from_euler_angles(r[0], r[1], r[2])
+            }
+            (None, Some(n)) => {
+                let v = Vector3::from(n);
+                if !(v.norm() > 1e-12 && v.iter().all(|c| c.is_finite())) {
+                    bail!("{what}.normal = {n:?}: must be a non-zero finite vector");
+                }
+                UnitQuaternion::rotation_between(&Vector3::z(), &v.normalize()).unwrap_or_else(
+                    || UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI),
+                )
+            }
+            (None, None) => UnitQuaternion::identity(),
+        };
+        Ok(Isometry3::from_parts(
+            Translation3::new(p[0], p[1], p[2]),
+            rot,
+        ))
+    }
+}
+
+/// Places the cloth flat on a box obstacle's top face.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaceOn {
+    /// Id of a box obstacle.
+    pub obstacle: String,
+    /// Where the cloth's grid corner (0, 0) lies, in the box's local x, y, m.
+    pub corner: [f64; 2],
+    /// Height of the cloth above the box's top face, m.
+    pub gap: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClothSpec {
+    /// Fabric file, relative to the scene file.
+    pub fabric: String,
+    /// Size along warp and weft, m.
+    pub size: [f64; 2],
+    /// Spacing l_c (warp) and l_t (weft), m; a single number for both.
+    pub spacing: Spacing,
+    /// Pose of the grid corner (0, 0); warp along local x, weft along local y.
+    #[serde(default)]
+    pub pose: PoseSpec,
+    /// Alternative to `pose`: lay the cloth flat on a box.
+    #[serde(default)]
+    pub place_on: Option<PlaceOn>,
+    /// Cloth thickness, m (thesis: 2 mm).
+    #[serde(default = "default_cloth_thickness")]
+    pub thickness: f64,
+    /// Use the hysteretic parts of the laws.
+    #[serde(default = "yes")]
+    pub hysteresis: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Spacing {
+    Same(f64),
+    WarpWeft([f64; 2]),
+}
+
+impl Spacing {
+    pub fn pair(&self) -> [f64; 2] {
+        match *self {
+            Spacing::Same(s) => [s, s],
+            Spacing::WarpWeft(p) => p,
+        }
+    }
+}
+
+fn default_cloth_thickness() -> f64 {
+    DEFAULT_CLOTH_THICKNESS
+}
+fn default_obstacle_thickness() -> f64 {
+    DEFAULT_OBSTACLE_THICKNESS
+}
+fn yes() -> bool {
+    true
+}
+fn default_friction() -> f64 {
+    0.3
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleSpec {
+    pub id: String,
+    pub shape: ShapeSpec,
+    #[serde(default)]
+    pub pose: PoseSpec,
+    #[serde(default = "default_obstacle_thickness")]
+    pub thickness: f64,
+    /// Coulomb friction coefficient.
+    #[serde(default = "default_friction")]
+    pub friction: f64,
+    /// m/s
+    #[serde(default)]
+    pub linear_velocity: [f64; 3],
+    /// rad/s about the obstacle's origin.
+    #[serde(default)]
+    pub angular_velocity: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Waypoint {
+    pub t: f64,
+    pub position: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PinSpec {
+    /// Grid index (i along warp, j along weft).
+    #[serde(default)]
+    pub grid: Option<[usize; 2]>,
+    /// Or a vertex index (grid order).
+    #[serde(default)]
+    pub vertex: Option<usize>,
+    /// Target point (default: where the vertex starts).
+    #[serde(default)]
+    pub target: Option<[f64; 3]>,
+    /// Constant target velocity, m/s.
+    #[serde(default)]
+    pub velocity: Option<[f64; 3]>,
+    /// Piecewise-linear target path.
+    #[serde(default)]
+    pub path: Option<Vec<Waypoint>>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default)]
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub cloth: ClothSpec,
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    #[serde(default)]
+    pub pins: Vec<PinSpec>,
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    /// Fixed time step, s.
+    pub dt: f64,
+    /// Simulated duration, s.
+    pub duration: f64,
+    /// Rate of energy rows and recorded frames, Hz.
+    #[serde(default = "default_output_rate")]
+    pub output_rate: f64,
+    #[serde(default)]
+    pub solver: Option<LinearSolverKind>,
+    /// A run counts as settled once the rms speed stays below this, m/s.
+    #[serde(default = "default_settle_speed")]
+    pub settle_speed: f64,
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+fn default_output_rate() -> f64 {
+    30.0
+}
+fn default_settle_speed() -> f64 {
+    0.005
+}
+
+/// A loaded scene: the file, where it came from, and the fabric.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub file: SceneFile,
+    pub path: PathBuf,
+    pub fabric: Fabric,
+}
+
+/// Command-line overrides.
+#[derive(Debug, Clone, Default)]
+pub struct Overrides {
+    pub spacing: Option<f64>,
+    pub dt: Option<f64>,
+    pub duration: Option<f64>,
+    pub solver: Option<LinearSolverKind>,
+    pub hysteresis: Option<bool>,
+}
+
+impl Scene {
+    pub fn load(path: &Path) -> Result<Scene> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read scene file {}", path.display()))?;
+        let file: SceneFile = serde_yaml::from_str(&text)
+            .with_context(|| format!("scene file {}: invalid YAML or field", path.display()))?;
+        Scene::from_file(file, path)
+    }
+
+    pub fn from_file(file: SceneFile, path: &Path) -> Result<Scene> {
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let fpath = base.join(&file.cloth.fabric);
+        let fabric = Fabric::load(&fpath)
+            .with_context(|| format!("scene file {}: cloth.fabric", path.display()))?;
+        let s = Scene {
+            file,
+            path: path.to_path_buf(),
+            fabric,
+        };
+        s.validate()
+            .with_context(|| format!("scene file {}", path.display()))?;
+        Ok(s)
+    }
+
+    fn validate(&self) -> Result<()> {
+        let f = &self.file;
+        let pos = |n: &str, v: f64| -> Result<()> {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{n} = {v}: must be a finite number > 0");
+            }
+            Ok(())
+        };
+        pos("dt", f.dt)?;
+        if !(f.duration.is_finite() && f.duration >= 0.0) {
+            bail!("duration = {}: must be ≥ 0 s", f.duration);
+        }
+        pos("output_rate", f.output_rate)?;
+        pos("settle_speed", f.settle_speed)?;
+        pos("cloth.thickness", f.cloth.thickness)?;
+        if f.gravity.iter().any(|g| !g.is_finite()) {
+            bail!("gravity = {:?}: must be finite", f.gravity);
+        }
+        let mut ids = std::collections::HashSet::new();
+        for (k, o) in f.obstacles.iter().enumerate() {
+            if !ids.insert(o.id.as_str()) {
+                bail!("obstacles[{k}].id = {:?}: duplicate id", o.id);
+            }
+        }
+        for (k, p) in f.pins.iter().enumerate() {
+            if p.grid.is_some() == p.vertex.is_some() {
+                bail!("pins[{k}]: give exactly one of grid or vertex");
+            }
+            if [p.target.is_some(), p.velocity.is_some(), p.path.is_some()]
+                .iter()
+                .filter(|b| **b)
+                .count()
+                > 1
+                && !(p.target.is_some() && p.velocity.is_some() && p.path.is_none())
+            {
+                bail!("pins[{k}]: give target (optionally with velocity) or path, not both");
+            }
+        }
+        Ok(())
+    }
+
+    /// Builds the simulation (applying command-line overrides).
+    pub fn build(&self, ov: &Overrides) -> Result<Simulation> {
+        let f = &self.file;
+        let base = self
+            .path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let ctx = || format!("scene file {}", self.path.display());
+        let mut obstacles = Vec::new();
+        for (k, o) in f.obstacles.iter().enumerate() {
+            let pose = o
+                .pose
+                .isometry(&format!("obstacles[{k}].pose"))
+                .with_context(ctx)?;
+            let mut ob =
+                Obstacle::new(&o.id, o.shape.clone(), pose, o.thickness, o.friction, &base)
+                    .with_context(|| format!("obstacles[{k}]"))
+                    .with_context(ctx)?;
+            ob.linear_velocity = Vector3::from(o.linear_velocity);
+            ob.angular_velocity = Vector3::from(o.angular_velocity);
+            obstacles.push(ob);
+        }
+        let cloth_pose = match &f.cloth.place_on {
+            Some(p) => {
+                let ob = obstacles
+                    .iter()
+                    .find(|o| o.id == p.obstacle)
+                    .with_context(|| {
+                        format!(
+                            "cloth.place_on.obstacle = {:?}: no obstacle with that id",
+                            p.obstacle
+                        )
+                    })
+                    .with_context(ctx)?;
+                let ShapeSpec::Box { size } = ob.spec else {
+                    bail!(
+                        "{}: cloth.place_on.obstacle {:?} must be a box",
+                        ctx(),
+                        p.obstacle
+                    );
+                };
+                ob.pose * Translation3::new(p.corner[0], p.corner[1], size[2] / 2.0 + p.gap)
+            }
+            None => f.cloth.pose.isometry("cloth.pose").with_context(ctx)?,
+        };
+        let spacing = ov.spacing.map(|s| [s, s]).unwrap_or(f.cloth.spacing.pair());
+        let grid = GridSpec {
+            size: f.cloth.size,
+            spacing,
+            pose: cloth_pose,
+        };
+        let cloth = Cloth::grid(&grid, self.fabric.areal_mass).with_context(ctx)?;
+        let params = Params {
+            dt: ov.dt.unwrap_or(f.dt),
+            gravity: Vector3::from(f.gravity),
+            linear_solver: ov.solver.or(f.solver).unwrap_or_default(),
+            cloth_thickness: f.cloth.thickness,
+            hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
+            ..Params::default()
+        };
+        let mut pins = Vec::new();
+        for (k, p) in f.pins.iter().enumerate() {
+            let vertex = match (p.grid, p.vertex) {
+                (Some([i, j]), _) => cloth
+                    .index(i, j)
+                    .with_context(|| format!("pins[{k}].grid"))
+                    .with_context(ctx)?,
+                (_, Some(v)) => {
+                    if v >= cloth.len() {
+                        bail!(
+                            "{}: pins[{k}].vertex = {v}: the cloth has {} vertices",
+                            ctx(),
+                            cloth.len()
+                        );
+                    }
+                    v
+                }
+                _ => unreachable!("validated"),
+            };
+            let start = p.target.map(Vector3::from).unwrap_or(cloth.x[vertex]);
+            let path = match (&p.path, p.velocity) {
+                (Some(w), _) => {
+                    if w.is_empty() {
+                        bail!("{}: pins[{k}].path is empty", ctx());
+                    }
+                    for pair in w.windows(2) {
+                        if pair[1].t <= pair[0].t {
+                            bail!("{}: pins[{k}].path: waypoint times must increase", ctx());
+                        }
+                    }
+                    PinPath::Waypoints(w.iter().map(|w| (w.t, Vector3::from(w.position))).collect())
+                }
+                (None, Some(v)) => PinPath::Velocity {
+                    start,
+                    velocity: Vector3::from(v),
+                    t0: 0.0,
+                },
+                (None, None) => PinPath::Fixed(start),
+            };
+            pins.push(Pin { vertex, path });
+        }
+        let mut sim = Simulation::new(cloth, self.fabric.clone(), params).with_context(ctx)?;
+        sim.obstacles = obstacles;
+        sim.set_pins(pins)?;
+        Ok(sim)
+    }
+
+    pub fn duration(&self, ov: &Overrides) -> f64 {
+        ov.duration.unwrap_or(self.file.duration)
+    }
+}

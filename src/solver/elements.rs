@@ -1,0 +1,358 @@
+//! Forces and Jacobians of the three spring families (thesis §3.4, ch. 4, §5.4.1).
+//!
+//! Sign conventions: `f` is the force on the vertices; `K = ∂f/∂x` is the
+//! exact Jacobian; the *stiffness* `K̃ = −∂f/∂x`. The solver uses a projected
+//! stiffness that is positive semi-definite (so the system matrix of the
+//! implicit step is SPD):
+//! - axial springs (tension, shear): `K̃ = T'(l) d̂d̂ᵀ + T/l (I − d̂d̂ᵀ)` with the
+//!   tangent `T'` clamped at ≥ 0 (a hysteresis branch or the shear correction can
+//!   make it negative) and the geometric term `T/l` dropped when the spring is in
+//!   compression (`T < 0`). The thesis uses the tensile law in compression; its
+//!   compressed springs then have a negative geometric stiffness, which makes
+//!   the matrix indefinite and the PCG break down. Dropping it (Choi & Ko 2002)
+//!   only removes the buckling instability from the *linearisation*; the force
+//!   itself is unchanged, so equilibria are the same.
+//! - bending hinges: `K̃ = (L/h) σ'(κ) ∇θ∇θᵀ` (Gauss–Newton; σ' clamped at ≥ 0):
+//!   the term `L σ ∇²θ` is indefinite and small for cloth (bending forces are
+//!   orders of magnitude below tension), and dropping it keeps K̃ PSD.
+//!
+//! The exact Jacobians are also implemented (tests compare them with finite
+//! differences, and the damping identification uses them).
+
+use crate::cloth::{Hinge, ShearSpring, TensionSpring};
+use crate::fabric::{Law, LawState};
+use nalgebra::{Matrix3, SMatrix, Vector3};
+
+/// Scalar response of an axial spring: tension `t` (N, > 0 pulls the ends
+/// together) and its derivative `dt` with respect to the current length `l`.
+#[derive(Debug, Clone, Copy)]
+pub struct Axial {
+    pub t: f64,
+    pub dt: f64,
+    pub l: f64,
+    pub dir: Vector3<f64>,
+}
+
+/// Tension spring law with the shear correction of thesis eq. 4.55–4.59:
+/// `T(l) = w [σ_t(ε) − σ_s,e(u⁺) · l / l_o]`, `ε = l/l0 − 1`,
+/// `u⁺ = (l² − l0²) / (2 l0 l_o)` (the sine of the spurious shear angle the two
+/// diagonals of a cell see when the cell is stretched along this spring).
+/// The correction uses the shear law's elastic part; it is signed (the thesis
+/// writes `|F⁺|` for the stretched case) so that compression is corrected too.
+#[inline]
+pub fn tension_law(
+    s: &TensionSpring,
+    law: &Law,
+    shear: &Law,
+    st: &LawState,
+    l: f64,
+) -> (f64, f64, f64) {
+    let eps = l / s.l0 - 1.0;
+    let (sig, dsig) = law.eval(st, eps);
+    let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
+    let (ss, dss) = shear.elastic.eval(u);
+    let t = s.width * (sig - ss * l / s.l_other);
+    let dt =
+        s.width * (dsig / s.l0 - dss * (l / (s.l0 * s.l_other)) * (l / s.l_other) - ss / s.l_other);
+    (t, dt, eps)
+}
+
+/// Shear spring law, thesis eq. 4.54: `T = ½ FK(θ) l` with
+/// `sin θ = (l² − l_c² − l_t²) / (2 l_c l_t)` (eq. 4.34/4.35) taken as the
+/// law's argument (sin θ ≈ θ over the KES range, Fig. 4.15). `T > 0` when the
+/// diagonal is longer than at rest: each diagonal measures the shear angle in
+/// its own sense, so both diagonals use the same expression.
+#[inline]
+pub fn shear_law(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64) {
+    let u = (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt);
+    let (sig, dsig) = law.eval(st, u);
+    (0.5 * sig * l, 0.5 * (dsig * l * l / (s.lc * s.lt) + sig), u)
+}
+
+#[inline]
+pub fn axial(xa: &Vector3<f64>, xb: &Vector3<f64>) -> (f64, Vector3<f64>) {
+    let d = xb - xa;
+    let l = d.norm();
+    if l > 1e-300 {
+        (l, d / l)
+    } else {
+        (0.0, Vector3::x())
+    }
+}
+
+/// `P = T' d̂d̂ᵀ + T/l (I − d̂d̂ᵀ)`; exact: `∂f_b/∂x_b = −P`, `∂f_b/∂x_a = P`.
+#[inline]
+pub fn axial_block(a: &Axial, projected: bool) -> Matrix3<f64> {
+    let ddt = a.dir * a.dir.transpose();
+    let (dt, g) = if projected {
+        (
+            a.dt.max(0.0),
+            if a.t > 0.0 {
+                a.t / a.l.max(1e-300)
+            } else {
+                0.0
+            },
+        )
+    } else {
+        (a.dt, a.t / a.l.max(1e-300))
+    };
+    ddt * (dt - g) + Matrix3::identity() * g
+}
+
+/// Elastic energy of a tension spring (J), elastic parts only.
+pub fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 {
+    let eps = l / s.l0 - 1.0;
+    let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
+    s.width * s.l0 * (law.elastic.energy(eps) - shear.elastic.energy(u))
+}
+
+/// Elastic energy of a shear spring (J): `½ l_c l_t Φ(u)`.
+pub fn shear_energy(s: &ShearSpring, law: &Law, l: f64) -> f64 {
+    let u = (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt);
+    0.5 * s.lc * s.lt * law.elastic.energy(u)
+}
+
+/// Elastic energy of a hinge (J): `L h Φ(κ)`.
+pub fn hinge_energy(h: &Hinge, law: &Law, theta: f64) -> f64 {
+    h.len * h.h * law.elastic.energy(theta / h.h)
+}
+
+// ---------------------------------------------------------------- hinges
+
+/// Minimal scalar arithmetic so the dihedral gradient can run on f64 and on
+/// dual numbers (forward-mode differentiation gives its exact Hessian).
+pub trait Num:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+{
+    fn c(v: f64) -> Self;
+    fn sqrt(self) -> Self;
+}
+
+impl Num for f64 {
+    #[inline]
+    fn c(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+}
+
+/// Dual number with 12 tangent directions.
+#[derive(Clone, Copy, Debug)]
+pub struct Dual {
+    pub v: f64,
+    pub d: [f64; 12],
+}
+
+impl std::ops::Add for Dual {
+    type Output = Dual;
+    #[inline]
+    fn add(self, o: Dual) -> Dual {
+        let mut d = self.d;
+        for (a, b) in d.iter_mut().zip(o.d) {
+            *a += b;
+        }
+        Dual { v: self.v + o.v, d }
+    }
+}
+impl std::ops::Sub for Dual {
+    type Output = Dual;
+    #[inline]
+    fn sub(self, o: Dual) -> Dual {
+        let mut d = self.d;
+        for (a, b) in d.iter_mut().zip(o.d) {
+            *a -= b;
+        }
+        Dual { v: self.v - o.v, d }
+    }
+}
+impl std::ops::Mul for Dual {
+    type Output = Dual;
+    #[inline]
+    fn mul(self, o: Dual) -> Dual {
+        let mut d = [0.0; 12];
+        for k in 0..12 {
+            d[k] = self.d[k] * o.v + self.v * o.d[k];
+        }
+        Dual { v: self.v * o.v, d }
+    }
+}
+impl std::ops::Div for Dual {
+    type Output = Dual;
+    #[inline]
+    fn div(self, o: Dual) -> Dual {
+        let inv = 1.0 / o.v;
+        let q = self.v * inv;
+        let mut d = [0.0; 12];
+        for k in 0..12 {
+            d[k] = (self.d[k] - q * o.d[k]) * inv;
+        }
+        Dual { v: q, d }
+    }
+}
+impl std::ops::Neg for Dual {
+    type Output = Dual;
+    #[inline]
+    fn neg(self) -> Dual {
+        let mut d = self.d;
+        for a in d.iter_mut() {
+            *a = -*a;
+        }
+        Dual { v: -self.v, d }
+    }
+}
+impl Num for Dual {
+    fn c(v: f64) -> Self {
+        Dual { v, d: [0.0; 12] }
+    }
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        let k = 0.5 / s;
+        let mut d = self.d;
+        for a in d.iter_mut() {
+            *a *= k;
+        }
+        Dual { v: s, d }
+    }
+}
+
+type V3<T> = [T; 3];
+#[inline]
+fn sub<T: Num>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+#[inline]
+fn cross<T: Num>(a: V3<T>, b: V3<T>) -> V3<T> {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+#[inline]
+fn dot<T: Num>(a: V3<T>, b: V3<T>) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn scale<T: Num>(a: V3<T>, s: T) -> V3<T> {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+/// Gradient of the signed dihedral angle θ of hinge (x0, x1 | x2, x3) with
+/// respect to the four positions. θ = 0 when flat, facets (x0,x1,x2), (x0,x1,x3).
+/// `∂θ/∂x2 = −|e| n_A/|n_A|²`, `∂θ/∂x3 = −|e| n_B/|n_B|²`, and the edge
+/// vertices share `−(g2 + g3)` according to where each wing's foot falls on the
+/// edge (translation and rotation invariance).
+#[inline]
+pub fn dihedral_grad<T: Num>(x: [V3<T>; 4]) -> [V3<T>; 4] {
+    let e = sub(x[1], x[0]);
+    let r2 = sub(x[2], x[0]);
+    let r3 = sub(x[3], x[0]);
+    let na = cross(e, r2);
+    let nb = cross(r3, e);
+    let ee = dot(e, e);
+    let le = ee.sqrt();
+    let g2 = scale(na, -le / dot(na, na));
+    let g3 = scale(nb, -le / dot(nb, nb));
+    let t2 = dot(r2, e) / ee;
+    let t3 = dot(r3, e) / ee;
+    let one = T::c(1.0);
+    let g1 = [
+        -(t2 * g2[0] + t3 * g3[0]),
+        -(t2 * g2[1] + t3 * g3[1]),
+        -(t2 * g2[2] + t3 * g3[2]),
+    ];
+    let g0 = [
+        -((one - t2) * g2[0] + (one - t3) * g3[0]),
+        -((one - t2) * g2[1] + (one - t3) * g3[1]),
+        -((one - t2) * g2[2] + (one - t3) * g3[2]),
+    ];
+    [g0, g1, g2, g3]
+}
+
+/// Signed dihedral angle θ (rad) of the hinge.
+#[inline]
+pub fn dihedral(x: [Vector3<f64>; 4]) -> f64 {
+    let e = x[1] - x[0];
+    let na = e.cross(&(x[2] - x[0]));
+    let nb = (x[3] - x[0]).cross(&e);
+    let le = e.norm().max(1e-300);
+    (na.cross(&nb).dot(&e) / le).atan2(na.dot(&nb))
+}
+
+#[inline]
+pub fn hinge_positions(h: &Hinge, x: &[Vector3<f64>]) -> [Vector3<f64>; 4] {
+    [x[h.v[0]], x[h.v[1]], x[h.v[2]], x[h.v[3]]]
+}
+
+/// θ and ∇θ as 12-vector.
+#[inline]
+pub fn dihedral_and_grad(p: [Vector3<f64>; 4]) -> (f64, SMatrix<f64, 12, 1>) {
+    let a = |v: &Vector3<f64>| [v.x, v.y, v.z];
+    let g = dihedral_grad([a(&p[0]), a(&p[1]), a(&p[2]), a(&p[3])]);
+    let mut out = SMatrix::<f64, 12, 1>::zeros();
+    for k in 0..4 {
+        for c in 0..3 {
+            out[3 * k + c] = g[k][c];
+        }
+    }
+    (dihedral(p), out)
+}
+
+/// Exact Hessian of θ (12 × 12), by forward differentiation of the gradient.
+pub fn dihedral_hessian(p: [Vector3<f64>; 4]) -> SMatrix<f64, 12, 12> {
+    let mut x = [[Dual::c(0.0); 3]; 4];
+    for k in 0..4 {
+        for c in 0..3 {
+            let mut d = [0.0; 12];
+            d[3 * k + c] = 1.0;
+            x[k][c] = Dual { v: p[k][c], d };
+        }
+    }
+    let g = dihedral_grad(x);
+    let mut h = SMatrix::<f64, 12, 12>::zeros();
+    for k in 0..4 {
+        for c in 0..3 {
+            for m in 0..12 {
+                h[(3 * k + c, m)] = g[k][c].d[m];
+            }
+        }
+    }
+    h
+}
+
+/// Bending hinge response: curvature κ = θ/h, moment σ(κ) per width; force
+/// `f = −L σ ∇θ` (from the energy `L h Φ(κ)`), with `L` the hinge edge's rest
+/// length. Returns (θ, κ, σ, σ', ∇θ).
+#[inline]
+pub fn hinge_eval(
+    h: &Hinge,
+    law: &Law,
+    st: &LawState,
+    x: &[Vector3<f64>],
+) -> (f64, f64, f64, f64, SMatrix<f64, 12, 1>) {
+    let p = hinge_positions(h, x);
+    let (theta, g) = dihedral_and_grad(p);
+    let kappa = theta / h.h;
+    let (s, ds) = law.eval(st, kappa);
+    (theta, kappa, s, ds, g)
+}
+
+/// Exact Jacobian ∂f/∂x of a hinge (12 × 12).
+pub fn hinge_jacobian_exact(
+    h: &Hinge,
+    law: &Law,
+    st: &LawState,
+    x: &[Vector3<f64>],
+) -> SMatrix<f64, 12, 12> {
+    let (_, _, s, ds, g) = hinge_eval(h, law, st, x);
+    let hess = dihedral_hessian(hinge_positions(h, x));
+    -(g * g.transpose() * (h.len * ds / h.h) + hess * (h.len * s))
+}

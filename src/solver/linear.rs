@@ -1,0 +1,280 @@
+//! The two linear solvers behind one interface: Baraff–Witkin's modified
+//! (filtered) preconditioned conjugate gradient, and a direct sparse Cholesky
+//! (faer) whose symbolic analysis is computed once and reused.
+//!
+//! Both solve `A Δv = b` subject to the per-vertex constraint filter of
+//! Baraff & Witkin (1998, §5.3): `Δv_i = S_i Δv_i + z_i`, where `S_i` is the
+//! identity (free), `I − n nᵀ` (contact along n), or 0 (pinned), and `z_i`
+//! is the prescribed velocity change in the constrained directions.
+
+use super::sparse::{BlockMatrix, LowerCsc};
+use anyhow::{anyhow, Result};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LinearSolverKind {
+    /// Filtered preconditioned conjugate gradient (block-Jacobi preconditioner).
+    #[default]
+    Pcg,
+    /// Sparse Cholesky (faer), symbolic factorisation reused.
+    Cholesky,
+}
+
+impl std::str::FromStr for LinearSolverKind {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "pcg" => Ok(Self::Pcg),
+            "cholesky" => Ok(Self::Cholesky),
+            _ => Err(format!(
+                "unknown linear solver {s:?}: expected pcg or cholesky"
+            )),
+        }
+    }
+}
+
+/// The constraint on one vertex for this step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Filter {
+    Free,
+    /// In contact: motion along `normal` is prescribed.
+    Normal(Vector3<f64>),
+    /// Fully prescribed (pinned).
+    Fixed,
+}
+
+impl Filter {
+    #[inline]
+    pub fn apply(&self, v: &Vector3<f64>) -> Vector3<f64> {
+        match self {
+            Filter::Free => *v,
+            Filter::Normal(n) => v - n * n.dot(v),
+            Filter::Fixed => Vector3::zeros(),
+        }
+    }
+    #[inline]
+    pub fn matrix(&self) -> Matrix3<f64> {
+        match self {
+            Filter::Free => Matrix3::identity(),
+            Filter::Normal(n) => Matrix3::identity() - n * n.transpose(),
+            Filter::Fixed => Matrix3::zeros(),
+        }
+    }
+}
+
+/// Workspace of the filtered PCG.
+#[derive(Debug, Clone, Default)]
+pub struct Pcg {
+    r: Vec<Vector3<f64>>,
+    c: Vec<Vector3<f64>>,
+    q: Vec<Vector3<f64>>,
+    s: Vec<Vector3<f64>>,
+    pinv: Vec<Matrix3<f64>>,
+}
+
+impl Pcg {
+    /// Solves with relative tolerance `tol` on the filtered, preconditioned
+    /// residual; `dv` holds the solution. Returns the iteration count.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve(
+        &mut self,
+        a: &BlockMatrix,
+        b: &[Vector3<f64>],
+        filter: &[Filter],
+        z: &[Vector3<f64>],
+        dv: &mut [Vector3<f64>],
+        tol: f64,
+        max_iter: usize,
+    ) -> Result<usize> {
+        let n = a.n;
+        self.r.resize(n, Vector3::zeros());
+        self.c.resize(n, Vector3::zeros());
+        self.q.resize(n, Vector3::zeros());
+        self.s.resize(n, Vector3::zeros());
+        self.pinv.resize(n, Matrix3::zeros());
+        for i in 0..n {
+            let d = a.val[a.diag[i]];
+            self.pinv[i] = d.try_inverse().unwrap_or_else(|| {
+                Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300)))
+            });
+        }
+        dv.copy_from_slice(z);
+        // δ0 = filter(b)ᵀ P⁻¹ filter(b)
+        let mut delta0 = 0.0;
+        for i in 0..n {
+            let fb = filter[i].apply(&b[i]);
+            delta0 += fb.dot(&(self.pinv[i] * fb));
+        }
+        a.mul(dv, &mut self.q);
+        let mut dnew = 0.0;
+        for i in 0..n {
+            self.r[i] = filter[i].apply(&(b[i] - self.q[i]));
+            self.c[i] = filter[i].apply(&(self.pinv[i] * self.r[i]));
+            dnew += self.r[i].dot(&self.c[i]);
+        }
+        if delta0 <= 0.0 {
+            return Ok(0);
+        }
+        let eps2 = tol * tol * delta0;
+        let mut it = 0;
+        while dnew > eps2 {
+            if it >= max_iter {
+                return Err(anyhow!(
+                    "PCG did not converge in {max_iter} iterations (residual ratio {:.2e})",
+                    (dnew / delta0).sqrt()
+                ));
+            }
+            a.mul(&self.c, &mut self.q);
+            let mut cq = 0.0;
+            for i in 0..n {
+                self.q[i] = filter[i].apply(&self.q[i]);
+                cq += self.c[i].dot(&self.q[i]);
+            }
+            if cq <= 0.0 || !cq.is_finite() {
+                return Err(anyhow!(
+                    "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
+                ));
+            }
+            let alpha = dnew / cq;
+            let dold = dnew;
+            dnew = 0.0;
+            for i in 0..n {
+                dv[i] += self.c[i] * alpha;
+                self.r[i] -= self.q[i] * alpha;
+                self.s[i] = self.pinv[i] * self.r[i];
+                dnew += self.r[i].dot(&self.s[i]);
+            }
+            let beta = dnew / dold;
+            for i in 0..n {
+                self.c[i] = filter[i].apply(&(self.s[i] + self.c[i] * beta));
+            }
+            it += 1;
+        }
+        Ok(it)
+    }
+}
+
+/// Direct solver: Cholesky of `S A S + (I − S) m` (SPD), symbolic analysis once.
+pub struct Direct {
+    csc: LowerCsc,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    mem: MemBuffer,
+    rhs: Vec<f64>,
+    tmp: Vec<Vector3<f64>>,
+    /// Row of each block of the pattern.
+    block_row: Vec<usize>,
+}
+
+impl std::fmt::Debug for Direct {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Direct")
+            .field("nnz", &self.csc.row_idx.len())
+            .finish()
+    }
+}
+
+impl Direct {
+    pub fn new(a: &BlockMatrix) -> Result<Direct> {
+        let csc = LowerCsc::new(a);
+        let sym = SymbolicSparseColMatRef::new_checked(
+            csc.dim,
+            csc.dim,
+            &csc.col_ptr,
+            None,
+            &csc.row_idx,
+        );
+        let symbolic =
+            factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
+                .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
+        let l_values = vec![0.0; symbolic.len_val()];
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+        ]);
+        Ok(Direct {
+            rhs: vec![0.0; csc.dim],
+            csc,
+            symbolic,
+            l_values,
+            mem: MemBuffer::new(req),
+            tmp: vec![Vector3::zeros(); a.n],
+            block_row: (0..a.n)
+                .flat_map(|i| std::iter::repeat_n(i, a.row_ptr[i + 1] - a.row_ptr[i]))
+                .collect(),
+        })
+    }
+
+    pub fn solve(
+        &mut self,
+        a: &BlockMatrix,
+        b: &[Vector3<f64>],
+        filter: &[Filter],
+        z: &[Vector3<f64>],
+        mass: &[f64],
+        dv: &mut [Vector3<f64>],
+    ) -> Result<()> {
+        let n = a.n;
+        // values of S A S + (I − S) m, lower triangle
+        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
+            let i = self.block_row[blk];
+            let j = a.col[blk];
+            let m = &a.val[blk];
+            let v = match (filter[i], filter[j]) {
+                (Filter::Free, Filter::Free) => m[(p as usize, q as usize)],
+                (fi, fj) => {
+                    let mut s = fi.matrix() * m * fj.matrix();
+                    if i == j {
+                        s += (Matrix3::identity() - fi.matrix()) * mass[i];
+                    }
+                    s[(p as usize, q as usize)]
+                }
+            };
+            self.csc.values[k] = v;
+        }
+        // rhs = S (b − A z)
+        a.mul(z, &mut self.tmp);
+        for i in 0..n {
+            let r = filter[i].apply(&(b[i] - self.tmp[i]));
+            self.rhs[3 * i] = r.x;
+            self.rhs[3 * i + 1] = r.y;
+            self.rhs[3 * i + 2] = r.z;
+        }
+        let sym = SymbolicSparseColMatRef::new_checked(
+            self.csc.dim,
+            self.csc.dim,
+            &self.csc.col_ptr,
+            None,
+            &self.csc.row_idx,
+        );
+        let mat = SparseColMatRef::new(sym, &self.csc.values);
+        let stack = MemStack::new(&mut self.mem);
+        let llt = self
+            .symbolic
+            .factorize_numeric_llt::<f64>(
+                &mut self.l_values,
+                mat,
+                Side::Lower,
+                LltRegularization::default(),
+                Par::Seq,
+                stack,
+                Default::default(),
+            )
+            .map_err(|e| {
+                anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}")
+            })?;
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, self.csc.dim, 1);
+        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        for i in 0..n {
+            dv[i] = Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]) + z[i];
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,681 @@
+//! The implicit step (thesis §3.5, eq. 3.3; Baraff & Witkin 1998):
+//!
+//! ```text
+//! (M − h ∂f/∂v − h² ∂f/∂x) Δv = h (f0 + h ∂f/∂x v0 + ∂f/∂x y)
+//! Δx = h (v0 + Δv) + y
+//! ```
+//!
+//! linearised once per step at a fixed time step `h`. With Rayleigh damping
+//! `∂f/∂v = C = αM + Σ_k β_k K̃_k` and `∂f/∂x = −Σ_k K̃_k` (projected
+//! stiffnesses of the tension, shear and bending families, see [`elements`]),
+//! the system matrix is `A = (1 − hα) M + Σ_k (h² − h β_k) K̃_k`: symmetric
+//! positive definite because α, β ≤ 0 and every K̃_k is PSD. Its block pattern
+//! is built once from the springs and hinges and reused every step.
+//!
+//! Pins and contacts act through the constraint filter (S, z) and the position
+//! correction y, never through penalty springs.
+
+pub mod elements;
+pub mod linear;
+pub mod sparse;
+
+use crate::cloth::Cloth;
+use crate::collision::Obstacle;
+use crate::fabric::Fabric;
+use anyhow::{bail, Result};
+use elements::*;
+pub use linear::{Filter, LinearSolverKind};
+use nalgebra::{Matrix3, Vector3};
+use serde::Serialize;
+use sparse::BlockMatrix;
+use std::time::Instant;
+
+/// Every knob of the integrator in one place.
+#[derive(Debug, Clone, Serialize)]
+pub struct Params {
+    /// Fixed time step, s.
+    pub dt: f64,
+    /// Gravity, m/s².
+    pub gravity: Vector3<f64>,
+    pub linear_solver: LinearSolverKind,
+    /// Relative tolerance of the PCG (on the preconditioned residual).
+    pub cg_tolerance: f64,
+    pub cg_max_iterations: usize,
+    /// Cloth thickness (thesis: 2 mm). A vertex rests at `obstacle thickness +
+    /// cloth thickness` from an obstacle's surface (the contact distance e).
+    pub cloth_thickness: f64,
+    /// Include the hysteretic parts of the laws.
+    pub hysteresis: bool,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            dt: 1e-3,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            linear_solver: LinearSolverKind::default(),
+            cg_tolerance: 1e-6,
+            cg_max_iterations: 2000,
+            cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
+            hysteresis: true,
+        }
+    }
+}
+
+/// How a pinned vertex moves.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum PinPath {
+    /// Held at a point.
+    Fixed(Vector3<f64>),
+    /// Moves from `start` (at time `t0`) with constant velocity.
+    Velocity {
+        start: Vector3<f64>,
+        velocity: Vector3<f64>,
+        t0: f64,
+    },
+    /// Piecewise-linear path through (time, position) waypoints; held at the
+    /// first before it and at the last after it.
+    Waypoints(Vec<(f64, Vector3<f64>)>),
+}
+
+impl PinPath {
+    /// Target position and velocity at time t.
+    pub fn at(&self, t: f64) -> (Vector3<f64>, Vector3<f64>) {
+        match self {
+            PinPath::Fixed(p) => (*p, Vector3::zeros()),
+            PinPath::Velocity {
+                start,
+                velocity,
+                t0,
+            } => (start + velocity * (t - t0), *velocity),
+            PinPath::Waypoints(w) => {
+                if w.is_empty() {
+                    return (Vector3::zeros(), Vector3::zeros());
+                }
+                if t <= w[0].0 {
+                    return (w[0].1, Vector3::zeros());
+                }
+                for k in 1..w.len() {
+                    let (t0, p0) = w[k - 1];
+                    let (t1, p1) = w[k];
+                    if t <= t1 {
+                        let v = (p1 - p0) / (t1 - t0).max(1e-300);
+                        return (p0 + v * (t - t0), v);
+                    }
+                }
+                (w[w.len() - 1].1, Vector3::zeros())
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Pin {
+    pub vertex: usize,
+    pub path: PinPath,
+}
+
+/// What one step did.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct StepStats {
+    pub iterations: usize,
+    pub contacts: usize,
+    pub assemble_s: f64,
+    pub solve_s: f64,
+    pub collide_s: f64,
+    pub total_s: f64,
+}
+
+/// Energies of the current state, J.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Energies {
+    pub kinetic: f64,
+    pub gravity: f64,
+    pub tension: f64,
+    pub shear: f64,
+    pub bending: f64,
+    /// Work done so far by the Rayleigh damping forces (≥ 0 dissipated).
+    pub dissipated_damping: f64,
+}
+
+impl Energies {
+    /// Kinetic + potential (gravity and elastic).
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.gravity + self.tension + self.shear + self.bending
+    }
+}
+
+/// Block positions of each element in the system matrix.
+#[derive(Debug, Clone)]
+struct Slots {
+    tension: Vec<[usize; 4]>,
+    shear: Vec<[usize; 4]>,
+    hinge: Vec<[usize; 16]>,
+}
+
+/// A cloth, its fabric and its scene, advanced at a fixed step.
+#[derive(Debug)]
+pub struct Simulation {
+    pub cloth: Cloth,
+    pub fabric: Fabric,
+    pub obstacles: Vec<Obstacle>,
+    pub pins: Vec<Pin>,
+    pub params: Params,
+    /// Simulated time, s.
+    pub time: f64,
+    pub steps: u64,
+    pub last: StepStats,
+    dissipated: f64,
+    a: BlockMatrix,
+    slots: Slots,
+    /// Total force at the start of the last step (internal + external + damping).
+    pub force: Vec<Vector3<f64>>,
+    b: Vec<Vector3<f64>>,
+    dv: Vec<Vector3<f64>>,
+    z: Vec<Vector3<f64>>,
+    y: Vec<Vector3<f64>>,
+    filter: Vec<Filter>,
+    contact_of: Vec<Option<(usize, f64)>>,
+    pinned: Vec<Option<usize>>,
+    pcg: linear::Pcg,
+    direct: Option<linear::Direct>,
+}
+
+impl Simulation {
+    pub fn new(cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
+        if !(params.dt.is_finite() && params.dt > 0.0) {
+            bail!("dt = {}: must be > 0 s", params.dt);
+        }
+        let fabric = if params.hysteresis {
+            fabric
+        } else {
+            fabric.without_hysteresis()
+        };
+        let n = cloth.len();
+        let mut cliques: Vec<Vec<usize>> = Vec::new();
+        cliques.extend(cloth.tension.iter().map(|s| vec![s.a, s.b]));
+        cliques.extend(cloth.shear.iter().map(|s| vec![s.a, s.b]));
+        cliques.extend(cloth.hinges.iter().map(|h| h.v.to_vec()));
+        let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
+        let pair = |a: &BlockMatrix, i: usize, j: usize| {
+            [a.index(i, i), a.index(i, j), a.index(j, i), a.index(j, j)]
+        };
+        let slots = Slots {
+            tension: cloth.tension.iter().map(|s| pair(&a, s.a, s.b)).collect(),
+            shear: cloth.shear.iter().map(|s| pair(&a, s.a, s.b)).collect(),
+            hinge: cloth
+                .hinges
+                .iter()
+                .map(|h| {
+                    let mut r = [0; 16];
+                    for p in 0..4 {
+                        for q in 0..4 {
+                            r[4 * p + q] = a.index(h.v[p], h.v[q]);
+                        }
+                    }
+                    r
+                })
+                .collect(),
+        };
+        let direct = match params.linear_solver {
+            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
+            LinearSolverKind::Pcg => None,
+        };
+        let z = vec![Vector3::zeros(); n];
+        Ok(Simulation {
+            cloth,
+            fabric,
+            obstacles: Vec::new(),
+            pins: Vec::new(),
+            params,
+            time: 0.0,
+            steps: 0,
+            last: StepStats::default(),
+            dissipated: 0.0,
+            a,
+            slots,
+            force: z.clone(),
+            b: z.clone(),
+            dv: z.clone(),
+            y: z.clone(),
+            z,
+            filter: vec![Filter::Free; n],
+            contact_of: vec![None; n],
+            pinned: vec![None; n],
+            pcg: linear::Pcg::default(),
+            direct,
+        })
+    }
+
+    /// Replaces the pins (checks the vertex indices).
+    pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<()> {
+        for p in &pins {
+            if p.vertex >= self.cloth.len() {
+                bail!(
+                    "pin on vertex {} but the cloth has {} vertices",
+                    p.vertex,
+                    self.cloth.len()
+                );
+            }
+        }
+        self.pinned.iter_mut().for_each(|p| *p = None);
+        for (k, p) in pins.iter().enumerate() {
+            self.pinned[p.vertex] = Some(k);
+        }
+        self.pins = pins;
+        Ok(())
+    }
+
+    /// Contact distance of obstacle `o`: its thickness plus the cloth's.
+    pub fn contact_distance(&self, o: usize) -> f64 {
+        self.obstacles[o].thickness + self.params.cloth_thickness
+    }
+
+    /// Switches the linear solver (builds the Cholesky analysis if needed).
+    pub fn set_linear_solver(&mut self, kind: LinearSolverKind) -> Result<()> {
+        self.params.linear_solver = kind;
+        if kind == LinearSolverKind::Cholesky && self.direct.is_none() {
+            self.direct = Some(linear::Direct::new(&self.a)?);
+        }
+        Ok(())
+    }
+
+    /// Advances one fixed step.
+    pub fn step(&mut self) -> Result<StepStats> {
+        let t_start = Instant::now();
+        let h = self.params.dt;
+        let t1 = self.time + h;
+        let n = self.cloth.len();
+        // 1. constraints for this step: pins, then contacts (filter, z, y)
+        let mut contacts = 0;
+        for i in 0..n {
+            self.filter[i] = Filter::Free;
+            self.z[i] = Vector3::zeros();
+            self.y[i] = Vector3::zeros();
+            self.contact_of[i] = None;
+            if let Some(k) = self.pinned[i] {
+                let (p, v) = self.pins[k].path.at(t1);
+                self.filter[i] = Filter::Fixed;
+                self.z[i] = v - self.cloth.v[i];
+                self.y[i] = p - self.cloth.x[i] - v * h;
+                continue;
+            }
+            let mut best: Option<(usize, crate::collision::Proximity, f64)> = None;
+            for (o, ob) in self.obstacles.iter().enumerate() {
+                let e = ob.thickness + self.params.cloth_thickness;
+                let pr = ob.proximity(&self.cloth.x[i]);
+                // contact zone: within e plus a margin of 10 % of e
+                if pr.distance < e * 1.1
+                    && best
+                        .as_ref()
+                        .is_none_or(|b| pr.distance - e < b.1.distance - b.2)
+                {
+                    best = Some((o, pr, e));
+                }
+            }
+            if let Some((o, pr, e)) = best {
+                let vrel = (self.cloth.v[i] - pr.velocity).dot(&pr.normal);
+                let pressed = self.force[i].dot(&pr.normal) < 0.0;
+                if vrel < 0.0 || pressed || pr.distance < e {
+                    self.filter[i] = Filter::Normal(pr.normal);
+                    // inelastic: the normal relative velocity becomes 0 (or separating if it was)
+                    self.z[i] = pr.normal * (-vrel).max(0.0);
+                    self.y[i] = pr.normal * (e - pr.distance).max(0.0);
+                    self.contact_of[i] = Some((o, ob_friction(&self.obstacles[o])));
+                    contacts += 1;
+                }
+            }
+        }
+        let t_collide = t_start.elapsed().as_secs_f64();
+        // 2. forces and system
+        let t_asm = Instant::now();
+        self.assemble();
+        let assemble_s = t_asm.elapsed().as_secs_f64();
+        // 3. solve
+        let t_solve = Instant::now();
+        let iterations = match self.params.linear_solver {
+            LinearSolverKind::Pcg => self.pcg.solve(
+                &self.a,
+                &self.b,
+                &self.filter,
+                &self.z,
+                &mut self.dv,
+                self.params.cg_tolerance,
+                self.params.cg_max_iterations,
+            )?,
+            LinearSolverKind::Cholesky => {
+                let d = self.direct.as_mut().expect("direct solver built");
+                d.solve(
+                    &self.a,
+                    &self.b,
+                    &self.filter,
+                    &self.z,
+                    &self.cloth.mass,
+                    &mut self.dv,
+                )?;
+                1
+            }
+        };
+        let solve_s = t_solve.elapsed().as_secs_f64();
+        for i in 0..n {
+            if !self.dv[i].iter().all(|c| c.is_finite()) {
+                bail!(
+                    "the step diverged at vertex {i} (non-finite velocity) at t = {:.4} s",
+                    self.time
+                );
+            }
+        }
+        // 4. velocities with Coulomb friction at contacts, positions
+        let t_post = Instant::now();
+        for i in 0..n {
+            let mut v = self.cloth.v[i] + self.dv[i];
+            if let (Some((o, mu)), Filter::Normal(nrm)) = (self.contact_of[i], self.filter[i]) {
+                // constraint impulse along the normal: (A Δv − b)_i · n
+                let mut r = -self.b[i];
+                for k in self.a.row_ptr[i]..self.a.row_ptr[i + 1] {
+                    r += self.a.val[k] * self.dv[self.a.col[k]];
+                }
+                let jn = r.dot(&nrm).max(0.0);
+                let vo = self.obstacles[o].proximity(&self.cloth.x[i]).velocity;
+                let rel = v - vo;
+                let vt = rel - nrm * rel.dot(&nrm);
+                let vtn = vt.norm();
+                if vtn > 0.0 {
+                    let dvt = (mu * jn / self.cloth.mass[i]).min(vtn);
+                    v -= vt * (dvt / vtn);
+                }
+            }
+            self.cloth.v[i] = v;
+            self.cloth.x[i] += v * h + self.y[i];
+        }
+        // 5. obstacles move; no vertex may end inside a thickened obstacle
+        for ob in self.obstacles.iter_mut() {
+            ob.advance(h);
+        }
+        self.project_out_of_obstacles();
+        // 6. hysteresis memory follows the new shape
+        self.commit_laws();
+        self.dissipated += self.damping_work(h);
+        self.time = t1;
+        self.steps += 1;
+        let collide_s = t_collide + t_post.elapsed().as_secs_f64();
+        self.last = StepStats {
+            iterations,
+            contacts,
+            assemble_s,
+            solve_s,
+            collide_s,
+            total_s: t_start.elapsed().as_secs_f64(),
+        };
+        Ok(self.last)
+    }
+
+    /// Pushes every vertex that ended a step inside an obstacle's contact
+    /// distance back to it, and removes its approaching normal velocity.
+    fn project_out_of_obstacles(&mut self) {
+        let cloth_t = self.params.cloth_thickness;
+        for i in 0..self.cloth.len() {
+            if self.pinned[i].is_some() {
+                continue;
+            }
+            for ob in &self.obstacles {
+                let e = ob.thickness + cloth_t;
+                // a few passes for curved or meeting surfaces
+                for _ in 0..3 {
+                    let pr = ob.proximity(&self.cloth.x[i]);
+                    if pr.distance >= e - 1e-9 {
+                        break;
+                    }
+                    self.cloth.x[i] += pr.normal * (e - pr.distance);
+                    let vn = (self.cloth.v[i] - pr.velocity).dot(&pr.normal);
+                    if vn < 0.0 {
+                        self.cloth.v[i] -= pr.normal * vn;
+                    }
+                }
+            }
+        }
+    }
+
+    fn commit_laws(&mut self) {
+        let c = &mut self.cloth;
+        let f = &self.fabric;
+        for (s, st) in c.tension.iter().zip(c.tension_state.iter_mut()) {
+            let l = (c.x[s.b] - c.x[s.a]).norm();
+            f.dir(s.weft).tensile.commit(st, l / s.l0 - 1.0);
+        }
+        for (s, st) in c.shear.iter().zip(c.shear_state.iter_mut()) {
+            let l = (c.x[s.b] - c.x[s.a]).norm();
+            f.shear
+                .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
+        }
+        for (hg, st) in c.hinges.iter().zip(c.hinge_state.iter_mut()) {
+            let th = dihedral(hinge_positions(hg, &c.x));
+            f.dir(hg.weft).bending.commit(st, th / hg.h);
+        }
+    }
+
+    /// Energy dissipated by the Rayleigh damping over the step just taken,
+    /// `−h vᵀ C v` with the C of this step (≥ 0).
+    fn damping_work(&self, h: f64) -> f64 {
+        let d = &self.fabric.damping;
+        let v = &self.cloth.v;
+        let mut w = 0.0;
+        for i in 0..self.cloth.len() {
+            w += -d.alpha * self.cloth.mass[i] * v[i].norm_squared();
+        }
+        let c = &self.cloth;
+        let f = &self.fabric;
+        if d.beta_tension != 0.0 {
+            for (s, st) in c.tension.iter().zip(&c.tension_state) {
+                let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+                let (t, dt, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+                let p = axial_block(&Axial { t, dt, l, dir }, true);
+                let dvv = v[s.a] - v[s.b];
+                w += -d.beta_tension * dvv.dot(&(p * dvv));
+            }
+        }
+        if d.beta_shear != 0.0 {
+            for (s, st) in c.shear.iter().zip(&c.shear_state) {
+                let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+                let (t, dt, _) = shear_law(s, &f.shear, st, l);
+                let p = axial_block(&Axial { t, dt, l, dir }, true);
+                let dvv = v[s.a] - v[s.b];
+                w += -d.beta_shear * dvv.dot(&(p * dvv));
+            }
+        }
+        if d.beta_bend != 0.0 {
+            for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
+                let (_, _, _, ds, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
+                let mut gv = 0.0;
+                for p in 0..4 {
+                    for q in 0..3 {
+                        gv += g[3 * p + q] * v[hg.v[p]][q];
+                    }
+                }
+                w += -d.beta_bend * hg.len * ds.max(0.0) / hg.h * gv * gv;
+            }
+        }
+        w * h
+    }
+
+    /// Builds `A` and `b` of the step, and the total force `self.force`.
+    fn assemble(&mut self) {
+        let h = self.params.dt;
+        let d = self.fabric.damping;
+        let c = &self.cloth;
+        let f = &self.fabric;
+        let a = &mut self.a;
+        a.clear();
+        let (force, rhs) = (&mut self.force, &mut self.b);
+        // rhs accumulates Σ_k (β_k − h) K̃_k v − K̃ y; force: f_el + f_ext + C v
+        for i in 0..c.len() {
+            let m = c.mass[i];
+            force[i] = self.params.gravity * m + c.v[i] * (d.alpha * m);
+            rhs[i] = Vector3::zeros();
+            a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
+        }
+        let v = &c.v;
+        let y = &self.y;
+        // tension
+        let ct = h * h - h * d.beta_tension;
+        for (k, (s, st)) in c.tension.iter().zip(&c.tension_state).enumerate() {
+            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+            let (t, dt, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+            let p = axial_block(&Axial { t, dt, l, dir }, true);
+            let sl = &self.slots.tension[k];
+            axial_scatter(a, sl, &p, ct);
+            let kv = p * (v[s.a] - v[s.b]);
+            let ky = p * (y[s.a] - y[s.b]);
+            let fe = dir * t + kv * d.beta_tension;
+            force[s.a] += fe;
+            force[s.b] -= fe;
+            let r = kv * (d.beta_tension - h) - ky;
+            rhs[s.a] += r;
+            rhs[s.b] -= r;
+        }
+        // shear
+        let cs = h * h - h * d.beta_shear;
+        for (k, (s, st)) in c.shear.iter().zip(&c.shear_state).enumerate() {
+            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+            let (t, dt, _) = shear_law(s, &f.shear, st, l);
+            let p = axial_block(&Axial { t, dt, l, dir }, true);
+            let sl = &self.slots.shear[k];
+            axial_scatter(a, sl, &p, cs);
+            let kv = p * (v[s.a] - v[s.b]);
+            let ky = p * (y[s.a] - y[s.b]);
+            let fe = dir * t + kv * d.beta_shear;
+            force[s.a] += fe;
+            force[s.b] -= fe;
+            let r = kv * (d.beta_shear - h) - ky;
+            rhs[s.a] += r;
+            rhs[s.b] -= r;
+        }
+        // bending
+        let cb = h * h - h * d.beta_bend;
+        for (k, (hg, st)) in c.hinges.iter().zip(&c.hinge_state).enumerate() {
+            let (_, _, s, ds, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
+            let kk = hg.len * ds.max(0.0) / hg.h;
+            let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
+            let gp = [gs(0), gs(1), gs(2), gs(3)];
+            let mut gv = 0.0;
+            let mut gy = 0.0;
+            for p in 0..4 {
+                gv += gp[p].dot(&v[hg.v[p]]);
+                gy += gp[p].dot(&y[hg.v[p]]);
+            }
+            let sl = &self.slots.hinge[k];
+            for p in 0..4 {
+                // elastic −L σ ∇θ, damping β K̃ v with K̃ v = kk g (g·v)
+                force[hg.v[p]] += gp[p] * (-hg.len * s + kk * gv * d.beta_bend);
+                rhs[hg.v[p]] += gp[p] * (kk * (gv * (d.beta_bend - h) - gy));
+                if kk != 0.0 {
+                    for q in 0..4 {
+                        a.val[sl[4 * p + q]] += gp[p] * gp[q].transpose() * (cb * kk);
+                    }
+                }
+            }
+        }
+        for i in 0..c.len() {
+            rhs[i] = (force[i] + rhs[i]) * h;
+        }
+    }
+
+    /// Energies of the current state (elastic parts of the laws).
+    pub fn energies(&self) -> Energies {
+        let c = &self.cloth;
+        let f = &self.fabric;
+        let mut e = Energies {
+            dissipated_damping: self.dissipated,
+            ..Default::default()
+        };
+        for i in 0..c.len() {
+            e.kinetic += 0.5 * c.mass[i] * c.v[i].norm_squared();
+            e.gravity -= c.mass[i] * self.params.gravity.dot(&c.x[i]);
+        }
+        for s in &c.tension {
+            e.tension += tension_energy(
+                s,
+                &f.dir(s.weft).tensile,
+                &f.shear,
+                (c.x[s.b] - c.x[s.a]).norm(),
+            );
+        }
+        for s in &c.shear {
+            e.shear += shear_energy(s, &f.shear, (c.x[s.b] - c.x[s.a]).norm());
+        }
+        for hg in &c.hinges {
+            e.bending += hinge_energy(
+                hg,
+                &f.dir(hg.weft).bending,
+                dihedral(hinge_positions(hg, &c.x)),
+            );
+        }
+        e
+    }
+
+    /// Internal (spring) forces only, at the current positions and memory.
+    pub fn internal_forces(&self) -> Vec<Vector3<f64>> {
+        let c = &self.cloth;
+        let f = &self.fabric;
+        let mut out = vec![Vector3::zeros(); c.len()];
+        for (s, st) in c.tension.iter().zip(&c.tension_state) {
+            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+            let (t, _, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+            out[s.a] += dir * t;
+            out[s.b] -= dir * t;
+        }
+        for (s, st) in c.shear.iter().zip(&c.shear_state) {
+            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+            let (t, _, _) = shear_law(s, &f.shear, st, l);
+            out[s.a] += dir * t;
+            out[s.b] -= dir * t;
+        }
+        for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
+            let (_, _, s, _, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
+            for p in 0..4 {
+                out[hg.v[p]] -= Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]) * (hg.len * s);
+            }
+        }
+        out
+    }
+
+    /// Root-mean-square speed of the free vertices, m/s.
+    pub fn rms_speed(&self) -> f64 {
+        let mut s = 0.0;
+        let mut n = 0;
+        for i in 0..self.cloth.len() {
+            if self.pinned[i].is_none() {
+                s += self.cloth.v[i].norm_squared();
+                n += 1;
+            }
+        }
+        if n == 0 {
+            0.0
+        } else {
+            (s / n as f64).sqrt()
+        }
+    }
+
+    /// Is vertex i pinned?
+    pub fn is_pinned(&self, i: usize) -> bool {
+        self.pinned[i].is_some()
+    }
+
+    /// Number of non-zero 3 × 3 blocks of the system matrix.
+    pub fn matrix_blocks(&self) -> usize {
+        self.a.nnz_blocks()
+    }
+}
+
+fn ob_friction(o: &Obstacle) -> f64 {
+    o.friction
+}
+
+#[inline]
+fn axial_scatter(a: &mut BlockMatrix, sl: &[usize; 4], p: &Matrix3<f64>, c: f64) {
+    let cp = p * c;
+    a.val[sl[0]] += cp;
+    a.val[sl[1]] -= cp;
+    a.val[sl[2]] -= cp;
+    a.val[sl[3]] += cp;
+}
