@@ -47,14 +47,29 @@ pub fn tension_law(
     st: &LawState,
     l: f64,
 ) -> (f64, f64, f64) {
+    let (t, dt, _, eps) = tension_law_step(s, law, shear, st, l);
+    (t, dt, eps)
+}
+
+/// [`tension_law`] plus the step tangent (see [`Law::eval_for_step`]):
+/// returns (T, dT/dl, dT/dl for the step matrix, ε).
+#[inline]
+pub fn tension_law_step(
+    s: &TensionSpring,
+    law: &Law,
+    shear: &Law,
+    st: &LawState,
+    l: f64,
+) -> (f64, f64, f64, f64) {
     let eps = l / s.l0 - 1.0;
-    let (sig, dsig) = law.eval(st, eps);
+    let (sig, dsig, dsig_step) = law.eval_for_step(st, eps);
     let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
     let (ss, dss) = shear.elastic.eval(u);
     let t = s.width * (sig - ss * l / s.l_other);
-    let dt =
-        s.width * (dsig / s.l0 - dss * (l / (s.l0 * s.l_other)) * (l / s.l_other) - ss / s.l_other);
-    (t, dt, eps)
+    let corr = dss * (l / (s.l0 * s.l_other)) * (l / s.l_other) + ss / s.l_other;
+    let dt = s.width * (dsig / s.l0 - corr);
+    let dt_step = s.width * (dsig_step / s.l0 - corr);
+    (t, dt, dt_step, eps)
 }
 
 /// Shear spring law, thesis eq. 4.54: `T = ½ FK(θ) l` with
@@ -64,9 +79,22 @@ pub fn tension_law(
 /// its own sense, so both diagonals use the same expression.
 #[inline]
 pub fn shear_law(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64) {
+    let (t, dt, _, u) = shear_law_step(s, law, st, l);
+    (t, dt, u)
+}
+
+/// [`shear_law`] plus the step tangent: (T, dT/dl, step dT/dl, sin θ).
+#[inline]
+pub fn shear_law_step(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64, f64) {
     let u = (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt);
-    let (sig, dsig) = law.eval(st, u);
-    (0.5 * sig * l, 0.5 * (dsig * l * l / (s.lc * s.lt) + sig), u)
+    let (sig, dsig, dsig_step) = law.eval_for_step(st, u);
+    let k = l * l / (s.lc * s.lt);
+    (
+        0.5 * sig * l,
+        0.5 * (dsig * k + sig),
+        0.5 * (dsig_step * k + sig),
+        u,
+    )
 }
 
 #[inline]
@@ -343,6 +371,19 @@ pub fn hinge_eval(
     let kappa = theta / h.h;
     let (s, ds) = law.eval(st, kappa);
     (theta, kappa, s, ds, g)
+}
+
+/// [`hinge_eval`] returning (σ, σ', step σ', ∇θ).
+#[inline]
+pub fn hinge_eval_step(
+    h: &Hinge,
+    law: &Law,
+    st: &LawState,
+    x: &[Vector3<f64>],
+) -> (f64, f64, f64, SMatrix<f64, 12, 1>) {
+    let (theta, g) = dihedral_and_grad(hinge_positions(h, x));
+    let (s, ds, ds_step) = law.eval_for_step(st, theta / h.h);
+    (s, ds, ds_step, g)
 }
 
 /// Exact Jacobian ∂f/∂x of a hinge (12 × 12).

@@ -16,6 +16,7 @@
 //! correction y, never through penalty springs.
 
 pub mod elements;
+pub mod family;
 pub mod linear;
 pub mod sparse;
 
@@ -507,7 +508,8 @@ impl Simulation {
         let a = &mut self.a;
         a.clear();
         let (force, rhs) = (&mut self.force, &mut self.b);
-        // rhs accumulates Σ_k (β_k − h) K̃_k v − K̃ y; force: f_el + f_ext + C v
+        // b = h (f0 − K̃s (h v + y)), f0 = f_el + f_ext + C v (C with the branch
+        // tangents K̃d); A = (1 − hα) M + h² K̃s − h β K̃d (K̃s: step tangents)
         for i in 0..c.len() {
             let m = c.mass[i];
             force[i] = self.params.gravity * m + c.v[i] * (d.alpha * m);
@@ -516,45 +518,45 @@ impl Simulation {
         }
         let v = &c.v;
         let y = &self.y;
-        // tension
-        let ct = h * h - h * d.beta_tension;
+        // tension and shear: stiffness with the step tangent, damping with the branch tangent
+        let ct = h * h;
         for (k, (s, st)) in c.tension.iter().zip(&c.tension_state).enumerate() {
             let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let (t, dt, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
-            let p = axial_block(&Axial { t, dt, l, dir }, true);
+            let (t, dt, dts, _) = tension_law_step(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+            let pd = axial_block(&Axial { t, dt, l, dir }, true);
+            let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
             let sl = &self.slots.tension[k];
-            axial_scatter(a, sl, &p, ct);
-            let kv = p * (v[s.a] - v[s.b]);
-            let ky = p * (y[s.a] - y[s.b]);
-            let fe = dir * t + kv * d.beta_tension;
+            axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_tension)), 1.0);
+            let dvab = v[s.a] - v[s.b];
+            let kdv = pd * dvab;
+            let fe = dir * t + kdv * d.beta_tension;
             force[s.a] += fe;
             force[s.b] -= fe;
-            let r = kv * (d.beta_tension - h) - ky;
+            let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
             rhs[s.a] += r;
             rhs[s.b] -= r;
         }
-        // shear
-        let cs = h * h - h * d.beta_shear;
         for (k, (s, st)) in c.shear.iter().zip(&c.shear_state).enumerate() {
             let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let (t, dt, _) = shear_law(s, &f.shear, st, l);
-            let p = axial_block(&Axial { t, dt, l, dir }, true);
+            let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
+            let pd = axial_block(&Axial { t, dt, l, dir }, true);
+            let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
             let sl = &self.slots.shear[k];
-            axial_scatter(a, sl, &p, cs);
-            let kv = p * (v[s.a] - v[s.b]);
-            let ky = p * (y[s.a] - y[s.b]);
-            let fe = dir * t + kv * d.beta_shear;
+            axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_shear)), 1.0);
+            let dvab = v[s.a] - v[s.b];
+            let kdv = pd * dvab;
+            let fe = dir * t + kdv * d.beta_shear;
             force[s.a] += fe;
             force[s.b] -= fe;
-            let r = kv * (d.beta_shear - h) - ky;
+            let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
             rhs[s.a] += r;
             rhs[s.b] -= r;
         }
         // bending
-        let cb = h * h - h * d.beta_bend;
         for (k, (hg, st)) in c.hinges.iter().zip(&c.hinge_state).enumerate() {
-            let (_, _, s, ds, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
-            let kk = hg.len * ds.max(0.0) / hg.h;
+            let (s, ds, dss, g) = hinge_eval_step(hg, &f.dir(hg.weft).bending, st, &c.x);
+            let kd = hg.len * ds.max(0.0) / hg.h;
+            let ks = hg.len * dss.max(0.0) / hg.h;
             let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
             let gp = [gs(0), gs(1), gs(2), gs(3)];
             let mut gv = 0.0;
@@ -564,13 +566,14 @@ impl Simulation {
                 gy += gp[p].dot(&y[hg.v[p]]);
             }
             let sl = &self.slots.hinge[k];
+            let cm = h * h * ks - h * d.beta_bend * kd;
             for p in 0..4 {
-                // elastic −L σ ∇θ, damping β K̃ v with K̃ v = kk g (g·v)
-                force[hg.v[p]] += gp[p] * (-hg.len * s + kk * gv * d.beta_bend);
-                rhs[hg.v[p]] += gp[p] * (kk * (gv * (d.beta_bend - h) - gy));
-                if kk != 0.0 {
+                // elastic −L σ ∇θ; damping β K̃ v with K̃ v = kd g (g·v)
+                force[hg.v[p]] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
+                rhs[hg.v[p]] -= gp[p] * (ks * (h * gv + gy));
+                if cm != 0.0 {
                     for q in 0..4 {
-                        a.val[sl[4 * p + q]] += gp[p] * gp[q].transpose() * (cb * kk);
+                        a.val[sl[4 * p + q]] += gp[p] * gp[q].transpose() * cm;
                     }
                 }
             }

@@ -1,0 +1,239 @@
+//! Every force Jacobian against central finite differences, on random
+//! deformed configurations, for each spring family and both hysteresis branches.
+
+use garment_sim::cloth::{Cloth, GridSpec};
+use garment_sim::fabric::Fabric;
+use garment_sim::solver::family::Family;
+use garment_sim::solver::{Params, Simulation};
+use nalgebra::{Isometry3, Vector3};
+use rand::{Rng, SeedableRng};
+
+fn fixture() -> Fabric {
+    Fabric::load(std::path::Path::new("tests/data/acrylic_test.yaml")).unwrap()
+}
+
+/// A 4 × 5 cloth, deformed randomly; memory committed at a first random shape
+/// with random σp inside the loop, then moved to a second shape so that springs
+/// sit on both branches (increment > 0 and < 0).
+fn deformed(seed: u64, scale: f64) -> Simulation {
+    let spec = GridSpec {
+        size: [0.06, 0.08],
+        spacing: [0.02, 0.02],
+        pose: Isometry3::identity(),
+    };
+    let cloth = Cloth::grid(&spec, 0.213).unwrap();
+    let mut sim = Simulation::new(cloth, fixture(), Params::default()).unwrap();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    for p in sim.cloth.x.iter_mut() {
+        *p += Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ) * scale;
+    }
+    sim.commit();
+    let (t, s, b) = sim.laws_mut();
+    for st in t.iter_mut().chain(s.iter_mut()).chain(b.iter_mut()) {
+        st.sp = rng.random_range(-0.3..0.3);
+        st.dir = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    }
+    for p in sim.cloth.x.iter_mut() {
+        *p += Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        ) * scale;
+    }
+    sim
+}
+
+fn check(fam: Family, seed: u64, scale: f64) {
+    let mut sim = deformed(seed, scale);
+    let k = sim.family_jacobian(fam, false);
+    let n = sim.cloth.len();
+    let mut max_err: f64 = 0.0;
+    let mut max_val: f64 = 0.0;
+    let h = 1e-7;
+    for j in 0..n {
+        for q in 0..3 {
+            let x0 = sim.cloth.x[j][q];
+            sim.cloth.x[j][q] = x0 + h;
+            let fp = sim.family_forces(fam);
+            sim.cloth.x[j][q] = x0 - h;
+            let fm = sim.family_forces(fam);
+            sim.cloth.x[j][q] = x0;
+            for i in 0..n {
+                let fd = (fp[i] - fm[i]) / (2.0 * h);
+                let an = match k.col[k.row_ptr[i]..k.row_ptr[i + 1]].binary_search(&j) {
+                    Ok(pos) => k.val[k.row_ptr[i] + pos].column(q).into_owned(),
+                    Err(_) => Vector3::zeros(),
+                };
+                max_err = max_err.max((fd - an).amax());
+                max_val = max_val.max(an.amax());
+            }
+        }
+    }
+    let rel = max_err / max_val;
+    println!("{fam:?} seed {seed}: max |J - J_fd| / max |J| = {rel:.2e} (max |J| = {max_val:.3e})");
+    assert!(max_val > 0.0);
+    assert!(rel < 1e-5, "{fam:?}: relative error {rel:e}");
+}
+
+#[test]
+fn tension_jacobian_matches_finite_differences() {
+    for seed in 0..4 {
+        check(Family::Tension, seed, 0.0015);
+    }
+}
+
+#[test]
+fn shear_jacobian_matches_finite_differences() {
+    for seed in 0..4 {
+        check(Family::Shear, seed, 0.0015);
+    }
+}
+
+#[test]
+fn bending_jacobian_matches_finite_differences() {
+    for seed in 0..4 {
+        check(Family::Bending, seed, 0.004);
+    }
+}
+
+#[test]
+fn both_hysteresis_branches_are_exercised() {
+    let sim = deformed(1, 0.0015);
+    let c = &sim.cloth;
+    let (mut up, mut down) = (0, 0);
+    for (s, st) in c.tension.iter().zip(&c.tension_state) {
+        let e = (c.x[s.b] - c.x[s.a]).norm() / s.l0 - 1.0;
+        if e > st.x {
+            up += 1
+        } else if e < st.x {
+            down += 1
+        }
+    }
+    assert!(up > 5 && down > 5, "up {up} down {down}");
+}
+
+/// ∂f/∂v: finite differences of the total force with respect to velocities
+/// equal the damping matrix C = αM + Σ β K̃ the solver assembles.
+#[test]
+fn velocity_jacobian_is_the_damping_matrix() {
+    let mut sim = deformed(7, 0.0015);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+    let n = sim.cloth.len();
+    let v: Vec<Vector3<f64>> = (0..n)
+        .map(|_| {
+            Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            )
+        })
+        .collect();
+    sim.cloth.v = v.clone();
+    let c = sim.damping_matrix();
+    let h = 1e-6;
+    let mut max_err: f64 = 0.0;
+    let mut max_val: f64 = 0.0;
+    for j in 0..n {
+        for q in 0..3 {
+            let mut vp = v.clone();
+            vp[j][q] += h;
+            let mut vm = v.clone();
+            vm[j][q] -= h;
+            let fp = sim.total_force_at_velocity(&vp);
+            let fm = sim.total_force_at_velocity(&vm);
+            for i in 0..n {
+                let fd = (fp[i] - fm[i]) / (2.0 * h);
+                let an = match c.col[c.row_ptr[i]..c.row_ptr[i + 1]].binary_search(&j) {
+                    Ok(pos) => c.val[c.row_ptr[i] + pos].column(q).into_owned(),
+                    Err(_) => Vector3::zeros(),
+                };
+                max_err = max_err.max((fd - an).amax());
+                max_val = max_val.max(an.amax());
+            }
+        }
+    }
+    assert!(max_err / max_val < 1e-6, "{}", max_err / max_val);
+}
+
+/// The forces are the negative gradient of the elastic energies reported in
+/// energy.csv (hysteresis off), and the dihedral gradient is that of the angle.
+#[test]
+fn forces_are_energy_gradients() {
+    let mut sim = deformed(11, 0.002);
+    let f = fixture().without_hysteresis();
+    sim.fabric = f;
+    let n = sim.cloth.len();
+    let fam_e = |s: &Simulation, fam: Family| {
+        let e = s.energies();
+        match fam {
+            Family::Tension => e.tension,
+            Family::Shear => e.shear,
+            Family::Bending => e.bending,
+        }
+    };
+    for fam in [Family::Tension, Family::Shear, Family::Bending] {
+        let force = sim.family_forces(fam);
+        let h = 1e-7;
+        let mut max_err: f64 = 0.0;
+        let mut max_val: f64 = 0.0;
+        for j in 0..n {
+            for q in 0..3 {
+                let x0 = sim.cloth.x[j][q];
+                sim.cloth.x[j][q] = x0 + h;
+                let ep = fam_e(&sim, fam);
+                sim.cloth.x[j][q] = x0 - h;
+                let em = fam_e(&sim, fam);
+                sim.cloth.x[j][q] = x0;
+                let fd = -(ep - em) / (2.0 * h);
+                max_err = max_err.max((fd - force[j][q]).abs());
+                max_val = max_val.max(force[j][q].abs());
+            }
+        }
+        println!(
+            "{fam:?}: force vs -dE/dx relative error {:.2e}",
+            max_err / max_val
+        );
+        assert!(max_err / max_val < 1e-5, "{fam:?} {}", max_err / max_val);
+    }
+}
+
+#[test]
+fn dihedral_gradient_matches_finite_differences() {
+    use garment_sim::solver::elements::{dihedral, dihedral_and_grad};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    for _ in 0..20 {
+        let mut p = [
+            Vector3::new(0.0, 0.0, 0.0),
+            Vector3::new(0.0, 0.02, 0.0),
+            Vector3::new(-0.02, 0.0, 0.0),
+            Vector3::new(0.02, 0.02, 0.0),
+        ];
+        for x in p.iter_mut() {
+            *x += Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * 0.006;
+        }
+        let (_, g) = dihedral_and_grad(p);
+        for k in 0..4 {
+            for c in 0..3 {
+                let h = 1e-7;
+                let mut a = p;
+                a[k][c] += h;
+                let mut b = p;
+                b[k][c] -= h;
+                let fd = (dihedral(a) - dihedral(b)) / (2.0 * h);
+                assert!(
+                    (fd - g[3 * k + c]).abs() < 1e-5 * g.amax(),
+                    "k {k} c {c}: fd {fd} g {}",
+                    g[3 * k + c]
+                );
+            }
+        }
+    }
+}

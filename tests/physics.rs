@@ -1,0 +1,270 @@
+//! Physics of the cloth core against closed-form limits and the thesis'
+//! validation experiments (numbers asserted; figures printed with --nocapture).
+
+use garment_sim::cloth::{Cloth, GridSpec};
+use garment_sim::fabric::Fabric;
+use garment_sim::run;
+use garment_sim::scene::{Overrides, Scene};
+use garment_sim::solver::{Params, Pin, PinPath, Simulation};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use std::path::Path;
+
+fn fixture() -> Fabric {
+    Fabric::load(Path::new("tests/data/acrylic_test.yaml")).unwrap()
+}
+
+fn scene(name: &str) -> Scene {
+    Scene::load(&Path::new("config/scenes").join(name)).unwrap()
+}
+
+/// 30 cm square at 3 cm, held by two adjacent corners, released horizontal.
+fn swinging(fabric: Fabric, dt: f64) -> Simulation {
+    let spec = GridSpec {
+        size: [0.3, 0.3],
+        spacing: [0.03, 0.03],
+        pose: Isometry3::from_parts(Translation3::new(0.0, 0.0, 1.0), UnitQuaternion::identity()),
+    };
+    let cloth = Cloth::grid(&spec, fabric.areal_mass).unwrap();
+    let params = Params {
+        dt,
+        hysteresis: false,
+        ..Params::default()
+    };
+    let mut sim = Simulation::new(cloth, fabric, params).unwrap();
+    let a = sim.cloth.index(0, 0).unwrap();
+    let b = sim.cloth.index(10, 0).unwrap();
+    let pins = vec![
+        Pin {
+            vertex: a,
+            path: PinPath::Fixed(sim.cloth.x[a]),
+        },
+        Pin {
+            vertex: b,
+            path: PinPath::Fixed(sim.cloth.x[b]),
+        },
+    ];
+    sim.set_pins(pins).unwrap();
+    sim
+}
+
+#[test]
+fn undamped_energy_drift_is_bounded() {
+    // No damping, no hysteresis, dt = 1e-4 s, 0.3 s of swinging: implicit
+    // Euler's numerical dissipation is the only loss. Bound: 3 % of the
+    // potential energy released.
+    let mut sim = swinging(fixture().undamped(), 1e-4);
+    let e0 = sim.energies().total();
+    let mut released: f64 = 0.0;
+    let mut drift: f64 = 0.0;
+    for _ in 0..3000 {
+        sim.step().unwrap();
+        let e = sim.energies();
+        released = released.max(e.kinetic);
+        drift = drift.max((e.total() - e0).abs());
+    }
+    println!(
+        "undamped: max |E - E0| = {drift:.3e} J, max kinetic = {released:.3e} J, ratio {:.3}",
+        drift / released
+    );
+    assert!(released > 1e-3, "the cloth must swing");
+    assert!(
+        drift / released < 0.03,
+        "drift {:.3} of the kinetic energy",
+        drift / released
+    );
+}
+
+#[test]
+fn damped_energy_never_increases() {
+    let mut sim = swinging(fixture(), 1e-3);
+    let mut prev = sim.energies().total();
+    let mut worst: f64 = 0.0;
+    for _ in 0..1500 {
+        sim.step().unwrap();
+        let e = sim.energies().total();
+        worst = worst.max(e - prev);
+        prev = e;
+    }
+    println!("damped: largest one-step energy increase {worst:.3e} J");
+    assert!(worst <= 1e-9, "energy increased by {worst:e} J in one step");
+}
+
+#[test]
+fn free_fall_reaches_terminal_speed_g_over_alpha() {
+    let sc = scene("free_fall.yaml");
+    let mut sim = sc
+        .build(&Overrides {
+            duration: Some(1.5),
+            ..Default::default()
+        })
+        .unwrap();
+    let alpha = sim.fabric.damping.alpha;
+    for _ in 0..1500 {
+        sim.step().unwrap();
+    }
+    let vz: f64 = sim.cloth.v.iter().map(|v| v.z).sum::<f64>() / sim.cloth.len() as f64;
+    let expected = 9.81 / alpha.abs();
+    println!(
+        "terminal speed {:.4} m/s, g/|alpha| = {expected:.4} m/s",
+        -vz
+    );
+    assert!((expected - 1.401).abs() < 0.001);
+    assert!(((-vz) / expected - 1.0).abs() < 0.01);
+}
+
+#[test]
+fn hanging_cloth_reaches_static_equilibrium() {
+    let sc = scene("hanging_corners.yaml");
+    let mut sim = sc.build(&Overrides::default()).unwrap();
+    let steps = (sc.file.duration / sim.params.dt).round() as usize;
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    let g = 9.81;
+    let f = sim.internal_forces();
+    let mut worst: f64 = 0.0;
+    for i in 0..sim.cloth.len() {
+        if sim.is_pinned(i) {
+            continue;
+        }
+        let total = f[i] + sim.params.gravity * sim.cloth.mass[i];
+        worst = worst.max(total.norm() / (sim.cloth.mass[i] * g));
+    }
+    println!("hanging: worst residual force per free vertex = {worst:.2e} of its weight; rms speed {:.2e} m/s", sim.rms_speed());
+    assert!(worst < 0.01, "residual {worst}");
+    // No tension spring stretches beyond what the tensile loading curve gives
+    // for the whole weight of the cloth carried by that spring alone.
+    let weight = sim.cloth.total_mass() * g;
+    let c = &sim.cloth;
+    for s in &c.tension {
+        let eps = (c.x[s.b] - c.x[s.a]).norm() / s.l0 - 1.0;
+        let curve = &sim.fabric.dir(s.weft).tensile_curve.load;
+        let load = weight / s.width;
+        let allowed = curve
+            .iter()
+            .find(|p| p.1 >= load)
+            .map(|p| p.0)
+            .unwrap_or(curve.last().unwrap().0);
+        assert!(
+            eps <= allowed,
+            "spring strain {eps} > {allowed} allowed by the curve at {load} N/m"
+        );
+    }
+}
+
+struct Drape {
+    sim: Simulation,
+    settle: Option<f64>,
+}
+
+fn drape(spacing: f64, duration: f64) -> Drape {
+    let sc = scene("table_drape.yaml");
+    let ov = Overrides {
+        spacing: Some(spacing),
+        duration: Some(duration),
+        ..Default::default()
+    };
+    let mut sim = sc.build(&ov).unwrap();
+    let (_, s) = run::run(
+        &mut sim,
+        duration,
+        30.0,
+        sc.file.settle_speed,
+        &mut |_, _| {},
+    )
+    .unwrap();
+    Drape {
+        sim,
+        settle: s.settle_time_s,
+    }
+}
+
+/// Mean distance (thesis eq. 6.2) from each vertex of the coarse grid to its
+/// homologue (same material point) on the fine grid.
+fn mean_distance(coarse: &Simulation, fine: &Simulation) -> f64 {
+    let c = &coarse.cloth;
+    let s: f64 = c
+        .material
+        .iter()
+        .zip(&c.x)
+        .map(|(m, p)| (fine.cloth.at_material(m[0], m[1]) - p).norm())
+        .sum();
+    s / c.len() as f64
+}
+
+#[test]
+fn table_drape_rests_on_board_and_settles_and_converges() {
+    let d5 = drape(0.05, 3.0);
+    let d2 = drape(0.02, 3.0);
+    let d1 = drape(0.01, 3.0);
+    // 1. the 2 cm drape: on the board, overhang down, settled within 3 s
+    let sim = &d2.sim;
+    let board = &sim.obstacles[0];
+    let e = board.thickness + sim.params.cloth_thickness;
+    let up = board.pose.rotation * Vector3::z();
+    let top = board.pose.translation.vector + up * 0.0025;
+    let (mut over, mut worst_gap, mut min_d, mut hang): (usize, f64, f64, f64) =
+        (0, 0.0, f64::INFINITY, 0.0);
+    for (p, m) in sim.cloth.x.iter().zip(&sim.cloth.material) {
+        let pr = board.proximity(p);
+        min_d = min_d.min(pr.distance);
+        let height = (p - top).dot(&up);
+        // the part over the board: material points strictly inside the board's
+        // outline (the board spans u ∈ [0.10, 0.40], v ∈ [0.20, 0.40]; the rows
+        // on its edges wrap around them)
+        let inside =
+            m[0] > 0.10 + 1e-9 && m[0] < 0.40 - 1e-9 && m[1] > 0.20 + 1e-9 && m[1] < 0.40 - 1e-9;
+        if inside {
+            over += 1;
+            worst_gap = worst_gap.max(height);
+        } else {
+            hang = hang.min(height);
+        }
+    }
+    println!(
+        "2 cm drape: {over} vertices over the board, farthest {:.2} mm above its top; min distance to board {:.2} mm (contact distance {:.1} mm); lowest overhang {:.1} cm below the top; settle {:?} s",
+        worst_gap * 1e3, min_d * 1e3, e * 1e3, -hang * 100.0, d2.settle
+    );
+    assert!(over > 100);
+    assert!(min_d >= e - 1e-6, "a vertex is inside the thickened board");
+    assert!(
+        worst_gap < 0.01,
+        "part over the board is {worst_gap} m above it"
+    );
+    assert!(
+        hang < -0.15,
+        "the 20 cm overhang must hang down (lowest {hang})"
+    );
+    let settle2 = d2.settle.expect("2 cm drape settles");
+    assert!(settle2 < 3.0);
+    // 2. grid convergence (thesis §6.4.2.3)
+    let e52 = mean_distance(&d5.sim, &d2.sim);
+    let e21 = mean_distance(&d2.sim, &d1.sim);
+    println!(
+        "grid convergence: e(5 cm, 2 cm) = {:.2} cm, e(2 cm, 1 cm) = {:.2} cm",
+        e52 * 100.0,
+        e21 * 100.0
+    );
+    assert!(e21 < e52, "the drape must converge as the grid is refined");
+    // 3. settle time roughly independent of the grid (thesis §6.6)
+    let s: Vec<f64> = [&d5, &d2, &d1]
+        .iter()
+        .map(|d| d.settle.expect("settles"))
+        .collect();
+    let (lo, hi) = (
+        s.iter().cloned().fold(f64::INFINITY, f64::min),
+        s.iter().cloned().fold(0.0, f64::max),
+    );
+    println!(
+        "settle times 5/2/1 cm: {:.3} / {:.3} / {:.3} s, spread {:.0} %",
+        s[0],
+        s[1],
+        s[2],
+        100.0 * (hi - lo) / hi
+    );
+    assert!(
+        (hi - lo) / hi < 0.35,
+        "settle time spread {:.2}",
+        (hi - lo) / hi
+    );
+}
