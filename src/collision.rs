@@ -14,6 +14,9 @@ use std::path::Path;
 pub const DEFAULT_OBSTACLE_THICKNESS: f64 = 0.006;
 /// Default cloth thickness (thesis: 2 mm).
 pub const DEFAULT_CLOTH_THICKNESS: f64 = 0.002;
+/// Vertices (m) and triangles of a mesh.
+pub type MeshData = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+
 /// Largest triangle mesh accepted for an obstacle.
 pub const MAX_MESH_TRIANGLES: usize = 2_000_000;
 
@@ -76,7 +79,7 @@ pub struct Obstacle {
     pub thickness: f64,
     pub friction: f64,
     /// Mesh data for visualisation (vertices in the obstacle frame).
-    pub mesh: Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)>,
+    pub mesh: Option<MeshData>,
 }
 
 impl std::fmt::Debug for Obstacle {
@@ -236,6 +239,19 @@ impl Obstacle {
         }
     }
 
+    /// World-space bounding box grown by `margin` (broad phase: a point outside
+    /// it is farther than `margin` from the obstacle).
+    pub fn bounds(&self, margin: f64) -> ([f64; 3], [f64; 3]) {
+        let aabb = self
+            .shape
+            .compute_aabb(&(self.pose * self.shape_pose_offset));
+        let (a, b) = (aabb.mins, aabb.maxs);
+        (
+            [a.x - margin, a.y - margin, a.z - margin],
+            [b.x + margin, b.y + margin, b.z + margin],
+        )
+    }
+
     /// Advances a moving obstacle by its prescribed velocity over `dt`.
     pub fn advance(&mut self, dt: f64) {
         if self.linear_velocity == Vector3::zeros() && self.angular_velocity == Vector3::zeros() {
@@ -291,7 +307,7 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
 }
 
 /// Reads the vertices and faces of a Wavefront OBJ file (faces fan-triangulated).
-pub fn load_obj(path: &Path) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+pub fn load_obj(path: &Path) -> Result<MeshData> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read OBJ file {}", path.display()))?;
     let mut v = Vec::new();

@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)] // numeric kernels index several parallel arrays
 //! `garment_sim`: measured-parameter woven-fabric cloth simulation (Charfi 2006)
 //! advanced by the Baraff–Witkin implicit solver at a fixed time step.
 //!

@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! Every force Jacobian against central finite differences, on random
 //! deformed configurations, for each spring family and both hysteresis branches.
 

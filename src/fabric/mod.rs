@@ -32,9 +32,9 @@ impl Family {
     /// 0.5–1.5 cm⁻¹ for bending) while reversals stay rounded as in KES plots.
     pub fn memory_length(self, xmax: f64) -> f64 {
         match self {
-            Family::Tensile => 0.08 * xmax,
-            Family::Shear => 1.0 * DEG,
-            Family::Bending => 0.4 * PER_CM,
+            Family::Tensile => 0.02 * xmax,
+            Family::Shear => 0.25 * DEG,
+            Family::Bending => 0.1 * PER_CM,
         }
     }
 }

@@ -22,12 +22,14 @@ use serde::{Deserialize, Serialize};
 pub enum LinearSolverKind {
     /// Filtered preconditioned conjugate gradient (block-Jacobi preconditioner).
     Pcg,
-    /// Sparse Cholesky (faer), symbolic factorisation reused. The default: on
-    /// the table drape it is 2.5× (2 cm) to 5× (1 cm) faster than the PCG, whose
-    /// iteration count grows with the stiffness hysteresis adds at rest
-    /// (`garment_sim bench`, README).
-    #[default]
+    /// Sparse Cholesky (faer), symbolic factorisation reused.
     Cholesky,
+    /// The default: times both and uses the faster. By benchmark (README) the
+    /// PCG wins at small steps (dt = 1e-4 s: 4–12 iterations) and the Cholesky
+    /// at large ones (dt = 1e-3 s on 1 cm and finer grids, where the PCG needs
+    /// hundreds of iterations), so neither is the faster everywhere.
+    #[default]
+    Auto,
 }
 
 impl std::str::FromStr for LinearSolverKind {

@@ -176,10 +176,14 @@ pub struct Simulation {
     z: Vec<Vector3<f64>>,
     y: Vec<Vector3<f64>>,
     filter: Vec<Filter>,
-    contact_of: Vec<Option<(usize, f64)>>,
+    /// Friction coefficient and obstacle velocity of each vertex in contact.
+    contact_of: Vec<Option<(f64, Vector3<f64>)>>,
+    /// Broad-phase boxes of the obstacles for this step.
+    bounds: Vec<([f64; 3], [f64; 3])>,
     pinned: Vec<Option<usize>>,
     pcg: linear::Pcg,
     direct: Option<linear::Direct>,
+    auto: AutoTiming,
 }
 
 impl Simulation {
@@ -220,7 +224,7 @@ impl Simulation {
         };
         let direct = match params.linear_solver {
             LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
-            LinearSolverKind::Pcg => None,
+            LinearSolverKind::Pcg | LinearSolverKind::Auto => None,
         };
         let z = vec![Vector3::zeros(); n];
         Ok(Simulation {
@@ -242,9 +246,11 @@ impl Simulation {
             z,
             filter: vec![Filter::Free; n],
             contact_of: vec![None; n],
+            bounds: Vec::new(),
             pinned: vec![None; n],
             pcg: linear::Pcg::default(),
             direct,
+            auto: AutoTiming::default(),
         })
     }
 
@@ -289,6 +295,11 @@ impl Simulation {
         let n = self.cloth.len();
         // 1. constraints for this step: pins, then contacts (filter, z, y)
         let mut contacts = 0;
+        self.bounds.clear();
+        for ob in &self.obstacles {
+            let e = ob.thickness + self.params.cloth_thickness;
+            self.bounds.push(ob.bounds(e * 1.1));
+        }
         for i in 0..n {
             self.filter[i] = Filter::Free;
             self.z[i] = Vector3::zeros();
@@ -303,6 +314,9 @@ impl Simulation {
             }
             let mut best: Option<(usize, crate::collision::Proximity, f64)> = None;
             for (o, ob) in self.obstacles.iter().enumerate() {
+                if !inside(&self.bounds[o], &self.cloth.x[i]) {
+                    continue;
+                }
                 let e = ob.thickness + self.params.cloth_thickness;
                 let pr = ob.proximity(&self.cloth.x[i]);
                 // contact zone: within e plus a margin of 10 % of e
@@ -322,7 +336,7 @@ impl Simulation {
                     // inelastic: the normal relative velocity becomes 0 (or separating if it was)
                     self.z[i] = pr.normal * (-vrel).max(0.0);
                     self.y[i] = pr.normal * (e - pr.distance).max(0.0);
-                    self.contact_of[i] = Some((o, ob_friction(&self.obstacles[o])));
+                    self.contact_of[i] = Some((self.obstacles[o].friction, pr.velocity));
                     contacts += 1;
                 }
             }
@@ -335,27 +349,9 @@ impl Simulation {
         // 3. solve
         let t_solve = Instant::now();
         let iterations = match self.params.linear_solver {
-            LinearSolverKind::Pcg => self.pcg.solve(
-                &self.a,
-                &self.b,
-                &self.filter,
-                &self.z,
-                &mut self.dv,
-                self.params.cg_tolerance,
-                self.params.cg_max_iterations,
-            )?,
-            LinearSolverKind::Cholesky => {
-                let d = self.direct.as_mut().expect("direct solver built");
-                d.solve(
-                    &self.a,
-                    &self.b,
-                    &self.filter,
-                    &self.z,
-                    &self.cloth.mass,
-                    &mut self.dv,
-                )?;
-                1
-            }
+            LinearSolverKind::Pcg => self.solve_pcg(self.params.cg_max_iterations)?,
+            LinearSolverKind::Cholesky => self.solve_direct()?,
+            LinearSolverKind::Auto => self.solve_auto()?,
         };
         let solve_s = t_solve.elapsed().as_secs_f64();
         for i in 0..n {
@@ -370,14 +366,13 @@ impl Simulation {
         let t_post = Instant::now();
         for i in 0..n {
             let mut v = self.cloth.v[i] + self.dv[i];
-            if let (Some((o, mu)), Filter::Normal(nrm)) = (self.contact_of[i], self.filter[i]) {
+            if let (Some((mu, vo)), Filter::Normal(nrm)) = (self.contact_of[i], self.filter[i]) {
                 // constraint impulse along the normal: (A Δv − b)_i · n
                 let mut r = -self.b[i];
                 for k in self.a.row_ptr[i]..self.a.row_ptr[i + 1] {
                     r += self.a.val[k] * self.dv[self.a.col[k]];
                 }
                 let jn = r.dot(&nrm).max(0.0);
-                let vo = self.obstacles[o].proximity(&self.cloth.x[i]).velocity;
                 let rel = v - vo;
                 let vt = rel - nrm * rel.dot(&nrm);
                 let vtn = vt.norm();
@@ -394,9 +389,8 @@ impl Simulation {
             ob.advance(h);
         }
         self.project_out_of_obstacles();
-        // 6. hysteresis memory follows the new shape
-        self.commit_laws();
-        self.dissipated += self.damping_work(h);
+        // (the hysteresis memory follows the new shape at the start of the next
+        // assembly, fused with it; see `assemble`)
         self.time = t1;
         self.steps += 1;
         let collide_s = t_collide + t_post.elapsed().as_secs_f64();
@@ -411,15 +405,93 @@ impl Simulation {
         Ok(self.last)
     }
 
+    fn solve_pcg(&mut self, max_iter: usize) -> Result<usize> {
+        self.pcg.solve(
+            &self.a,
+            &self.b,
+            &self.filter,
+            &self.z,
+            &mut self.dv,
+            self.params.cg_tolerance,
+            max_iter,
+        )
+    }
+
+    fn solve_direct(&mut self) -> Result<usize> {
+        if self.direct.is_none() {
+            self.direct = Some(linear::Direct::new(&self.a)?);
+        }
+        let d = self.direct.as_mut().expect("direct solver built");
+        d.solve(
+            &self.a,
+            &self.b,
+            &self.filter,
+            &self.z,
+            &self.cloth.mass,
+            &mut self.dv,
+        )?;
+        Ok(1)
+    }
+
+    /// Times both solvers (exponential averages) and uses the faster; the
+    /// other is tried again every [`AUTO_PROBE`] steps. A PCG that needs more
+    /// iterations than the Cholesky's time allows stops early and the step is
+    /// solved directly.
+    fn solve_auto(&mut self) -> Result<usize> {
+        let probe = self.steps == 3 || (self.steps.is_multiple_of(AUTO_PROBE) && self.steps > 0);
+        let use_direct = self.auto.direct_ms < self.auto.pcg_ms;
+        let use_direct = if probe { !use_direct } else { use_direct };
+        if use_direct && self.direct.is_none() {
+            // the one-off symbolic analysis is not part of a step's cost
+            self.direct = Some(linear::Direct::new(&self.a)?);
+        }
+        let t = Instant::now();
+        if use_direct {
+            let it = self.solve_direct()?;
+            self.auto.direct_ms = ema(self.auto.direct_ms, 1e3 * t.elapsed().as_secs_f64());
+            return Ok(it);
+        }
+        // cap the PCG at the iterations the direct solve's time allows
+        let cap = if self.auto.direct_ms.is_finite() && self.auto.pcg_ms_per_iter > 0.0 {
+            ((self.auto.direct_ms / self.auto.pcg_ms_per_iter) as usize)
+                .clamp(20, self.params.cg_max_iterations)
+        } else {
+            self.params.cg_max_iterations
+        };
+        match self.solve_pcg(cap) {
+            Ok(it) => {
+                let ms = 1e3 * t.elapsed().as_secs_f64();
+                self.auto.pcg_ms = ema(self.auto.pcg_ms, ms);
+                self.auto.pcg_ms_per_iter = ms / (it.max(1) as f64);
+                Ok(it)
+            }
+            Err(_) => {
+                let ms = 1e3 * t.elapsed().as_secs_f64();
+                self.auto.pcg_ms = ema(self.auto.pcg_ms, ms.max(self.auto.direct_ms) * 1.5);
+                let t2 = Instant::now();
+                let it = self.solve_direct()?;
+                self.auto.direct_ms = ema(self.auto.direct_ms, 1e3 * t2.elapsed().as_secs_f64());
+                Ok(it + cap)
+            }
+        }
+    }
+
     /// Pushes every vertex that ended a step inside an obstacle's contact
     /// distance back to it, and removes its approaching normal velocity.
     fn project_out_of_obstacles(&mut self) {
         let cloth_t = self.params.cloth_thickness;
+        self.bounds.clear();
+        for ob in &self.obstacles {
+            self.bounds.push(ob.bounds(ob.thickness + cloth_t));
+        }
         for i in 0..self.cloth.len() {
             if self.pinned[i].is_some() {
                 continue;
             }
-            for ob in &self.obstacles {
+            for (o, ob) in self.obstacles.iter().enumerate() {
+                if !inside(&self.bounds[o], &self.cloth.x[i]) {
+                    continue;
+                }
                 let e = ob.thickness + cloth_t;
                 // a few passes for curved or meeting surfaces
                 for _ in 0..3 {
@@ -455,56 +527,17 @@ impl Simulation {
         }
     }
 
-    /// Energy dissipated by the Rayleigh damping over the step just taken,
-    /// `−h vᵀ C v` with the C of this step (≥ 0).
-    fn damping_work(&self, h: f64) -> f64 {
-        let d = &self.fabric.damping;
-        let v = &self.cloth.v;
-        let mut w = 0.0;
-        for i in 0..self.cloth.len() {
-            w += -d.alpha * self.cloth.mass[i] * v[i].norm_squared();
-        }
-        let c = &self.cloth;
-        let f = &self.fabric;
-        if d.beta_tension != 0.0 {
-            for (s, st) in c.tension.iter().zip(&c.tension_state) {
-                let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                let (t, dt, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
-                let p = axial_block(&Axial { t, dt, l, dir }, true);
-                let dvv = v[s.a] - v[s.b];
-                w += -d.beta_tension * dvv.dot(&(p * dvv));
-            }
-        }
-        if d.beta_shear != 0.0 {
-            for (s, st) in c.shear.iter().zip(&c.shear_state) {
-                let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                let (t, dt, _) = shear_law(s, &f.shear, st, l);
-                let p = axial_block(&Axial { t, dt, l, dir }, true);
-                let dvv = v[s.a] - v[s.b];
-                w += -d.beta_shear * dvv.dot(&(p * dvv));
-            }
-        }
-        if d.beta_bend != 0.0 {
-            for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                let (_, _, _, ds, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
-                let mut gv = 0.0;
-                for p in 0..4 {
-                    for q in 0..3 {
-                        gv += g[3 * p + q] * v[hg.v[p]][q];
-                    }
-                }
-                w += -d.beta_bend * hg.len * ds.max(0.0) / hg.h * gv * gv;
-            }
-        }
-        w * h
-    }
-
     /// Builds `A` and `b` of the step, and the total force `self.force`.
+    ///
+    /// It first advances every spring's hysteresis memory to the current
+    /// shape (the end of the previous step), in the same pass, and adds the
+    /// energy the damping dissipates over this step (`−h vᵀ C v`).
     fn assemble(&mut self) {
         let h = self.params.dt;
         let d = self.fabric.damping;
-        let c = &self.cloth;
+        let c = &mut self.cloth;
         let f = &self.fabric;
+        let mut power = 0.0;
         let a = &mut self.a;
         a.clear();
         let (force, rhs) = (&mut self.force, &mut self.b);
@@ -513,6 +546,7 @@ impl Simulation {
         for i in 0..c.len() {
             let m = c.mass[i];
             force[i] = self.params.gravity * m + c.v[i] * (d.alpha * m);
+            power += d.alpha * m * c.v[i].norm_squared();
             rhs[i] = Vector3::zeros();
             a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
         }
@@ -520,15 +554,18 @@ impl Simulation {
         let y = &self.y;
         // tension and shear: stiffness with the step tangent, damping with the branch tangent
         let ct = h * h;
-        for (k, (s, st)) in c.tension.iter().zip(&c.tension_state).enumerate() {
+        for (k, (s, st)) in c.tension.iter().zip(c.tension_state.iter_mut()).enumerate() {
             let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let (t, dt, dts, _) = tension_law_step(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+            let law = &f.dir(s.weft).tensile;
+            law.commit(st, l / s.l0 - 1.0);
+            let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
             let pd = axial_block(&Axial { t, dt, l, dir }, true);
             let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
             let sl = &self.slots.tension[k];
             axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_tension)), 1.0);
             let dvab = v[s.a] - v[s.b];
             let kdv = pd * dvab;
+            power += d.beta_tension * dvab.dot(&kdv);
             let fe = dir * t + kdv * d.beta_tension;
             force[s.a] += fe;
             force[s.b] -= fe;
@@ -536,8 +573,10 @@ impl Simulation {
             rhs[s.a] += r;
             rhs[s.b] -= r;
         }
-        for (k, (s, st)) in c.shear.iter().zip(&c.shear_state).enumerate() {
+        for (k, (s, st)) in c.shear.iter().zip(c.shear_state.iter_mut()).enumerate() {
             let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+            f.shear
+                .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
             let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
             let pd = axial_block(&Axial { t, dt, l, dir }, true);
             let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
@@ -545,6 +584,7 @@ impl Simulation {
             axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_shear)), 1.0);
             let dvab = v[s.a] - v[s.b];
             let kdv = pd * dvab;
+            power += d.beta_shear * dvab.dot(&kdv);
             let fe = dir * t + kdv * d.beta_shear;
             force[s.a] += fe;
             force[s.b] -= fe;
@@ -553,8 +593,11 @@ impl Simulation {
             rhs[s.b] -= r;
         }
         // bending
-        for (k, (hg, st)) in c.hinges.iter().zip(&c.hinge_state).enumerate() {
-            let (s, ds, dss, g) = hinge_eval_step(hg, &f.dir(hg.weft).bending, st, &c.x);
+        for (k, (hg, st)) in c.hinges.iter().zip(c.hinge_state.iter_mut()).enumerate() {
+            let law = &f.dir(hg.weft).bending;
+            let (theta, g) = dihedral_and_grad(hinge_positions(hg, &c.x));
+            law.commit(st, theta / hg.h);
+            let (s, ds, dss) = law.eval_for_step(st, theta / hg.h);
             let kd = hg.len * ds.max(0.0) / hg.h;
             let ks = hg.len * dss.max(0.0) / hg.h;
             let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
@@ -565,6 +608,7 @@ impl Simulation {
                 gv += gp[p].dot(&v[hg.v[p]]);
                 gy += gp[p].dot(&y[hg.v[p]]);
             }
+            power += d.beta_bend * kd * gv * gv;
             let sl = &self.slots.hinge[k];
             let cm = h * h * ks - h * d.beta_bend * kd;
             for p in 0..4 {
@@ -581,6 +625,7 @@ impl Simulation {
         for i in 0..c.len() {
             rhs[i] = (force[i] + rhs[i]) * h;
         }
+        self.dissipated -= h * power;
     }
 
     /// Energies of the current state (elastic parts of the laws).
@@ -670,8 +715,39 @@ impl Simulation {
     }
 }
 
-fn ob_friction(o: &Obstacle) -> f64 {
-    o.friction
+/// Steps between two tries of the slower solver in `auto` mode.
+pub const AUTO_PROBE: u64 = 250;
+
+/// Running costs of the two solvers in `auto` mode, ms.
+#[derive(Debug, Clone, Copy)]
+struct AutoTiming {
+    pcg_ms: f64,
+    pcg_ms_per_iter: f64,
+    direct_ms: f64,
+}
+
+impl Default for AutoTiming {
+    fn default() -> Self {
+        // start with the PCG; the direct solver is timed at the first probe
+        AutoTiming {
+            pcg_ms: 0.0,
+            pcg_ms_per_iter: 0.0,
+            direct_ms: f64::INFINITY,
+        }
+    }
+}
+
+fn ema(old: f64, new: f64) -> f64 {
+    if old.is_finite() && old > 0.0 {
+        0.8 * old + 0.2 * new
+    } else {
+        new
+    }
+}
+
+#[inline]
+fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {
+    (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
 }
 
 #[inline]
