@@ -1,0 +1,190 @@
+//! Contacts with scene objects: friction against the closed-form block on an
+//! incline, no penetration of primitives, meshes and moving obstacles, and
+//! clear errors for bad scene files.
+#![allow(clippy::needless_range_loop)]
+
+use garment_sim::cloth::{Cloth, GridSpec};
+use garment_sim::collision::{Obstacle, ShapeSpec};
+use garment_sim::fabric::Fabric;
+use garment_sim::scene::Scene;
+use garment_sim::solver::{Params, Simulation};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use std::path::Path;
+
+fn fixture() -> Fabric {
+    Fabric::load(Path::new("tests/data/acrylic_test.yaml")).unwrap()
+}
+
+/// A 10 cm square lying on a plane inclined by `angle` about x, undamped.
+fn incline(angle: f64, mu: f64) -> Simulation {
+    let rot = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), angle);
+    let plane = Isometry3::from_parts(Translation3::new(0.0, 0.0, 0.0), rot);
+    let e = 0.006 + 0.002;
+    let spec = GridSpec {
+        size: [0.1, 0.1],
+        spacing: [0.02, 0.02],
+        pose: plane * Translation3::new(-0.05, -0.05, 0.05 + e),
+    };
+    let f = fixture().undamped().without_hysteresis();
+    let cloth = Cloth::grid(&spec, f.areal_mass).unwrap();
+    let mut sim = Simulation::new(cloth, f, Params { dt: 1e-3, ..Params::default() }).unwrap();
+    let ob = Obstacle::new("plane", ShapeSpec::Box { size: [2.0, 2.0, 0.1] }, plane, 0.006, mu, Path::new(".")).unwrap();
+    sim.obstacles.push(ob);
+    sim
+}
+
+fn mean_velocity(sim: &Simulation) -> Vector3<f64> {
+    sim.cloth.v.iter().sum::<Vector3<f64>>() / sim.cloth.len() as f64
+}
+
+#[test]
+fn friction_on_an_incline_matches_the_sliding_block() {
+    let angle = 20f64.to_radians();
+    // μ = 0.2 < tan 20° = 0.364: slides with a = g (sin θ − μ cos θ)
+    let mut slide = incline(angle, 0.2);
+    for _ in 0..500 {
+        slide.step().unwrap();
+    }
+    let a_expected = 9.81 * (angle.sin() - 0.2 * angle.cos());
+    let v = mean_velocity(&slide).norm();
+    let a = v / slide.time;
+    println!("sliding: a = {a:.4} m/s², closed form {a_expected:.4} m/s²");
+    assert!((a / a_expected - 1.0).abs() < 0.03, "a = {a}, expected {a_expected}");
+    // μ = 0.5 > tan 20°: sticks
+    let mut stick = incline(angle, 0.5);
+    for _ in 0..500 {
+        stick.step().unwrap();
+    }
+    let v = mean_velocity(&stick).norm();
+    println!("sticking: mean speed {v:.2e} m/s after 0.5 s");
+    assert!(v < 1e-3, "sticking cloth moves at {v} m/s");
+}
+
+/// Drops a 30 cm cloth on an obstacle and checks every step that no vertex is
+/// closer to it than the contact distance (obstacle + cloth thickness).
+fn drop_on(spec: ShapeSpec, pose: Isometry3<f64>, velocity: Vector3<f64>, steps: usize) -> (f64, f64, f64) {
+    let f = fixture();
+    let grid = GridSpec {
+        size: [0.3, 0.3],
+        spacing: [0.015, 0.015],
+        pose: Isometry3::translation(-0.15, -0.15, 0.12),
+    };
+    let cloth = Cloth::grid(&grid, f.areal_mass).unwrap();
+    let mut sim = Simulation::new(cloth, f, Params { dt: 1e-3, ..Params::default() }).unwrap();
+    let mut ob = Obstacle::new("o", spec, pose, 0.006, 0.3, Path::new("tests/data")).unwrap();
+    ob.linear_velocity = velocity;
+    sim.obstacles.push(ob);
+    let e = 0.008;
+    let mut worst = f64::INFINITY;
+    for _ in 0..steps {
+        sim.step().unwrap();
+        for p in &sim.cloth.x {
+            worst = worst.min(sim.obstacles[0].proximity(p).distance);
+        }
+    }
+    let lowest = sim.cloth.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    let highest = sim.cloth.x.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
+    assert!(worst >= e - 1e-6, "a vertex ended a step {:.3} mm from the surface (contact distance 8 mm)", worst * 1e3);
+    (worst, lowest, highest)
+}
+
+#[test]
+fn no_vertex_inside_primitives() {
+    let z = Isometry3::identity();
+    for (name, spec) in [
+        ("sphere", ShapeSpec::Sphere { radius: 0.06 }),
+        ("capsule", ShapeSpec::Capsule { length: 0.1, radius: 0.04 }),
+        ("cylinder", ShapeSpec::Cylinder { height: 0.1, radius: 0.06 }),
+        ("box", ShapeSpec::Box { size: [0.1, 0.1, 0.1] }),
+    ] {
+        let (worst, lowest, _) = drop_on(spec, z, Vector3::zeros(), 600);
+        println!("{name}: closest vertex {:.3} mm, lowest vertex z = {lowest:.3} m", worst * 1e3);
+        assert!(lowest < 0.0, "{name}: the cloth must drape down around the obstacle");
+    }
+}
+
+#[test]
+fn no_vertex_inside_an_obj_mesh() {
+    let (worst, lowest, _) = drop_on(
+        ShapeSpec::Mesh { obj: "cube.obj".into(), scale: 1.0 },
+        Isometry3::identity(),
+        Vector3::zeros(),
+        600,
+    );
+    println!("mesh cube: closest vertex {:.3} mm, lowest z {lowest:.3}", worst * 1e3);
+    assert!(lowest < 0.0);
+}
+
+#[test]
+fn a_rising_obstacle_lifts_the_cloth_without_penetration() {
+    // a sphere below the cloth moving up at 0.5 m/s pushes it up
+    let (worst, _, highest) = drop_on(
+        ShapeSpec::Sphere { radius: 0.05 },
+        Isometry3::translation(0.0, 0.0, 0.0),
+        Vector3::new(0.0, 0.0, 0.5),
+        400,
+    );
+    println!("rising sphere: closest vertex {:.3} mm, highest vertex z = {highest:.3} m", worst * 1e3);
+    // after 0.4 s the sphere's top is at 0.25 m: the cloth rides on it
+    assert!(highest > 0.25, "the cloth must be lifted (highest z {highest})");
+}
+
+fn scene_error(yaml: &str) -> String {
+    let dir = std::env::temp_dir().join(format!("gs_bad_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy("tests/data/acrylic_test.yaml", dir.join("fab.yaml")).unwrap();
+    let p = dir.join("bad.yaml");
+    std::fs::write(&p, yaml).unwrap();
+    let r = Scene::load(&p).and_then(|s| s.build(&Default::default()).map(|_| ()));
+    format!("{:#}", r.expect_err("must be rejected"))
+}
+
+#[test]
+fn bad_scene_files_name_the_file_and_the_field() {
+    let base = "cloth: { fabric: fab.yaml, size: [0.2, 0.2], spacing: 0.05 }\n";
+    let e = scene_error(&format!("{base}dt: -0.001\nduration: 1\n"));
+    assert!(e.contains("bad.yaml") && e.contains("dt"), "{e}");
+    let e = scene_error(&format!("{base}dt: 0.001\nduration: 1\nwind: 3\n"));
+    assert!(e.contains("bad.yaml") && e.contains("wind"), "{e}");
+    let e = scene_error(&format!("{base}dt: 0.001\nduration: 1\npins: [{{grid: [9, 0]}}]\n"));
+    assert!(e.contains("pins[0].grid") && e.contains("(9, 0)"), "{e}");
+    let e = scene_error(&format!(
+        "{base}dt: 0.001\nduration: 1\nobstacles: [{{id: b, shape: {{type: sphere, radius: -1}}}}]\n"
+    ));
+    assert!(e.contains("obstacles[0]") && e.contains("radius"), "{e}");
+    let e = scene_error("cloth: { fabric: nope.yaml, size: [0.2, 0.2], spacing: 0.05 }\ndt: 0.001\nduration: 1\n");
+    assert!(e.contains("cloth.fabric") && e.contains("nope.yaml"), "{e}");
+    let e = scene_error(&format!(
+        "{base}dt: 0.001\nduration: 1\nobstacles: [{{id: m, shape: {{type: mesh, obj: missing.obj}}}}]\n"
+    ));
+    assert!(e.contains("missing.obj"), "{e}");
+}
+
+#[test]
+fn bad_fabric_files_name_the_field() {
+    let dir = std::env::temp_dir().join(format!("gs_badf_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = std::fs::read_to_string("tests/data/acrylic_test.yaml").unwrap();
+    for (from, to, want) in [
+        ("EMT: 5.34", "EMT: -5.34", "warp.tensile.EMT"),
+        ("alpha: -7.0", "alpha: 7.0", "damping.alpha"),
+        ("B: 0.030", "Bee: 0.030", "Bee"),
+        ("2HG5: 1.45", "2HG5: .nan", "weft.shear.2HG5"),
+    ] {
+        assert!(good.contains(from), "{from}");
+        let p = dir.join("f.yaml");
+        std::fs::write(&p, good.replacen(from, to, 1)).unwrap();
+        let e = format!("{:#}", Fabric::load(&p).expect_err("must be rejected"));
+        assert!(e.contains("f.yaml") && e.contains(want), "{want}: {e}");
+    }
+}
+
+#[test]
+fn obj_with_a_face_on_a_missing_vertex_is_rejected() {
+    let dir = std::env::temp_dir().join(format!("gs_obj_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join("bad.obj");
+    std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
+    let e = format!("{:#}", garment_sim::collision::load_obj(&p).unwrap_err());
+    assert!(e.contains("bad.obj:4") && e.contains("vertex 7"), "{e}");
+}
