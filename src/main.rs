@@ -43,6 +43,9 @@ enum Cmd {
         /// Turn the hysteretic parts of the laws off.
         #[arg(long)]
         no_hysteresis: bool,
+        /// Relative tolerance of the PCG.
+        #[arg(long)]
+        cg_tolerance: Option<f64>,
     },
     /// Benchmark ms per step and real-time factor of the table drape.
     Bench {
@@ -56,7 +59,7 @@ enum Cmd {
         #[arg(long, value_delimiter = ',', default_values_t = vec![1e-3, 1e-4])]
         dt: Vec<f64>,
         /// Solvers (comma separated).
-        #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky"])]
+        #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky", "auto"])]
         solver: Vec<LinearSolverKind>,
         /// Steps per measurement (after the warm-up of the same count).
         #[arg(long, default_value_t = 200)]
@@ -122,6 +125,7 @@ fn real_main(cli: Cli) -> Result<()> {
             duration,
             solver,
             no_hysteresis,
+            cg_tolerance,
         } => {
             let sc = Scene::load(&scene)?;
             let ov = Overrides {
@@ -130,6 +134,7 @@ fn real_main(cli: Cli) -> Result<()> {
                 duration,
                 solver,
                 hysteresis: if no_hysteresis { Some(false) } else { None },
+                cg_tolerance,
             };
             let mut pr = progress_printer(format!("drape {}", scene.display()));
             let (_, s) = run::drape(&sc, &ov, &out, &mut pr)?;
@@ -211,19 +216,32 @@ fn real_main(cli: Cli) -> Result<()> {
                         };
                         let mut sim = sc.build(&ov)?;
                         let wsteps = (warmup / h).round() as u64;
-                        for _ in 0..wsteps.min(steps * 5) {
-                            sim.step()?;
-                        }
                         let mut ms = Vec::new();
                         let mut it = 0.0;
-                        for _ in 0..repeat.max(1) {
-                            let t = std::time::Instant::now();
-                            let mut iters = 0;
-                            for _ in 0..steps {
-                                iters += sim.step()?.iterations;
+                        let measured = (|| -> Result<()> {
+                            for _ in 0..wsteps.min(steps * 3) {
+                                sim.step()?;
                             }
-                            ms.push(1e3 * t.elapsed().as_secs_f64() / steps as f64);
-                            it = iters as f64 / steps as f64;
+                            for _ in 0..repeat.max(1) {
+                                let t = std::time::Instant::now();
+                                let mut iters = 0;
+                                for _ in 0..steps {
+                                    iters += sim.step()?.iterations;
+                                }
+                                ms.push(1e3 * t.elapsed().as_secs_f64() / steps as f64);
+                                it = iters as f64 / steps as f64;
+                            }
+                            Ok(())
+                        })();
+                        if let Err(e) = measured {
+                            println!(
+                                "{:>8} {:>9} {:>9} {:>8}   failed: {e:#}",
+                                sp,
+                                format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                                h,
+                                format!("{so:?}").to_lowercase()
+                            );
+                            continue;
                         }
                         ms.sort_by(|a, b| a.total_cmp(b));
                         let med = ms[ms.len() / 2];

@@ -221,6 +221,7 @@ pub struct Overrides {
     pub duration: Option<f64>,
     pub solver: Option<LinearSolverKind>,
     pub hysteresis: Option<bool>,
+    pub cg_tolerance: Option<f64>,
 }
 
 impl Scene {
@@ -348,6 +349,10 @@ impl Scene {
             cloth_thickness: f.cloth.thickness,
             hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
             ..Params::default()
+        };
+        let params = Params {
+            cg_tolerance: ov.cg_tolerance.unwrap_or(params.cg_tolerance),
+            ..params
         };
         let mut pins = Vec::new();
         for (k, p) in f.pins.iter().enumerate() {
