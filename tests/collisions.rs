@@ -27,8 +27,26 @@ fn incline(angle: f64, mu: f64) -> Simulation {
     };
     let f = fixture().undamped().without_hysteresis();
     let cloth = Cloth::grid(&spec, f.areal_mass).unwrap();
-    let mut sim = Simulation::new(cloth, f, Params { dt: 1e-3, ..Params::default() }).unwrap();
-    let ob = Obstacle::new("plane", ShapeSpec::Box { size: [2.0, 2.0, 0.1] }, plane, 0.006, mu, Path::new(".")).unwrap();
+    let mut sim = Simulation::new(
+        cloth,
+        f,
+        Params {
+            dt: 1e-3,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let ob = Obstacle::new(
+        "plane",
+        ShapeSpec::Box {
+            size: [2.0, 2.0, 0.1],
+        },
+        plane,
+        0.006,
+        mu,
+        Path::new("."),
+    )
+    .unwrap();
     sim.obstacles.push(ob);
     sim
 }
@@ -49,7 +67,10 @@ fn friction_on_an_incline_matches_the_sliding_block() {
     let v = mean_velocity(&slide).norm();
     let a = v / slide.time;
     println!("sliding: a = {a:.4} m/s², closed form {a_expected:.4} m/s²");
-    assert!((a / a_expected - 1.0).abs() < 0.03, "a = {a}, expected {a_expected}");
+    assert!(
+        (a / a_expected - 1.0).abs() < 0.03,
+        "a = {a}, expected {a_expected}"
+    );
     // μ = 0.5 > tan 20°: sticks
     let mut stick = incline(angle, 0.5);
     for _ in 0..500 {
@@ -62,7 +83,12 @@ fn friction_on_an_incline_matches_the_sliding_block() {
 
 /// Drops a 30 cm cloth on an obstacle and checks every step that no vertex is
 /// closer to it than the contact distance (obstacle + cloth thickness).
-fn drop_on(spec: ShapeSpec, pose: Isometry3<f64>, velocity: Vector3<f64>, steps: usize) -> (f64, f64, f64) {
+fn drop_on(
+    spec: ShapeSpec,
+    pose: Isometry3<f64>,
+    velocity: Vector3<f64>,
+    steps: usize,
+) -> (f64, f64, f64) {
     let f = fixture();
     let grid = GridSpec {
         size: [0.3, 0.3],
@@ -70,7 +96,15 @@ fn drop_on(spec: ShapeSpec, pose: Isometry3<f64>, velocity: Vector3<f64>, steps:
         pose: Isometry3::translation(-0.15, -0.15, 0.12),
     };
     let cloth = Cloth::grid(&grid, f.areal_mass).unwrap();
-    let mut sim = Simulation::new(cloth, f, Params { dt: 1e-3, ..Params::default() }).unwrap();
+    let mut sim = Simulation::new(
+        cloth,
+        f,
+        Params {
+            dt: 1e-3,
+            ..Params::default()
+        },
+    )
+    .unwrap();
     let mut ob = Obstacle::new("o", spec, pose, 0.006, 0.3, Path::new("tests/data")).unwrap();
     ob.linear_velocity = velocity;
     sim.obstacles.push(ob);
@@ -82,9 +116,23 @@ fn drop_on(spec: ShapeSpec, pose: Isometry3<f64>, velocity: Vector3<f64>, steps:
             worst = worst.min(sim.obstacles[0].proximity(p).distance);
         }
     }
-    let lowest = sim.cloth.x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
-    let highest = sim.cloth.x.iter().map(|p| p.z).fold(f64::NEG_INFINITY, f64::max);
-    assert!(worst >= e - 1e-6, "a vertex ended a step {:.3} mm from the surface (contact distance 8 mm)", worst * 1e3);
+    let lowest = sim
+        .cloth
+        .x
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::INFINITY, f64::min);
+    let highest = sim
+        .cloth
+        .x
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        worst >= e - 1e-6,
+        "a vertex ended a step {:.3} mm from the surface (contact distance 8 mm)",
+        worst * 1e3
+    );
     (worst, lowest, highest)
 }
 
@@ -93,25 +141,54 @@ fn no_vertex_inside_primitives() {
     let z = Isometry3::identity();
     for (name, spec) in [
         ("sphere", ShapeSpec::Sphere { radius: 0.06 }),
-        ("capsule", ShapeSpec::Capsule { length: 0.1, radius: 0.04 }),
-        ("cylinder", ShapeSpec::Cylinder { height: 0.1, radius: 0.06 }),
-        ("box", ShapeSpec::Box { size: [0.1, 0.1, 0.1] }),
+        (
+            "capsule",
+            ShapeSpec::Capsule {
+                length: 0.1,
+                radius: 0.04,
+            },
+        ),
+        (
+            "cylinder",
+            ShapeSpec::Cylinder {
+                height: 0.1,
+                radius: 0.06,
+            },
+        ),
+        (
+            "box",
+            ShapeSpec::Box {
+                size: [0.1, 0.1, 0.1],
+            },
+        ),
     ] {
         let (worst, lowest, _) = drop_on(spec, z, Vector3::zeros(), 600);
-        println!("{name}: closest vertex {:.3} mm, lowest vertex z = {lowest:.3} m", worst * 1e3);
-        assert!(lowest < 0.0, "{name}: the cloth must drape down around the obstacle");
+        println!(
+            "{name}: closest vertex {:.3} mm, lowest vertex z = {lowest:.3} m",
+            worst * 1e3
+        );
+        assert!(
+            lowest < 0.0,
+            "{name}: the cloth must drape down around the obstacle"
+        );
     }
 }
 
 #[test]
 fn no_vertex_inside_an_obj_mesh() {
     let (worst, lowest, _) = drop_on(
-        ShapeSpec::Mesh { obj: "cube.obj".into(), scale: 1.0 },
+        ShapeSpec::Mesh {
+            obj: "cube.obj".into(),
+            scale: 1.0,
+        },
         Isometry3::identity(),
         Vector3::zeros(),
         600,
     );
-    println!("mesh cube: closest vertex {:.3} mm, lowest z {lowest:.3}", worst * 1e3);
+    println!(
+        "mesh cube: closest vertex {:.3} mm, lowest z {lowest:.3}",
+        worst * 1e3
+    );
     assert!(lowest < 0.0);
 }
 
@@ -124,9 +201,15 @@ fn a_rising_obstacle_lifts_the_cloth_without_penetration() {
         Vector3::new(0.0, 0.0, 0.5),
         400,
     );
-    println!("rising sphere: closest vertex {:.3} mm, highest vertex z = {highest:.3} m", worst * 1e3);
+    println!(
+        "rising sphere: closest vertex {:.3} mm, highest vertex z = {highest:.3} m",
+        worst * 1e3
+    );
     // after 0.4 s the sphere's top is at 0.25 m: the cloth rides on it
-    assert!(highest > 0.25, "the cloth must be lifted (highest z {highest})");
+    assert!(
+        highest > 0.25,
+        "the cloth must be lifted (highest z {highest})"
+    );
 }
 
 fn scene_error(yaml: &str) -> String {
@@ -146,13 +229,17 @@ fn bad_scene_files_name_the_file_and_the_field() {
     assert!(e.contains("bad.yaml") && e.contains("dt"), "{e}");
     let e = scene_error(&format!("{base}dt: 0.001\nduration: 1\nwind: 3\n"));
     assert!(e.contains("bad.yaml") && e.contains("wind"), "{e}");
-    let e = scene_error(&format!("{base}dt: 0.001\nduration: 1\npins: [{{grid: [9, 0]}}]\n"));
+    let e = scene_error(&format!(
+        "{base}dt: 0.001\nduration: 1\npins: [{{grid: [9, 0]}}]\n"
+    ));
     assert!(e.contains("pins[0].grid") && e.contains("(9, 0)"), "{e}");
     let e = scene_error(&format!(
         "{base}dt: 0.001\nduration: 1\nobstacles: [{{id: b, shape: {{type: sphere, radius: -1}}}}]\n"
     ));
     assert!(e.contains("obstacles[0]") && e.contains("radius"), "{e}");
-    let e = scene_error("cloth: { fabric: nope.yaml, size: [0.2, 0.2], spacing: 0.05 }\ndt: 0.001\nduration: 1\n");
+    let e = scene_error(
+        "cloth: { fabric: nope.yaml, size: [0.2, 0.2], spacing: 0.05 }\ndt: 0.001\nduration: 1\n",
+    );
     assert!(e.contains("cloth.fabric") && e.contains("nope.yaml"), "{e}");
     let e = scene_error(&format!(
         "{base}dt: 0.001\nduration: 1\nobstacles: [{{id: m, shape: {{type: mesh, obj: missing.obj}}}}]\n"

@@ -238,3 +238,55 @@ fn dihedral_gradient_matches_finite_differences() {
         }
     }
 }
+
+/// The threaded assembly gives the serial one's matrix and right-hand side.
+#[test]
+fn threaded_assembly_equals_serial() {
+    let build = |threads: usize| {
+        let spec = GridSpec {
+            size: [0.6, 0.6],
+            spacing: [0.01, 0.01],
+            pose: Isometry3::identity(),
+        };
+        let mut cloth = Cloth::grid(&spec, 0.213).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        for (p, v) in cloth.x.iter_mut().zip(cloth.v.iter_mut()) {
+            *p += Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * 0.001;
+            *v = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+        }
+        let params = Params {
+            threads,
+            ..Params::default()
+        };
+        let mut sim = Simulation::new(cloth, fixture(), params).unwrap();
+        sim.assembled_system()
+    };
+    let (a1, b1) = build(1);
+    let (a3, b3) = build(3);
+    let amax = a1.iter().map(|m| m.amax()).fold(0.0, f64::max);
+    let bmax = b1.iter().map(|v| v.amax()).fold(0.0, f64::max);
+    let da = a1
+        .iter()
+        .zip(&a3)
+        .map(|(x, y)| (x - y).amax())
+        .fold(0.0, f64::max);
+    let db = b1
+        .iter()
+        .zip(&b3)
+        .map(|(x, y)| (x - y).amax())
+        .fold(0.0, f64::max);
+    println!(
+        "threaded vs serial: |dA|/|A| = {:.1e}, |db|/|b| = {:.1e}",
+        da / amax,
+        db / bmax
+    );
+    assert!(da <= 1e-12 * amax && db <= 1e-12 * bmax);
+}

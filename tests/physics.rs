@@ -274,3 +274,32 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
         (hi - lo) / hi
     );
 }
+
+/// A pin following a waypoint path is exactly on its target after every step
+/// (the filter and the position correction y, not a penalty spring).
+#[test]
+fn pins_follow_their_path_exactly() {
+    let mut sim = swinging(fixture(), 1e-3);
+    let a = sim.cloth.index(0, 0).unwrap();
+    let p0 = sim.cloth.x[a];
+    let path = PinPath::Waypoints(vec![
+        (0.0, p0),
+        (0.2, p0 + Vector3::new(0.0, 0.1, 0.05)),
+        (0.4, p0 + Vector3::new(0.1, 0.1, 0.0)),
+    ]);
+    let mut pins = sim.pins.clone();
+    pins[0] = Pin {
+        vertex: a,
+        path: path.clone(),
+    };
+    sim.set_pins(pins).unwrap();
+    let mut worst: f64 = 0.0;
+    for _ in 0..500 {
+        sim.step().unwrap();
+        let (target, vel) = path.at(sim.time);
+        worst = worst.max((sim.cloth.x[a] - target).norm());
+        worst = worst.max((sim.cloth.v[a] - vel).norm() * 1e-3);
+    }
+    println!("pin path: worst distance to target {worst:.2e} m");
+    assert!(worst < 1e-9, "{worst}");
+}

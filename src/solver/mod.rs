@@ -15,6 +15,7 @@
 //! Pins and contacts act through the constraint filter (S, z) and the position
 //! correction y, never through penalty springs.
 
+pub mod assemble;
 pub mod elements;
 pub mod family;
 pub mod linear;
@@ -26,7 +27,7 @@ use crate::fabric::Fabric;
 use anyhow::{bail, Result};
 use elements::*;
 pub use linear::{Filter, LinearSolverKind};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 use serde::Serialize;
 use sparse::BlockMatrix;
 use std::time::Instant;
@@ -47,6 +48,9 @@ pub struct Params {
     pub cloth_thickness: f64,
     /// Include the hysteretic parts of the laws.
     pub hysteresis: bool,
+    /// Assembly threads (0: one per core for large cloths, see
+    /// [`assemble::threads_for`]).
+    pub threads: usize,
 }
 
 impl Default for Params {
@@ -59,6 +63,7 @@ impl Default for Params {
             cg_max_iterations: 2000,
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             hysteresis: true,
+            threads: 0,
         }
     }
 }
@@ -146,14 +151,6 @@ impl Energies {
     }
 }
 
-/// Block positions of each element in the system matrix.
-#[derive(Debug, Clone)]
-struct Slots {
-    tension: Vec<[usize; 4]>,
-    shear: Vec<[usize; 4]>,
-    hinge: Vec<[usize; 16]>,
-}
-
 /// A cloth, its fabric and its scene, advanced at a fixed step.
 #[derive(Debug)]
 pub struct Simulation {
@@ -168,7 +165,8 @@ pub struct Simulation {
     pub last: StepStats,
     dissipated: f64,
     a: BlockMatrix,
-    slots: Slots,
+    slots: assemble::Slots,
+    part: assemble::Partition,
     /// Total force at the start of the last step (internal + external + damping).
     pub force: Vec<Vector3<f64>>,
     b: Vec<Vector3<f64>>,
@@ -187,7 +185,7 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    pub fn new(cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
+    pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
         if !(params.dt.is_finite() && params.dt > 0.0) {
             bail!("dt = {}: must be > 0 s", params.dt);
         }
@@ -202,26 +200,12 @@ impl Simulation {
         cliques.extend(cloth.shear.iter().map(|s| vec![s.a, s.b]));
         cliques.extend(cloth.hinges.iter().map(|h| h.v.to_vec()));
         let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
-        let pair = |a: &BlockMatrix, i: usize, j: usize| {
-            [a.index(i, i), a.index(i, j), a.index(j, i), a.index(j, j)]
+        let threads = match params.threads {
+            0 => assemble::threads_for(n),
+            t => t,
         };
-        let slots = Slots {
-            tension: cloth.tension.iter().map(|s| pair(&a, s.a, s.b)).collect(),
-            shear: cloth.shear.iter().map(|s| pair(&a, s.a, s.b)).collect(),
-            hinge: cloth
-                .hinges
-                .iter()
-                .map(|h| {
-                    let mut r = [0; 16];
-                    for p in 0..4 {
-                        for q in 0..4 {
-                            r[4 * p + q] = a.index(h.v[p], h.v[q]);
-                        }
-                    }
-                    r
-                })
-                .collect(),
-        };
+        let part = assemble::partition(&mut cloth, threads);
+        let slots = assemble::Slots::new(&a, &cloth);
         let direct = match params.linear_solver {
             LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
             LinearSolverKind::Pcg | LinearSolverKind::Auto => None,
@@ -239,6 +223,7 @@ impl Simulation {
             dissipated: 0.0,
             a,
             slots,
+            part,
             force: z.clone(),
             b: z.clone(),
             dv: z.clone(),
@@ -533,99 +518,19 @@ impl Simulation {
     /// shape (the end of the previous step), in the same pass, and adds the
     /// energy the damping dissipates over this step (`−h vᵀ C v`).
     fn assemble(&mut self) {
-        let h = self.params.dt;
-        let d = self.fabric.damping;
-        let c = &mut self.cloth;
-        let f = &self.fabric;
-        let mut power = 0.0;
-        let a = &mut self.a;
-        a.clear();
-        let (force, rhs) = (&mut self.force, &mut self.b);
-        // b = h (f0 − K̃s (h v + y)), f0 = f_el + f_ext + C v (C with the branch
-        // tangents K̃d); A = (1 − hα) M + h² K̃s − h β K̃d (K̃s: step tangents)
-        for i in 0..c.len() {
-            let m = c.mass[i];
-            force[i] = self.params.gravity * m + c.v[i] * (d.alpha * m);
-            power += d.alpha * m * c.v[i].norm_squared();
-            rhs[i] = Vector3::zeros();
-            a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
-        }
-        let v = &c.v;
-        let y = &self.y;
-        // tension and shear: stiffness with the step tangent, damping with the branch tangent
-        let ct = h * h;
-        for (k, (s, st)) in c.tension.iter().zip(c.tension_state.iter_mut()).enumerate() {
-            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let law = &f.dir(s.weft).tensile;
-            law.commit(st, l / s.l0 - 1.0);
-            let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
-            let pd = axial_block(&Axial { t, dt, l, dir }, true);
-            let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
-            let sl = &self.slots.tension[k];
-            axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_tension)), 1.0);
-            let dvab = v[s.a] - v[s.b];
-            let kdv = pd * dvab;
-            power += d.beta_tension * dvab.dot(&kdv);
-            let fe = dir * t + kdv * d.beta_tension;
-            force[s.a] += fe;
-            force[s.b] -= fe;
-            let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
-            rhs[s.a] += r;
-            rhs[s.b] -= r;
-        }
-        for (k, (s, st)) in c.shear.iter().zip(c.shear_state.iter_mut()).enumerate() {
-            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            f.shear
-                .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
-            let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
-            let pd = axial_block(&Axial { t, dt, l, dir }, true);
-            let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
-            let sl = &self.slots.shear[k];
-            axial_scatter(a, sl, &(ps * ct - pd * (h * d.beta_shear)), 1.0);
-            let dvab = v[s.a] - v[s.b];
-            let kdv = pd * dvab;
-            power += d.beta_shear * dvab.dot(&kdv);
-            let fe = dir * t + kdv * d.beta_shear;
-            force[s.a] += fe;
-            force[s.b] -= fe;
-            let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
-            rhs[s.a] += r;
-            rhs[s.b] -= r;
-        }
-        // bending
-        for (k, (hg, st)) in c.hinges.iter().zip(c.hinge_state.iter_mut()).enumerate() {
-            let law = &f.dir(hg.weft).bending;
-            let (theta, g) = dihedral_and_grad(hinge_positions(hg, &c.x));
-            law.commit(st, theta / hg.h);
-            let (s, ds, dss) = law.eval_for_step(st, theta / hg.h);
-            let kd = hg.len * ds.max(0.0) / hg.h;
-            let ks = hg.len * dss.max(0.0) / hg.h;
-            let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
-            let gp = [gs(0), gs(1), gs(2), gs(3)];
-            let mut gv = 0.0;
-            let mut gy = 0.0;
-            for p in 0..4 {
-                gv += gp[p].dot(&v[hg.v[p]]);
-                gy += gp[p].dot(&y[hg.v[p]]);
-            }
-            power += d.beta_bend * kd * gv * gv;
-            let sl = &self.slots.hinge[k];
-            let cm = h * h * ks - h * d.beta_bend * kd;
-            for p in 0..4 {
-                // elastic −L σ ∇θ; damping β K̃ v with K̃ v = kd g (g·v)
-                force[hg.v[p]] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
-                rhs[hg.v[p]] -= gp[p] * (ks * (h * gv + gy));
-                if cm != 0.0 {
-                    for q in 0..4 {
-                        a.val[sl[4 * p + q]] += gp[p] * gp[q].transpose() * cm;
-                    }
-                }
-            }
-        }
-        for i in 0..c.len() {
-            rhs[i] = (force[i] + rhs[i]) * h;
-        }
-        self.dissipated -= h * power;
+        let power = assemble::assemble(
+            self.params.dt,
+            self.params.gravity,
+            &self.fabric,
+            &mut self.cloth,
+            &self.y,
+            &self.slots,
+            &self.part,
+            &mut self.a,
+            &mut self.force,
+            &mut self.b,
+        );
+        self.dissipated -= self.params.dt * power;
     }
 
     /// Energies of the current state (elastic parts of the laws).
@@ -709,6 +614,26 @@ impl Simulation {
         self.pinned[i].is_some()
     }
 
+    /// The system matrix and right-hand side of the next step, assembled now
+    /// without advancing (tests compare serial and threaded assembly).
+    pub fn assembled_system(&mut self) -> (Vec<nalgebra::Matrix3<f64>>, Vec<Vector3<f64>>) {
+        let saved = (
+            self.cloth.tension_state.clone(),
+            self.cloth.shear_state.clone(),
+            self.cloth.hinge_state.clone(),
+            self.dissipated,
+        );
+        self.assemble();
+        let out = (self.a.val.clone(), self.b.clone());
+        (
+            self.cloth.tension_state,
+            self.cloth.shear_state,
+            self.cloth.hinge_state,
+            self.dissipated,
+        ) = saved;
+        out
+    }
+
     /// Number of non-zero 3 × 3 blocks of the system matrix.
     pub fn matrix_blocks(&self) -> usize {
         self.a.nnz_blocks()
@@ -748,13 +673,4 @@ fn ema(old: f64, new: f64) -> f64 {
 #[inline]
 fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
-}
-
-#[inline]
-fn axial_scatter(a: &mut BlockMatrix, sl: &[usize; 4], p: &Matrix3<f64>, c: f64) {
-    let cp = p * c;
-    a.val[sl[0]] += cp;
-    a.val[sl[1]] -= cp;
-    a.val[sl[2]] -= cp;
-    a.val[sl[3]] += cp;
 }

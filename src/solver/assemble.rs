@@ -1,0 +1,411 @@
+//! Assembly of the implicit step's matrix and right-hand side, on several
+//! threads without locks: the vertices are cut into contiguous chunks, each
+//! spring or hinge whose vertices all lie in one chunk is assembled by that
+//! chunk's thread into its own rows, and the few that straddle two chunks are
+//! assembled afterwards on one thread. Elements are stored grouped that way
+//! (the order of springs changes nothing else), so every thread also owns a
+//! contiguous slice of the hysteresis memories.
+
+use super::elements::*;
+use super::sparse::BlockMatrix;
+use crate::cloth::Cloth;
+use crate::fabric::{Damping, Fabric, LawState};
+use nalgebra::{Matrix3, Vector3};
+use std::ops::Range;
+
+/// Element groups: `ranges[t]` for chunk t, the last entry for the straddling ones.
+#[derive(Debug, Clone, Default)]
+pub struct Partition {
+    /// Vertex chunk boundaries: chunk t owns vertices `bounds[t]..bounds[t + 1]`.
+    pub bounds: Vec<usize>,
+    pub tension: Vec<Range<usize>>,
+    pub shear: Vec<Range<usize>>,
+    pub hinge: Vec<Range<usize>>,
+}
+
+/// Number of assembly threads: one per core, at most 8, one for small cloths.
+pub fn threads_for(n: usize) -> usize {
+    if n < 3000 {
+        1
+    } else {
+        std::thread::available_parallelism()
+            .map(|p| p.get())
+            .unwrap_or(1)
+            .min(8)
+    }
+}
+
+/// Reorders the cloth's springs and hinges (with their memories) into
+/// per-chunk groups and returns the groups.
+pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
+    let n = cloth.len();
+    let t = threads.max(1);
+    let bounds: Vec<usize> = (0..=t).map(|k| k * n / t).collect();
+    let chunk = |v: usize| bounds.partition_point(|&b| b <= v) - 1;
+    let group = |vs: &[usize]| -> usize {
+        let c0 = chunk(vs[0]);
+        if vs.iter().all(|&v| chunk(v) == c0) {
+            c0
+        } else {
+            t
+        }
+    };
+    fn regroup<E: Copy>(
+        els: &mut Vec<E>,
+        st: &mut Vec<LawState>,
+        key: impl Fn(&E) -> usize,
+        groups: usize,
+    ) -> Vec<Range<usize>> {
+        let mut idx: Vec<usize> = (0..els.len()).collect();
+        idx.sort_by_key(|&k| key(&els[k]));
+        *els = idx.iter().map(|&k| els[k]).collect();
+        *st = idx.iter().map(|&k| st[k]).collect();
+        let mut r = Vec::with_capacity(groups + 1);
+        let mut start = 0;
+        for g in 0..=groups {
+            let end = start + els[start..].iter().take_while(|e| key(e) == g).count();
+            r.push(start..end);
+            start = end;
+        }
+        r
+    }
+    let tension = regroup(
+        &mut cloth.tension,
+        &mut cloth.tension_state,
+        |s| group(&[s.a, s.b]),
+        t,
+    );
+    let shear = regroup(
+        &mut cloth.shear,
+        &mut cloth.shear_state,
+        |s| group(&[s.a, s.b]),
+        t,
+    );
+    let hinge = regroup(
+        &mut cloth.hinges,
+        &mut cloth.hinge_state,
+        |h| group(&h.v),
+        t,
+    );
+    Partition {
+        bounds,
+        tension,
+        shear,
+        hinge,
+    }
+}
+
+/// Block positions of each element in the system matrix.
+#[derive(Debug, Clone)]
+pub struct Slots {
+    pub tension: Vec<[usize; 4]>,
+    pub shear: Vec<[usize; 4]>,
+    pub hinge: Vec<[usize; 16]>,
+}
+
+impl Slots {
+    pub fn new(a: &BlockMatrix, c: &Cloth) -> Slots {
+        let pair =
+            |i: usize, j: usize| [a.index(i, i), a.index(i, j), a.index(j, i), a.index(j, j)];
+        Slots {
+            tension: c.tension.iter().map(|s| pair(s.a, s.b)).collect(),
+            shear: c.shear.iter().map(|s| pair(s.a, s.b)).collect(),
+            hinge: c
+                .hinges
+                .iter()
+                .map(|h| {
+                    let mut r = [0; 16];
+                    for p in 0..4 {
+                        for q in 0..4 {
+                            r[4 * p + q] = a.index(h.v[p], h.v[q]);
+                        }
+                    }
+                    r
+                })
+                .collect(),
+        }
+    }
+}
+
+/// What every thread reads.
+struct Ctx<'a> {
+    h: f64,
+    d: Damping,
+    f: &'a Fabric,
+    c: &'a ClothView<'a>,
+    y: &'a [Vector3<f64>],
+    slots: &'a Slots,
+}
+
+/// The read-only part of the cloth.
+struct ClothView<'a> {
+    x: &'a [Vector3<f64>],
+    v: &'a [Vector3<f64>],
+    tension: &'a [crate::cloth::TensionSpring],
+    shear: &'a [crate::cloth::ShearSpring],
+    hinges: &'a [crate::cloth::Hinge],
+}
+
+/// What one thread writes: rows `voff..` of the matrix blocks (starting at
+/// block `boff`), forces and right-hand sides; memories of its element ranges.
+struct Out<'a> {
+    val: &'a mut [Matrix3<f64>],
+    boff: usize,
+    force: &'a mut [Vector3<f64>],
+    rhs: &'a mut [Vector3<f64>],
+    voff: usize,
+    tstate: &'a mut [LawState],
+    sstate: &'a mut [LawState],
+    hstate: &'a mut [LawState],
+    power: f64,
+}
+
+fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: &mut Out) {
+    let (h, d, f, c, y) = (ctx.h, ctx.d, ctx.f, ctx.c, ctx.y);
+    let v = c.v;
+    let ct = h * h;
+    let (bo, vo) = (o.boff, o.voff);
+    let t0 = tr.start;
+    for k in tr {
+        let s = &c.tension[k];
+        let st = &mut o.tstate[k - t0];
+        let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+        let law = &f.dir(s.weft).tensile;
+        law.commit(st, l / s.l0 - 1.0);
+        let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
+        let pd = axial_block(&Axial { t, dt, l, dir }, true);
+        let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
+        scatter(
+            o.val,
+            bo,
+            &ctx.slots.tension[k],
+            &(ps * ct - pd * (h * d.beta_tension)),
+        );
+        let dvab = v[s.a] - v[s.b];
+        let kdv = pd * dvab;
+        o.power += d.beta_tension * dvab.dot(&kdv);
+        let fe = dir * t + kdv * d.beta_tension;
+        o.force[s.a - vo] += fe;
+        o.force[s.b - vo] -= fe;
+        let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
+        o.rhs[s.a - vo] += r;
+        o.rhs[s.b - vo] -= r;
+    }
+    let s0 = sr.start;
+    for k in sr {
+        let s = &c.shear[k];
+        let st = &mut o.sstate[k - s0];
+        let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+        f.shear
+            .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
+        let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
+        let pd = axial_block(&Axial { t, dt, l, dir }, true);
+        let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
+        scatter(
+            o.val,
+            bo,
+            &ctx.slots.shear[k],
+            &(ps * ct - pd * (h * d.beta_shear)),
+        );
+        let dvab = v[s.a] - v[s.b];
+        let kdv = pd * dvab;
+        o.power += d.beta_shear * dvab.dot(&kdv);
+        let fe = dir * t + kdv * d.beta_shear;
+        o.force[s.a - vo] += fe;
+        o.force[s.b - vo] -= fe;
+        let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
+        o.rhs[s.a - vo] += r;
+        o.rhs[s.b - vo] -= r;
+    }
+    let h0 = hr.start;
+    for k in hr {
+        let hg = &c.hinges[k];
+        let st = &mut o.hstate[k - h0];
+        let law = &f.dir(hg.weft).bending;
+        let (theta, g) = dihedral_and_grad(hinge_positions(hg, c.x));
+        law.commit(st, theta / hg.h);
+        let (s, ds, dss) = law.eval_for_step(st, theta / hg.h);
+        let kd = hg.len * ds.max(0.0) / hg.h;
+        let ks = hg.len * dss.max(0.0) / hg.h;
+        let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
+        let gp = [gs(0), gs(1), gs(2), gs(3)];
+        let mut gv = 0.0;
+        let mut gy = 0.0;
+        for p in 0..4 {
+            gv += gp[p].dot(&v[hg.v[p]]);
+            gy += gp[p].dot(&y[hg.v[p]]);
+        }
+        o.power += d.beta_bend * kd * gv * gv;
+        let sl = &ctx.slots.hinge[k];
+        let cm = h * h * ks - h * d.beta_bend * kd;
+        for p in 0..4 {
+            // elastic −L σ ∇θ; damping β K̃ v with K̃ v = kd g (g·v)
+            o.force[hg.v[p] - vo] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
+            o.rhs[hg.v[p] - vo] -= gp[p] * (ks * (h * gv + gy));
+            if cm != 0.0 {
+                for q in 0..4 {
+                    o.val[sl[4 * p + q] - bo] += gp[p] * gp[q].transpose() * cm;
+                }
+            }
+        }
+    }
+}
+
+#[inline]
+fn scatter(val: &mut [Matrix3<f64>], off: usize, sl: &[usize; 4], p: &Matrix3<f64>) {
+    val[sl[0] - off] += p;
+    val[sl[1] - off] -= p;
+    val[sl[2] - off] -= p;
+    val[sl[3] - off] += p;
+}
+
+/// Builds `A`, the right-hand side `rhs` and the total force `force` of the
+/// step (see [`super::Simulation`] for the formulas), advancing every
+/// spring's hysteresis memory to the current shape in the same pass. Returns
+/// the damping power `vᵀ C v` (≤ 0).
+#[allow(clippy::too_many_arguments)]
+pub fn assemble(
+    h: f64,
+    gravity: Vector3<f64>,
+    fabric: &Fabric,
+    cloth: &mut Cloth,
+    y: &[Vector3<f64>],
+    slots: &Slots,
+    part: &Partition,
+    a: &mut BlockMatrix,
+    force: &mut [Vector3<f64>],
+    rhs: &mut [Vector3<f64>],
+) -> f64 {
+    let d = fabric.damping;
+    let mut power = 0.0;
+    a.clear();
+    for i in 0..cloth.len() {
+        let m = cloth.mass[i];
+        force[i] = gravity * m + cloth.v[i] * (d.alpha * m);
+        power += d.alpha * m * cloth.v[i].norm_squared();
+        rhs[i] = Vector3::zeros();
+        a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
+    }
+    let Cloth {
+        x,
+        v,
+        tension,
+        shear,
+        hinges,
+        tension_state,
+        shear_state,
+        hinge_state,
+        ..
+    } = cloth;
+    let view = ClothView {
+        x,
+        v,
+        tension,
+        shear,
+        hinges,
+    };
+    let ctx = Ctx {
+        h,
+        d,
+        f: fabric,
+        c: &view,
+        y,
+        slots,
+    };
+    let nt = part.bounds.len() - 1;
+    // split every output into per-chunk slices
+    let mut outs: Vec<Out> = Vec::with_capacity(nt);
+    {
+        let mut val: &mut [Matrix3<f64>] = &mut a.val;
+        let mut fo: &mut [Vector3<f64>] = force;
+        let mut rh: &mut [Vector3<f64>] = rhs;
+        let mut ts: &mut [LawState] = tension_state;
+        let mut ss: &mut [LawState] = shear_state;
+        let mut hs: &mut [LawState] = hinge_state;
+        let (mut boff, mut toff, mut soff, mut hoff) = (0, 0, 0, 0);
+        for t in 0..nt {
+            let (v0, v1) = (part.bounds[t], part.bounds[t + 1]);
+            let bend = a.row_ptr[v1];
+            let (vh, vt) = std::mem::take(&mut val).split_at_mut(bend - boff);
+            let (fh, ft) = std::mem::take(&mut fo).split_at_mut(v1 - v0);
+            let (rhh, rht) = std::mem::take(&mut rh).split_at_mut(v1 - v0);
+            let (tsh, tst) = std::mem::take(&mut ts).split_at_mut(part.tension[t].end - toff);
+            let (ssh, sst) = std::mem::take(&mut ss).split_at_mut(part.shear[t].end - soff);
+            let (hsh, hst) = std::mem::take(&mut hs).split_at_mut(part.hinge[t].end - hoff);
+            outs.push(Out {
+                val: vh,
+                boff,
+                force: fh,
+                rhs: rhh,
+                voff: v0,
+                tstate: tsh,
+                sstate: ssh,
+                hstate: hsh,
+                power: 0.0,
+            });
+            val = vt;
+            fo = ft;
+            rh = rht;
+            ts = tst;
+            ss = sst;
+            hs = hst;
+            boff = bend;
+            toff = part.tension[t].end;
+            soff = part.shear[t].end;
+            hoff = part.hinge[t].end;
+        }
+        debug_assert!(val.is_empty() && fo.is_empty());
+        let _ = (ts, ss, hs);
+    }
+    if nt == 1 {
+        let o = &mut outs[0];
+        elements(
+            &ctx,
+            part.tension[0].clone(),
+            part.shear[0].clone(),
+            part.hinge[0].clone(),
+            o,
+        );
+    } else {
+        std::thread::scope(|sc| {
+            for (t, o) in outs.iter_mut().enumerate() {
+                let ctx = &ctx;
+                sc.spawn(move || {
+                    elements(
+                        ctx,
+                        part.tension[t].clone(),
+                        part.shear[t].clone(),
+                        part.hinge[t].clone(),
+                        o,
+                    )
+                });
+            }
+        });
+    }
+    power += outs.iter().map(|o| o.power).sum::<f64>();
+    drop(outs);
+    // the straddling elements, on this thread, with whole-matrix slices
+    let mut o = Out {
+        val: &mut a.val,
+        boff: 0,
+        force,
+        rhs,
+        voff: 0,
+        tstate: &mut tension_state[part.tension[nt].clone()],
+        sstate: &mut shear_state[part.shear[nt].clone()],
+        hstate: &mut hinge_state[part.hinge[nt].clone()],
+        power: 0.0,
+    };
+    elements(
+        &ctx,
+        part.tension[nt].clone(),
+        part.shear[nt].clone(),
+        part.hinge[nt].clone(),
+        &mut o,
+    );
+    power += o.power;
+    for i in 0..o.force.len() {
+        o.rhs[i] = (o.force[i] + o.rhs[i]) * h;
+    }
+    power
+}
