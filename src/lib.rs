@@ -10,6 +10,7 @@
 pub mod cloth;
 pub mod collision;
 pub mod fabric;
+pub mod lab;
 pub mod run;
 pub mod scene;
 pub mod solver;

@@ -37,7 +37,7 @@ enum Cmd {
         /// Simulated duration, s.
         #[arg(long)]
         duration: Option<f64>,
-        /// Linear solver: pcg or cholesky.
+        /// Linear solver: auto (default: the faster of the two, timed), pcg or cholesky.
         #[arg(long)]
         solver: Option<LinearSolverKind>,
         /// Turn the hysteretic parts of the laws off.

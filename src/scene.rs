@@ -165,6 +165,9 @@ pub struct PinSpec {
     /// Piecewise-linear target path.
     #[serde(default)]
     pub path: Option<Vec<Waypoint>>,
+    /// Time at which the pin lets go, s.
+    #[serde(default)]
+    pub release_at: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -393,7 +396,19 @@ impl Scene {
                 },
                 (None, None) => PinPath::Fixed(start),
             };
-            pins.push(Pin { vertex, path });
+            if let Some(r) = p.release_at {
+                if !(r.is_finite() && r >= 0.0) {
+                    bail!(
+                        "{}: pins[{k}].release_at = {r}: must be a time ≥ 0 s",
+                        ctx()
+                    );
+                }
+            }
+            pins.push(Pin {
+                vertex,
+                path,
+                release_at: p.release_at,
+            });
         }
         let mut sim = Simulation::new(cloth, self.fabric.clone(), params).with_context(ctx)?;
         sim.obstacles = obstacles;

@@ -287,7 +287,11 @@ fn shipped_fabrics_load_and_cite_a_source() {
             continue;
         }
         let f = Fabric::load(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
-        assert!(f.file.source.trim().len() > 20, "{} has no source", p.display());
+        assert!(
+            f.file.source.trim().len() > 20,
+            "{} has no source",
+            p.display()
+        );
         assert!(f.areal_mass > 0.0 && f.damping.alpha < 0.0);
         n += 1;
     }

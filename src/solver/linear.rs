@@ -38,8 +38,9 @@ impl std::str::FromStr for LinearSolverKind {
         match s {
             "pcg" => Ok(Self::Pcg),
             "cholesky" => Ok(Self::Cholesky),
+            "auto" => Ok(Self::Auto),
             _ => Err(format!(
-                "unknown linear solver {s:?}: expected pcg or cholesky"
+                "unknown linear solver {s:?}: expected auto, pcg or cholesky"
             )),
         }
     }

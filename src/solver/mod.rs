@@ -119,6 +119,19 @@ impl PinPath {
 pub struct Pin {
     pub vertex: usize,
     pub path: PinPath,
+    /// The pin lets go at this time, s (thesis ch. 5: the square is held by
+    /// its corners, then released).
+    pub release_at: Option<f64>,
+}
+
+impl Pin {
+    pub fn new(vertex: usize, path: PinPath) -> Pin {
+        Pin {
+            vertex,
+            path,
+            release_at: None,
+        }
+    }
 }
 
 /// What one step did.
@@ -278,6 +291,20 @@ impl Simulation {
         let h = self.params.dt;
         let t1 = self.time + h;
         let n = self.cloth.len();
+        // pins whose release time has come let go
+        if self
+            .pins
+            .iter()
+            .any(|p| p.release_at.is_some_and(|r| r <= self.time))
+        {
+            let keep: Vec<Pin> = self
+                .pins
+                .iter()
+                .filter(|p| !p.release_at.is_some_and(|r| r <= self.time))
+                .cloned()
+                .collect();
+            self.set_pins(keep)?;
+        }
         // 1. constraints for this step: pins, then contacts (filter, z, y)
         let mut contacts = 0;
         self.bounds.clear();

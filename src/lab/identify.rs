@@ -1,0 +1,364 @@
+//! Identification of a fabric's dissipation from a motion capture of a free
+//! fall (thesis ch. 5, MODEL.md §6).
+//!
+//! Markers form an `nx × ny` grid (grid order: index `j·nx + i`, warp index
+//! `i`), the same grid the model is built on, so every marker is a mass.
+//! Velocities and accelerations come from forward differences (eq. 5.6–5.7),
+//! `V_i = (P_{i+1} − P_i)/dt`, `A_i = (V_{i+1} − V_i)/dt`. `A_i` is centred on
+//! frame `i + 1`, so the model is evaluated there: positions `P_{i+1}` and
+//! velocity `(V_i + V_{i+1})/2` (the same forward differences, averaged; using
+//! `V_i` itself would lag the acceleration by one frame, a bias of about
+//! `|α|·dt` ≈ 6 % on α at 120 Hz).
+//!
+//! The spring forces and the per-family stiffness matrices `K̃` (PSD, the
+//! ones the solver's Rayleigh damping uses) are those of the fabric's laws on
+//! the captured shapes, with the hysteresis memory replayed along the captured
+//! path from the first frame.
+//!
+//! Fits, with `F_err = M A − M g − (elastic forces of the families in the
+//! model so far)`:
+//! - global least squares of `(α, β_f, β_c, β_t)` (eq. 5.10–5.12), with the
+//!   condition number of its normal matrix (the thesis finds ≈ 4e13);
+//! - the thesis' ordered one-parameter fits (§5.4.3): α on `MA − Mg`; then the
+//!   bending springs join the model and β_f is fitted on what is left; then
+//!   shear and β_c; then tension and β_t. Each per frame
+//!   (`β = F_err·K̃V / ‖K̃V‖²`), averaged over the viscous window.
+
+use crate::cloth::{Cloth, GridSpec};
+use crate::fabric::Fabric;
+use crate::solver::family::Family;
+use crate::solver::{Params, Simulation};
+use anyhow::{bail, Result};
+use nalgebra::{Isometry3, Matrix4, Vector3, Vector4};
+use serde::Serialize;
+
+/// The marker grid.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MarkerGrid {
+    pub nx: usize,
+    pub ny: usize,
+    /// Marker spacing along warp and weft, m (thesis: 5 cm).
+    pub spacing: [f64; 2],
+}
+
+impl Default for MarkerGrid {
+    fn default() -> Self {
+        MarkerGrid {
+            nx: 11,
+            ny: 11,
+            spacing: [0.05, 0.05],
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct IdentifyOptions {
+    pub grid: MarkerGrid,
+    /// Frames (inclusive start, exclusive end) of the viscous window, in
+    /// evaluation frames; chosen from the mean-speed curve when `None`.
+    pub window: Option<(usize, usize)>,
+    /// Gravity in the capture's (rotated) frame, m/s².
+    pub gravity: Vector3<f64>,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            grid: MarkerGrid::default(),
+            window: None,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+        }
+    }
+}
+
+/// One parameter of the thesis' ordered fit (Tables 5.1, 5.2).
+#[derive(Debug, Clone, Serialize)]
+pub struct Estimate {
+    pub name: String,
+    /// Mean over the window (thesis sign convention: ≤ 0 dissipates).
+    pub mean: f64,
+    pub std: f64,
+    /// Mean relative decrease of the residual force this parameter brings.
+    pub error_decrease: f64,
+    /// (evaluation frame, value) for every frame of the capture.
+    pub per_frame: Vec<(usize, f64)>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Identification {
+    pub rate_hz: f64,
+    /// Evaluation frame k is capture frame k + 1.
+    pub window: (usize, usize),
+    pub window_chosen_automatically: bool,
+    /// Mean marker speed per evaluation frame, m/s.
+    pub mean_speed: Vec<f64>,
+    pub alpha: Estimate,
+    pub beta_bend: Estimate,
+    pub beta_shear: Estimate,
+    pub beta_tension: Estimate,
+    /// Global least squares (α, β_f, β_c, β_t) over the window.
+    pub global: [f64; 4],
+    pub global_condition_number: f64,
+}
+
+/// Per evaluation frame: `MA − Mg`, `MV`, elastic forces and `K̃V` per family.
+struct Frame {
+    r0: Vec<Vector3<f64>>,
+    mv: Vec<Vector3<f64>>,
+    f: [Vec<Vector3<f64>>; 3],
+    kv: [Vec<Vector3<f64>>; 3],
+}
+
+const FAMILIES: [Family; 3] = [Family::Bending, Family::Shear, Family::Tension];
+
+fn dot(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x.dot(y)).sum()
+}
+
+/// Chooses the viscous window from the mean-speed curve (thesis Fig. 5.11):
+/// from the first frame where the speed has reached 60 % of its maximum, to
+/// the last frame before it drops below that again (or the end).
+pub fn viscous_window(speed: &[f64]) -> (usize, usize) {
+    let max = speed.iter().cloned().fold(0.0, f64::max);
+    let thr = 0.6 * max;
+    let start = speed.iter().position(|&s| s >= thr).unwrap_or(0);
+    let end = speed[start..]
+        .iter()
+        .position(|&s| s < thr)
+        .map(|k| start + k)
+        .unwrap_or(speed.len());
+    (start, end)
+}
+
+/// Runs the identification on gap-free marker positions `frames[f][marker]`.
+pub fn identify(
+    frames: &[Vec<Vector3<f64>>],
+    rate_hz: f64,
+    fabric: &Fabric,
+    opts: &IdentifyOptions,
+) -> Result<Identification> {
+    let g = opts.grid;
+    let n = g.nx * g.ny;
+    if !(rate_hz.is_finite() && rate_hz > 0.0) {
+        bail!("capture rate {rate_hz} Hz: must be > 0");
+    }
+    if frames.len() < 4 {
+        bail!(
+            "a capture of {} frames is too short: at least 4 are needed",
+            frames.len()
+        );
+    }
+    for (k, f) in frames.iter().enumerate() {
+        if f.len() != n {
+            bail!(
+                "frame {k} has {} markers; the {} × {} grid needs {n}",
+                f.len(),
+                g.nx,
+                g.ny
+            );
+        }
+        if let Some(m) = f.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            bail!("frame {k}, marker {m}: not a finite position (fill gaps first)");
+        }
+    }
+    let dt = 1.0 / rate_hz;
+    let spec = GridSpec {
+        size: [
+            (g.nx - 1) as f64 * g.spacing[0],
+            (g.ny - 1) as f64 * g.spacing[1],
+        ],
+        spacing: g.spacing,
+        pose: Isometry3::identity(),
+    };
+    let cloth = Cloth::grid(&spec, fabric.areal_mass)?;
+    let mut sim = Simulation::new(
+        cloth,
+        fabric.clone(),
+        Params {
+            threads: 1,
+            ..Params::default()
+        },
+    )?;
+    let mass = sim.cloth.mass.clone();
+    // velocities
+    let vel: Vec<Vec<Vector3<f64>>> = frames
+        .windows(2)
+        .map(|w| w[1].iter().zip(&w[0]).map(|(b, a)| (b - a) / dt).collect())
+        .collect();
+    // replay the memory along the path and evaluate at frames 1..N−1
+    sim.cloth.x.clone_from(&frames[0]);
+    sim.commit();
+    let mut evals = Vec::with_capacity(frames.len() - 2);
+    let mut speed = Vec::with_capacity(frames.len() - 2);
+    for i in 0..frames.len() - 2 {
+        sim.cloth.x.clone_from(&frames[i + 1]);
+        sim.commit();
+        let vc: Vec<Vector3<f64>> = vel[i]
+            .iter()
+            .zip(&vel[i + 1])
+            .map(|(a, b)| (a + b) / 2.0)
+            .collect();
+        let r0: Vec<Vector3<f64>> = (0..n)
+            .map(|k| (vel[i + 1][k] - vel[i][k]) / dt * mass[k] - opts.gravity * mass[k])
+            .collect();
+        let mv: Vec<Vector3<f64>> = (0..n).map(|k| vc[k] * mass[k]).collect();
+        let f = FAMILIES.map(|fam| sim.family_forces(fam));
+        let kv = FAMILIES.map(|fam| {
+            let j = sim.family_jacobian(fam, true);
+            let mut out = vec![Vector3::zeros(); n];
+            j.mul(&vc, &mut out);
+            // K̃ = −∂f/∂x (projected)
+            out.iter_mut().for_each(|x| *x = -*x);
+            out
+        });
+        speed.push(vc.iter().map(|v| v.norm()).sum::<f64>() / n as f64);
+        evals.push(Frame { r0, mv, f, kv });
+    }
+    let (window, auto) = match opts.window {
+        Some((a, b)) => {
+            if a >= b || b > evals.len() {
+                bail!(
+                    "window {a}..{b} is outside the {} evaluation frames",
+                    evals.len()
+                );
+            }
+            ((a, b), false)
+        }
+        None => (viscous_window(&speed), true),
+    };
+    if window.1 - window.0 < 2 {
+        bail!(
+            "the viscous window {}..{} has fewer than 2 frames",
+            window.0,
+            window.1
+        );
+    }
+    let win = window.0..window.1;
+
+    // global least squares over the window: r_full ≈ α MV + Σ β K̃V
+    let mut nm = Matrix4::zeros();
+    let mut rhs = Vector4::zeros();
+    for fr in &evals[win.clone()] {
+        let r: Vec<Vector3<f64>> = (0..n)
+            .map(|k| fr.r0[k] - fr.f[0][k] - fr.f[1][k] - fr.f[2][k])
+            .collect();
+        let cols = [&fr.mv, &fr.kv[0], &fr.kv[1], &fr.kv[2]];
+        for a in 0..4 {
+            rhs[a] += dot(cols[a], &r);
+            for b in 0..4 {
+                nm[(a, b)] += dot(cols[a], cols[b]);
+            }
+        }
+    }
+    let sv = nm.symmetric_eigenvalues();
+    let cond = sv.amax() / sv.amin();
+    let global = nm
+        .lu()
+        .solve(&rhs)
+        .map(|x| [x[0], x[1], x[2], x[3]])
+        .unwrap_or([f64::NAN; 4]);
+
+    // the thesis' ordered fits
+    let mut resid: Vec<Vec<Vector3<f64>>> = evals.iter().map(|fr| fr.r0.clone()).collect();
+    let names = ["alpha", "beta_bend", "beta_shear", "beta_tension"];
+    let mut est: Vec<Estimate> = Vec::with_capacity(4);
+    for (p, name) in names.iter().enumerate() {
+        // the family's springs join the model (their elastic forces are known)
+        if p > 0 {
+            for (r, fr) in resid.iter_mut().zip(&evals) {
+                for (x, y) in r.iter_mut().zip(&fr.f[p - 1]) {
+                    *x -= y;
+                }
+            }
+        }
+        let col = |fr: &Frame| -> Vec<Vector3<f64>> {
+            if p == 0 {
+                fr.mv.clone()
+            } else {
+                fr.kv[p - 1].clone()
+            }
+        };
+        let mut per_frame = Vec::with_capacity(evals.len());
+        for (k, (r, fr)) in resid.iter().zip(&evals).enumerate() {
+            let c = col(fr);
+            let cc = dot(&c, &c);
+            per_frame.push((k, if cc > 0.0 { dot(r, &c) / cc } else { 0.0 }));
+        }
+        let vals: Vec<f64> = per_frame[win.clone()]
+            .iter()
+            .map(|x| x.1)
+            .filter(|x| x.is_finite())
+            .collect();
+        let mean = vals.iter().sum::<f64>() / vals.len().max(1) as f64;
+        let std = (vals.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / vals.len().max(1) as f64)
+            .sqrt();
+        // subtract the fitted dissipation and measure what it removed
+        let mut dec = 0.0;
+        for (r, fr) in resid[win.clone()].iter_mut().zip(&evals[win.clone()]) {
+            let before = dot(r, r).sqrt();
+            let c = col(fr);
+            for (x, y) in r.iter_mut().zip(&c) {
+                *x -= y * mean;
+            }
+            let after = dot(r, r).sqrt();
+            if before > 0.0 {
+                dec += (before - after) / before;
+            }
+        }
+        for (k, (r, fr)) in resid.iter_mut().zip(&evals).enumerate() {
+            if !win.contains(&k) {
+                let c = col(fr);
+                for (x, y) in r.iter_mut().zip(&c) {
+                    *x -= y * mean;
+                }
+            }
+        }
+        est.push(Estimate {
+            name: name.to_string(),
+            mean,
+            std,
+            error_decrease: dec / win.len() as f64,
+            per_frame,
+        });
+    }
+    let mut it = est.into_iter();
+    Ok(Identification {
+        rate_hz,
+        window,
+        window_chosen_automatically: auto,
+        mean_speed: speed,
+        alpha: it.next().expect("4 estimates"),
+        beta_bend: it.next().expect("4 estimates"),
+        beta_shear: it.next().expect("4 estimates"),
+        beta_tension: it.next().expect("4 estimates"),
+        global,
+        global_condition_number: cond,
+    })
+}
+
+/// Simulates a built free fall and samples every vertex at `rate_hz`
+/// (the simulation's step must divide the sampling period).
+pub fn sample_capture(
+    sim: &mut Simulation,
+    rate_hz: f64,
+    duration: f64,
+) -> Result<Vec<Vec<Vector3<f64>>>> {
+    let per = 1.0 / (rate_hz * sim.params.dt);
+    let every = per.round() as u64;
+    if every == 0 || (per - every as f64).abs() > 1e-6 {
+        bail!(
+            "the time step {} s does not divide the sampling period 1/{rate_hz} s",
+            sim.params.dt
+        );
+    }
+    let frames = (duration * rate_hz).round() as usize;
+    let mut out = Vec::with_capacity(frames + 1);
+    out.push(sim.cloth.x.clone());
+    for _ in 0..frames {
+        for _ in 0..every {
+            sim.step()?;
+        }
+        out.push(sim.cloth.x.clone());
+    }
+    Ok(out)
+}
