@@ -5,8 +5,10 @@
 //! Layers (data flows one way): [`fabric`] (KES data → laws) and [`cloth`]
 //! (the warp/weft grid) feed [`solver`] (forces, Jacobians, implicit step),
 //! which [`collision`] constrains; [`scene`] builds it all from YAML;
-//! [`output`] writes shapes, curves and summaries.
+//! [`run`] writes shapes, curves and summaries; [`capture`] reads and
+//! writes motion captures (C3D, CSV) and [`lab`] runs the thesis experiments.
 
+pub mod capture;
 pub mod cloth;
 pub mod collision;
 pub mod fabric;
