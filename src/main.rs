@@ -47,6 +47,32 @@ enum Cmd {
         #[arg(long)]
         cg_tolerance: Option<f64>,
     },
+    /// Measure a fabric's damping from a motion capture of a free fall (thesis ch. 5).
+    Identify {
+        /// Capture file: C3D, or CSV (frame,time,<label>_x,_y,_z,...; metres).
+        capture: PathBuf,
+        /// Fabric file whose laws give the spring forces.
+        #[arg(long)]
+        fabric: PathBuf,
+        /// Capture of a falling ball (first marker) giving the vertical.
+        #[arg(long)]
+        vertical: Option<PathBuf>,
+        /// Viscous window in frames, e.g. 40..100 (default: from the mean-speed curve).
+        #[arg(long)]
+        window: Option<String>,
+        /// Marker grid, e.g. 11x11.
+        #[arg(long, default_value = "11x11")]
+        grid: String,
+        /// Marker spacing, m.
+        #[arg(long, default_value_t = 0.05)]
+        spacing: f64,
+        /// Markers are stored warp-major (index i*ny + j) instead of grid order (j*nx + i).
+        #[arg(long)]
+        warp_major: bool,
+        /// Output directory (report.json, fabric with the measured damping).
+        #[arg(long, default_value = "out/identify")]
+        out: PathBuf,
+    },
     /// Benchmark ms per step and real-time factor of the table drape.
     Bench {
         /// Scene to benchmark.
@@ -184,6 +210,18 @@ fn real_main(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+        Cmd::Identify {
+            capture,
+            fabric,
+            vertical,
+            window,
+            grid,
+            spacing,
+            warp_major,
+            out,
+        } => identify_cmd(
+            capture, fabric, vertical, window, grid, spacing, warp_major, out,
+        ),
         Cmd::Bench {
             scene,
             spacing,
@@ -262,6 +300,119 @@ fn real_main(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn identify_cmd(
+    capture: PathBuf,
+    fabric: PathBuf,
+    vertical: Option<PathBuf>,
+    window: Option<String>,
+    grid: String,
+    spacing: f64,
+    warp_major: bool,
+    out: PathBuf,
+) -> Result<()> {
+    use garment_sim::fabric::Fabric;
+    use garment_sim::lab::identify::{identify_file, IdentifyOptions, MarkerGrid};
+    let (nx, ny) = grid
+        .split_once('x')
+        .and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)))
+        .filter(|&(a, b)| a >= 2 && b >= 2)
+        .with_context(|| format!("--grid {grid:?}: expected NXxNY, e.g. 11x11"))?;
+    if !(spacing.is_finite() && spacing > 0.0) {
+        anyhow::bail!("--spacing {spacing}: must be > 0 m");
+    }
+    let window = match window {
+        Some(w) => Some(
+            w.split_once("..")
+                .and_then(|(a, b)| {
+                    Some((
+                        a.trim().parse::<usize>().ok()?,
+                        b.trim().parse::<usize>().ok()?,
+                    ))
+                })
+                .with_context(|| format!("--window {w:?}: expected START..END in frames"))?,
+        ),
+        None => None,
+    };
+    let fab = Fabric::load(&fabric)?;
+    let opts = IdentifyOptions {
+        grid: MarkerGrid {
+            nx,
+            ny,
+            spacing: [spacing, spacing],
+        },
+        window,
+        ..Default::default()
+    };
+    let rep = identify_file(&capture, vertical.as_deref(), &fab, &opts, warp_major)?;
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&rep)?)?;
+    let r = &rep.result;
+    let mut file = fab.file.clone();
+    file.damping.alpha = r.alpha.mean;
+    file.damping.beta_bend = r.beta_bend.mean.min(0.0);
+    file.damping.beta_shear = r.beta_shear.mean.min(0.0);
+    file.damping.beta_tension = r.beta_tension.mean.min(0.0);
+    file.notes = format!(
+        "{}\nDamping measured by `garment_sim identify {}` (window {}..{} of {} frames at {} Hz).",
+        file.notes.trim_end(),
+        capture.display(),
+        r.window.0,
+        r.window.1,
+        rep.frames,
+        rep.rate_hz
+    );
+    let fab_out = out.join("fabric_measured.yaml");
+    std::fs::write(&fab_out, serde_yaml::to_string(&file)?)?;
+    println!(
+        "capture          {} ({} frames, {} markers at {} Hz)",
+        rep.capture, rep.frames, rep.markers, rep.rate_hz
+    );
+    println!(
+        "gaps filled      {} marker positions in {} sweeps (thesis Algorithm 1)",
+        rep.missing_markers_filled, rep.gap_fill_sweeps
+    );
+    if let Some(v) = rep.vertical_from_ball {
+        println!(
+            "vertical         ({:.5}, {:.5}, {:.5}) from the ball drop",
+            v[0], v[1], v[2]
+        );
+    }
+    println!(
+        "viscous window   frames {}..{}{}",
+        r.window.0,
+        r.window.1,
+        if r.window_chosen_automatically {
+            " (from the mean-speed curve)"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "{:<14} {:>12} {:>12} {:>16}",
+        "parameter", "mean", "std", "error decrease"
+    );
+    for e in [&r.alpha, &r.beta_bend, &r.beta_shear, &r.beta_tension] {
+        println!(
+            "{:<14} {:>12.4e} {:>12.4e} {:>15.2}%",
+            e.name,
+            e.mean,
+            e.std,
+            100.0 * e.error_decrease
+        );
+    }
+    println!(
+        "global fit     alpha {:.4e}, beta_f {:.4e}, beta_c {:.4e}, beta_t {:.4e}; condition number {:.2e}",
+        r.global[0], r.global[1], r.global[2], r.global[3], r.global_condition_number
+    );
+    println!(
+        "wrote            {}/report.json, {}",
+        out.display(),
+        fab_out.display()
+    );
+    Ok(())
 }
 
 /// Peak resident memory of this process so far (Linux VmHWM), MB.

@@ -20,8 +20,15 @@ fn c3d_files_round_trip_with_ezc3d() {
         .args(["-m", "pytest", "-q", "-rs", "tests/c3d_interop.py"])
         .output()
         .unwrap();
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     println!("{text}");
     assert!(out.status.success(), "{text}");
-    assert!(text.contains("3 passed") && !text.contains("skipped"), "{text}");
+    assert!(
+        text.contains("3 passed") && !text.contains("skipped"),
+        "{text}"
+    );
 }

@@ -362,3 +362,116 @@ pub fn sample_capture(
     }
     Ok(out)
 }
+
+/// Everything `garment_sim identify` reports (`report.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct IdentifyReport {
+    pub capture: String,
+    pub fabric: String,
+    pub markers: usize,
+    pub frames: usize,
+    pub rate_hz: f64,
+    pub missing_markers_filled: usize,
+    pub gap_fill_sweeps: usize,
+    /// Unit vector of the vertical (up) in the capture's frame, if found from a ball drop.
+    pub vertical_from_ball: Option<[f64; 3]>,
+    pub result: Identification,
+}
+
+/// Reads a capture (C3D or CSV by extension), finds the vertical from an
+/// optional ball-drop capture, fills gaps (thesis Algorithm 1) and runs
+/// [`identify`]. Markers are taken in grid order (index `j·nx + i`, warp
+/// index `i` fastest) unless `warp_major` (index `i·ny + j`).
+pub fn identify_file(
+    capture: &std::path::Path,
+    ball: Option<&std::path::Path>,
+    fabric: &Fabric,
+    opts: &IdentifyOptions,
+    warp_major: bool,
+) -> Result<IdentifyReport> {
+    use crate::capture::{
+        fill_gaps, read_c3d, read_capture_csv, rotate_capture, rotation_to_z, vertical_from_ball,
+        GridMap,
+    };
+    use anyhow::Context;
+    let read = |p: &std::path::Path| -> Result<crate::capture::Capture> {
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        let c = if ext == "csv" {
+            read_capture_csv(p)
+        } else {
+            read_c3d(p)
+        };
+        c.with_context(|| format!("capture {}", p.display()))
+    };
+    let mut cap = read(capture)?;
+    let g = opts.grid;
+    let n = g.nx * g.ny;
+    if cap.n_markers() != n {
+        bail!(
+            "capture {} has {} markers; the {} × {} marker grid needs {n}",
+            capture.display(),
+            cap.n_markers(),
+            g.nx,
+            g.ny
+        );
+    }
+    let mut up = None;
+    if let Some(b) = ball {
+        let bc = read(b)?;
+        let track: Vec<Vector3<f64>> = bc
+            .frames
+            .iter()
+            .filter_map(|f| f.first().copied().flatten())
+            .collect();
+        let v = vertical_from_ball(&track)
+            .with_context(|| format!("vertical from ball capture {}", b.display()))?;
+        rotate_capture(&mut cap, &rotation_to_z(&v));
+        up = Some([v.x, v.y, v.z]);
+    }
+    // GridMap: node (i, j) -> marker index[i * ny + j]
+    let map = GridMap {
+        nx: g.nx,
+        ny: g.ny,
+        index: (0..g.nx)
+            .flat_map(|i| {
+                (0..g.ny).map(move |j| {
+                    if warp_major {
+                        i * g.ny + j
+                    } else {
+                        j * g.nx + i
+                    }
+                })
+            })
+            .collect(),
+    };
+    let fill = fill_gaps(&mut cap, &map)
+        .with_context(|| format!("filling gaps of {}", capture.display()))?;
+    let frames: Vec<Vec<Vector3<f64>>> = cap
+        .frames
+        .iter()
+        .map(|f| {
+            (0..n)
+                .map(|v| {
+                    let (i, j) = (v % g.nx, v / g.nx);
+                    f[map.index[i * g.ny + j]].unwrap_or_else(|| Vector3::repeat(f64::NAN))
+                })
+                .collect()
+        })
+        .collect();
+    let result = identify(&frames, cap.rate_hz, fabric, opts)?;
+    Ok(IdentifyReport {
+        capture: capture.display().to_string(),
+        fabric: fabric.name.clone(),
+        markers: n,
+        frames: frames.len(),
+        rate_hz: cap.rate_hz,
+        missing_markers_filled: fill.filled,
+        gap_fill_sweeps: fill.sweeps,
+        vertical_from_ball: up,
+        result,
+    })
+}

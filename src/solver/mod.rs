@@ -450,9 +450,14 @@ impl Simulation {
     /// iterations than the Cholesky's time allows stops early and the step is
     /// solved directly.
     fn solve_auto(&mut self) -> Result<usize> {
-        let probe = self.steps == 3 || (self.steps.is_multiple_of(AUTO_PROBE) && self.steps > 0);
-        let use_direct = self.auto.direct_ms < self.auto.pcg_ms;
-        let use_direct = if probe { !use_direct } else { use_direct };
+        let on_direct = self.auto.direct_ms < self.auto.pcg_ms;
+        // a PCG probe costs at most one direct solve (it is capped), so it is
+        // tried often; a direct probe costs a factorisation, so rarely
+        let every = if on_direct { AUTO_PROBE / 10 } else { AUTO_PROBE };
+        let probe = self.steps == 3 || (self.steps > 0 && self.steps.is_multiple_of(every));
+        let use_direct = on_direct != probe;
+        // a probe replaces the estimate; ordinary steps average into it
+        let update = |old: f64, new: f64| if probe { new } else { ema(old, new) };
         if use_direct && self.direct.is_none() {
             // the one-off symbolic analysis is not part of a step's cost
             self.direct = Some(linear::Direct::new(&self.a)?);
@@ -460,7 +465,7 @@ impl Simulation {
         let t = Instant::now();
         if use_direct {
             let it = self.solve_direct()?;
-            self.auto.direct_ms = ema(self.auto.direct_ms, 1e3 * t.elapsed().as_secs_f64());
+            self.auto.direct_ms = update(self.auto.direct_ms, 1e3 * t.elapsed().as_secs_f64());
             return Ok(it);
         }
         // cap the PCG at the iterations the direct solve's time allows
@@ -473,13 +478,13 @@ impl Simulation {
         match self.solve_pcg(cap) {
             Ok(it) => {
                 let ms = 1e3 * t.elapsed().as_secs_f64();
-                self.auto.pcg_ms = ema(self.auto.pcg_ms, ms);
+                self.auto.pcg_ms = update(self.auto.pcg_ms, ms);
                 self.auto.pcg_ms_per_iter = ms / (it.max(1) as f64);
                 Ok(it)
             }
             Err(_) => {
                 let ms = 1e3 * t.elapsed().as_secs_f64();
-                self.auto.pcg_ms = ema(self.auto.pcg_ms, ms.max(self.auto.direct_ms) * 1.5);
+                self.auto.pcg_ms = update(self.auto.pcg_ms, ms.max(self.auto.direct_ms) * 1.5);
                 let t2 = Instant::now();
                 let it = self.solve_direct()?;
                 self.auto.direct_ms = ema(self.auto.direct_ms, 1e3 * t2.elapsed().as_secs_f64());
