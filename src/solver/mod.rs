@@ -453,7 +453,11 @@ impl Simulation {
         let on_direct = self.auto.direct_ms < self.auto.pcg_ms;
         // a PCG probe costs at most one direct solve (it is capped), so it is
         // tried often; a direct probe costs a factorisation, so rarely
-        let every = if on_direct { AUTO_PROBE / 10 } else { AUTO_PROBE };
+        let every = if on_direct {
+            AUTO_PROBE / 10
+        } else {
+            AUTO_PROBE
+        };
         let probe = self.steps == 3 || (self.steps > 0 && self.steps.is_multiple_of(every));
         let use_direct = on_direct != probe;
         // a probe replaces the estimate; ordinary steps average into it
