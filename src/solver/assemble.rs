@@ -163,7 +163,6 @@ struct Out<'a> {
 fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: &mut Out) {
     let (h, d, f, c, y) = (ctx.h, ctx.d, ctx.f, ctx.c, ctx.y);
     let v = c.v;
-    let ct = h * h;
     let (bo, vo) = (o.boff, o.voff);
     let t0 = tr.start;
     for k in tr {
@@ -173,23 +172,17 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         let law = &f.dir(s.weft).tensile;
         law.commit(st, l / s.l0 - 1.0);
         let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
-        let pd = axial_block(&Axial { t, dt, l, dir }, true);
-        let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
-        scatter(
-            o.val,
-            bo,
-            &ctx.slots.tension[k],
-            &(ps * ct - pd * (h * d.beta_tension)),
-        );
-        let dvab = v[s.a] - v[s.b];
-        let kdv = pd * dvab;
-        o.power += d.beta_tension * dvab.dot(&kdv);
-        let fe = dir * t + kdv * d.beta_tension;
-        o.force[s.a - vo] += fe;
-        o.force[s.b - vo] -= fe;
-        let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
-        o.rhs[s.a - vo] += r;
-        o.rhs[s.b - vo] -= r;
+        let sp = AxialStep {
+            a: s.a,
+            b: s.b,
+            t,
+            dt,
+            dts,
+            l,
+            dir,
+            beta: d.beta_tension,
+        };
+        axial_element(ctx, o, &ctx.slots.tension[k], &sp);
     }
     let s0 = sr.start;
     for k in sr {
@@ -199,23 +192,17 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         f.shear
             .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
         let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
-        let pd = axial_block(&Axial { t, dt, l, dir }, true);
-        let ps = axial_block(&Axial { t, dt: dts, l, dir }, true);
-        scatter(
-            o.val,
-            bo,
-            &ctx.slots.shear[k],
-            &(ps * ct - pd * (h * d.beta_shear)),
-        );
-        let dvab = v[s.a] - v[s.b];
-        let kdv = pd * dvab;
-        o.power += d.beta_shear * dvab.dot(&kdv);
-        let fe = dir * t + kdv * d.beta_shear;
-        o.force[s.a - vo] += fe;
-        o.force[s.b - vo] -= fe;
-        let r = -(ps * (dvab * h + (y[s.a] - y[s.b])));
-        o.rhs[s.a - vo] += r;
-        o.rhs[s.b - vo] -= r;
+        let sp = AxialStep {
+            a: s.a,
+            b: s.b,
+            t,
+            dt,
+            dts,
+            l,
+            dir,
+            beta: d.beta_shear,
+        };
+        axial_element(ctx, o, &ctx.slots.shear[k], &sp);
     }
     let h0 = hr.start;
     for k in hr {
@@ -249,6 +236,56 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
             }
         }
     }
+}
+
+/// One axial spring's response for this step.
+struct AxialStep {
+    a: usize,
+    b: usize,
+    /// Tension, its branch tangent and its step tangent (see [`crate::fabric::Law::eval_for_step`]).
+    t: f64,
+    dt: f64,
+    dts: f64,
+    l: f64,
+    dir: Vector3<f64>,
+    /// The family's Rayleigh coefficient.
+    beta: f64,
+}
+
+/// Adds an axial spring (tension or shear) to the step: stiffness with the step
+/// tangent, damping with the branch tangent.
+#[inline]
+fn axial_element(ctx: &Ctx, o: &mut Out, slots: &[usize; 4], e: &AxialStep) {
+    let (h, y, v) = (ctx.h, ctx.y, ctx.c.v);
+    let (bo, vo) = (o.boff, o.voff);
+    let pd = axial_block(
+        &Axial {
+            t: e.t,
+            dt: e.dt,
+            l: e.l,
+            dir: e.dir,
+        },
+        true,
+    );
+    let ps = axial_block(
+        &Axial {
+            t: e.t,
+            dt: e.dts,
+            l: e.l,
+            dir: e.dir,
+        },
+        true,
+    );
+    scatter(o.val, bo, slots, &(ps * (h * h) - pd * (h * e.beta)));
+    let dvab = v[e.a] - v[e.b];
+    let kdv = pd * dvab;
+    o.power += e.beta * dvab.dot(&kdv);
+    let fe = e.dir * e.t + kdv * e.beta;
+    o.force[e.a - vo] += fe;
+    o.force[e.b - vo] -= fe;
+    let r = -(ps * (dvab * h + (y[e.a] - y[e.b])));
+    o.rhs[e.a - vo] += r;
+    o.rhs[e.b - vo] -= r;
 }
 
 #[inline]

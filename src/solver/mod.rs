@@ -604,25 +604,10 @@ impl Simulation {
 
     /// Internal (spring) forces only, at the current positions and memory.
     pub fn internal_forces(&self) -> Vec<Vector3<f64>> {
-        let c = &self.cloth;
-        let f = &self.fabric;
-        let mut out = vec![Vector3::zeros(); c.len()];
-        for (s, st) in c.tension.iter().zip(&c.tension_state) {
-            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let (t, _, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
-            out[s.a] += dir * t;
-            out[s.b] -= dir * t;
-        }
-        for (s, st) in c.shear.iter().zip(&c.shear_state) {
-            let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-            let (t, _, _) = shear_law(s, &f.shear, st, l);
-            out[s.a] += dir * t;
-            out[s.b] -= dir * t;
-        }
-        for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-            let (_, _, s, _, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
-            for p in 0..4 {
-                out[hg.v[p]] -= Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]) * (hg.len * s);
+        let mut out = self.family_forces(family::Family::Tension);
+        for fam in [family::Family::Shear, family::Family::Bending] {
+            for (o, f) in out.iter_mut().zip(self.family_forces(fam)) {
+                *o += f;
             }
         }
         out
