@@ -19,6 +19,11 @@ pub struct EnergyRow {
     pub shear: f64,
     pub bending: f64,
     pub dissipated: f64,
+    /// Mechanical energy lost since the start, `E(0) − E(t)` with
+    /// `E = kinetic + gravity + elastic`: damping, hysteresis, contacts and the
+    /// integrator's own dissipation (less any work done by moving pins or
+    /// obstacles).
+    pub lost: f64,
     pub rms_speed: f64,
 }
 
@@ -68,6 +73,7 @@ pub fn run(
     let steps = (duration / sim.params.dt).round() as u64;
     let every = ((1.0 / rate) / sim.params.dt).round().max(1.0) as u64;
     let mut rows = vec![row(sim)];
+    let e0 = sim.energies().total();
     let mut last_fast: Option<f64> = if sim.rms_speed() >= settle_speed {
         Some(0.0)
     } else {
@@ -90,7 +96,9 @@ pub fn run(
             last_fast = Some(sim.time);
         }
         if k % every == 0 || k == steps {
-            rows.push(row(sim));
+            let mut r = row(sim);
+            r.lost = e0 - sim.energies().total();
+            rows.push(r);
             progress(sim.time, duration);
         }
     }
@@ -142,6 +150,7 @@ pub fn row(sim: &Simulation) -> EnergyRow {
         shear: e.shear,
         bending: e.bending,
         dissipated: e.dissipated_damping,
+        lost: 0.0,
         rms_speed: sim.rms_speed(),
     }
 }
@@ -201,13 +210,21 @@ pub fn write_energy_csv(rows: &[EnergyRow], path: &Path) -> Result<()> {
     );
     writeln!(
         w,
-        "time_s,kinetic_J,gravity_J,tension_J,shear_J,bending_J,dissipated_damping_J,rms_speed_m_s"
+        "time_s,kinetic_J,gravity_J,tension_J,shear_J,bending_J,dissipated_damping_J,lost_total_J,rms_speed_m_s"
     )?;
     for r in rows {
         writeln!(
             w,
-            "{},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
-            r.time, r.kinetic, r.gravity, r.tension, r.shear, r.bending, r.dissipated, r.rms_speed
+            "{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+            r.time,
+            r.kinetic,
+            r.gravity,
+            r.tension,
+            r.shear,
+            r.bending,
+            r.dissipated,
+            r.lost,
+            r.rms_speed
         )?;
     }
     w.flush()?;

@@ -189,6 +189,12 @@ pub struct Simulation {
     filter: Vec<Filter>,
     /// Friction coefficient and obstacle velocity of each vertex in contact.
     contact_of: Vec<Option<(f64, Vector3<f64>)>>,
+    /// Normal of each vertex's contact this step (also when it sticks).
+    normals: Vec<Vector3<f64>>,
+    /// Stick/slip state carried from step to step.
+    friction: Vec<FrictionState>,
+    /// Kinetic friction force of this step.
+    friction_force: Vec<Vector3<f64>>,
     /// Broad-phase boxes of the obstacles for this step.
     bounds: Vec<([f64; 3], [f64; 3])>,
     pinned: Vec<Option<usize>>,
@@ -241,9 +247,12 @@ impl Simulation {
             b: z.clone(),
             dv: z.clone(),
             y: z.clone(),
+            normals: z.clone(),
+            friction_force: z.clone(),
             z,
             filter: vec![Filter::Free; n],
             contact_of: vec![None; n],
+            friction: vec![FrictionState::default(); n],
             bounds: Vec::new(),
             pinned: vec![None; n],
             pcg: linear::Pcg::default(),
@@ -317,6 +326,9 @@ impl Simulation {
             self.z[i] = Vector3::zeros();
             self.y[i] = Vector3::zeros();
             self.contact_of[i] = None;
+            // last step's force without its friction: what drives the sliding
+            let driving = self.force[i] - self.friction_force[i];
+            self.friction_force[i] = Vector3::zeros();
             if let Some(k) = self.pinned[i] {
                 let (p, v) = self.pins[k].path.at(t1);
                 self.filter[i] = Filter::Fixed;
@@ -340,23 +352,55 @@ impl Simulation {
                     best = Some((o, pr, e));
                 }
             }
+            let mut touching = false;
             if let Some((o, pr, e)) = best {
-                let vrel = (self.cloth.v[i] - pr.velocity).dot(&pr.normal);
-                let pressed = self.force[i].dot(&pr.normal) < 0.0;
+                let n = pr.normal;
+                let rel = self.cloth.v[i] - pr.velocity;
+                let vrel = rel.dot(&n);
+                let pressed = self.force[i].dot(&n) < 0.0;
                 if vrel < 0.0 || pressed || pr.distance < e {
-                    self.filter[i] = Filter::Normal(pr.normal);
-                    // inelastic: the normal relative velocity becomes 0 (or separating if it was)
-                    self.z[i] = pr.normal * (-vrel).max(0.0);
-                    self.y[i] = pr.normal * (e - pr.distance).max(0.0);
-                    self.contact_of[i] = Some((self.obstacles[o].friction, pr.velocity));
+                    touching = true;
+                    let mu = self.obstacles[o].friction;
+                    self.y[i] = n * (e - pr.distance).max(0.0);
+                    if self.friction[i].stick && mu > 0.0 {
+                        // static friction: the vertex moves with the obstacle
+                        self.filter[i] = Filter::Fixed;
+                        self.z[i] = pr.velocity - self.cloth.v[i];
+                    } else {
+                        // inelastic normal constraint (a separating velocity is kept)
+                        // and kinetic friction from last step's normal force, never
+                        // more than what stops the tangential motion in one step
+                        // against the force driving it
+                        self.filter[i] = Filter::Normal(n);
+                        self.z[i] = n * (-vrel).max(0.0);
+                        let vt = rel - n * vrel;
+                        let vtn = vt.norm();
+                        if vtn > 0.0 && mu > 0.0 {
+                            let t = vt / vtn;
+                            let stop = self.cloth.mass[i] * vtn / h + driving.dot(&t).max(0.0);
+                            let f = (mu * self.friction[i].impulse / h).min(stop);
+                            self.friction_force[i] = -t * f;
+                        }
+                    }
+                    self.contact_of[i] = Some((mu, pr.velocity));
+                    self.normals[i] = n;
                     contacts += 1;
                 }
+            }
+            if !touching {
+                self.friction[i] = FrictionState::default();
             }
         }
         let t_collide = t_start.elapsed().as_secs_f64();
         // 2. forces and system
         let t_asm = Instant::now();
         self.assemble();
+        for i in 0..n {
+            if self.friction_force[i] != Vector3::zeros() {
+                self.force[i] += self.friction_force[i];
+                self.b[i] += self.friction_force[i] * h;
+            }
+        }
         let assemble_s = t_asm.elapsed().as_secs_f64();
         // 3. solve
         let t_solve = Instant::now();
@@ -374,24 +418,30 @@ impl Simulation {
                 );
             }
         }
-        // 4. velocities with Coulomb friction at contacts, positions
+        // 4. velocities and positions; Coulomb stick/slip from the constraint
+        //    impulse r = (A Δv − b)_i of each vertex in contact
         let t_post = Instant::now();
         for i in 0..n {
-            let mut v = self.cloth.v[i] + self.dv[i];
-            if let (Some((mu, vo)), Filter::Normal(nrm)) = (self.contact_of[i], self.filter[i]) {
-                // constraint impulse along the normal: (A Δv − b)_i · n
+            let v = self.cloth.v[i] + self.dv[i];
+            if let Some((mu, vo)) = self.contact_of[i] {
                 let mut r = -self.b[i];
                 for k in self.a.row_ptr[i]..self.a.row_ptr[i + 1] {
                     r += self.a.val[k] * self.dv[self.a.col[k]];
                 }
-                let jn = r.dot(&nrm).max(0.0);
-                let rel = v - vo;
-                let vt = rel - nrm * rel.dot(&nrm);
-                let vtn = vt.norm();
-                if vtn > 0.0 {
-                    let dvt = (mu * jn / self.cloth.mass[i]).min(vtn);
-                    v -= vt * (dvt / vtn);
-                }
+                let nrm = match self.filter[i] {
+                    Filter::Normal(nrm) => nrm,
+                    _ => self.contact_normal(i),
+                };
+                let rn = r.dot(&nrm);
+                let st = &mut self.friction[i];
+                st.impulse = rn.max(0.0);
+                st.stick = if self.filter[i] == Filter::Fixed {
+                    // static friction holds while the tangential impulse stays in the cone
+                    rn > 0.0 && (r - nrm * rn).norm() <= mu * rn
+                } else {
+                    let rel = v - vo;
+                    (rel - nrm * rel.dot(&nrm)).norm() < STICK_SPEED
+                };
             }
             self.cloth.v[i] = v;
             self.cloth.x[i] += v * h + self.y[i];
@@ -415,6 +465,10 @@ impl Simulation {
             total_s: t_start.elapsed().as_secs_f64(),
         };
         Ok(self.last)
+    }
+
+    fn contact_normal(&self, i: usize) -> Vector3<f64> {
+        self.normals[i]
     }
 
     fn solve_pcg(&mut self, max_iter: usize) -> Result<usize> {
@@ -659,6 +713,18 @@ impl Simulation {
     pub fn matrix_blocks(&self) -> usize {
         self.a.nnz_blocks()
     }
+}
+
+/// A sliding vertex slower than this (relative to the obstacle) sticks, m/s.
+pub const STICK_SPEED: f64 = 1e-3;
+
+/// Coulomb friction state of a vertex in contact.
+#[derive(Debug, Clone, Copy, Default)]
+struct FrictionState {
+    /// Static friction holds it (it moves with the obstacle).
+    stick: bool,
+    /// Normal impulse of the last step, N·s.
+    impulse: f64,
 }
 
 /// Steps between two tries of the slower solver in `auto` mode.
