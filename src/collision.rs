@@ -265,6 +265,35 @@ impl Obstacle {
         );
     }
 
+    /// Surface triangles in the obstacle's own frame (for markers and exports):
+    /// primitives tessellated, meshes as given.
+    pub fn local_triangles(&self) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        if let Some((v, t)) = &self.mesh {
+            return (v.clone(), t.clone());
+        }
+        let (pts, tris) = if let Some(s) = self.shape.as_cuboid() {
+            s.to_trimesh()
+        } else if let Some(s) = self.shape.as_ball() {
+            s.to_trimesh(16, 32)
+        } else if let Some(s) = self.shape.as_capsule() {
+            s.to_trimesh(16, 8)
+        } else if let Some(s) = self.shape.as_cylinder() {
+            s.to_trimesh(32)
+        } else if let Some(s) = self.shape.as_cone() {
+            s.to_trimesh(32)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let v = pts
+            .iter()
+            .map(|p| {
+                let q = self.shape_pose_offset * p;
+                [q.x, q.y, q.z]
+            })
+            .collect();
+        (v, tris)
+    }
+
     pub fn is_moving(&self) -> bool {
         self.linear_velocity != Vector3::zeros() || self.angular_velocity != Vector3::zeros()
     }

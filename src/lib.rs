@@ -13,6 +13,7 @@ pub mod cloth;
 pub mod collision;
 pub mod fabric;
 pub mod lab;
+pub mod ros;
 pub mod run;
 pub mod scene;
 pub mod solver;

@@ -1,0 +1,7 @@
+//! The ROS 2 side: message types laid out as their ROS 2 definitions
+//! ([`msgs`]), the messages built from a simulation ([`publish`]), ROS
+//! command-line arguments ([`args`]) and the node itself ([`node`]).
+//! The physics modules never depend on this one.
+
+pub mod msgs;
+pub mod publish;

@@ -1,0 +1,254 @@
+//! What the node publishes (and the bag recorder stores), built from a
+//! [`Simulation`]: the cloth as a point cloud and a triangle-list marker, the
+//! obstacles as markers, the diagnostics and the clock. Pure functions of the
+//! simulation state, shared by the node and the headless recorder so both
+//! write the same messages.
+
+use super::msgs::*;
+use crate::solver::Simulation;
+
+/// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
+/// tension springs at the vertex (positive: stretched).
+pub fn vertex_strain(sim: &Simulation) -> Vec<f64> {
+    let x = &sim.cloth.x;
+    let mut s = vec![f64::NEG_INFINITY; x.len()];
+    for sp in &sim.cloth.tension {
+        let e = (x[sp.a] - x[sp.b]).norm() / sp.l0 - 1.0;
+        s[sp.a] = s[sp.a].max(e);
+        s[sp.b] = s[sp.b].max(e);
+    }
+    s.iter_mut().for_each(|v| {
+        if !v.is_finite() {
+            *v = 0.0
+        }
+    });
+    s
+}
+
+/// Fields of `cloth/points`: x, y, z (m), strain (1), speed (m/s), all float32.
+pub const CLOUD_FIELDS: [&str; 5] = ["x", "y", "z", "strain", "speed"];
+
+/// The cloth vertices as an unorganised PointCloud2 (height 1), little-endian.
+pub fn cloud(sim: &Simulation, header: Header) -> PointCloud2 {
+    let n = sim.cloth.len();
+    let strain = vertex_strain(sim);
+    let step = 4 * CLOUD_FIELDS.len();
+    let mut data = Vec::with_capacity(n * step);
+    for i in 0..n {
+        let p = sim.cloth.x[i];
+        let vals = [
+            p.x as f32,
+            p.y as f32,
+            p.z as f32,
+            strain[i] as f32,
+            sim.cloth.v[i].norm() as f32,
+        ];
+        for v in vals {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    PointCloud2 {
+        header,
+        height: 1,
+        width: n as u32,
+        fields: CLOUD_FIELDS
+            .iter()
+            .enumerate()
+            .map(|(k, name)| PointField {
+                name: name.to_string(),
+                offset: 4 * k as u32,
+                datatype: PointField::FLOAT32,
+                count: 1,
+            })
+            .collect(),
+        is_bigendian: false,
+        point_step: step as u32,
+        row_step: (step * n) as u32,
+        data,
+        is_dense: true,
+    }
+}
+
+/// Reads x, y, z back from a cloud written by [`cloud`] (or any little-endian
+/// cloud with float32 x, y, z fields).
+pub fn cloud_points(c: &PointCloud2) -> anyhow::Result<Vec<[f32; 3]>> {
+    anyhow::ensure!(!c.is_bigendian, "big-endian point clouds are not supported");
+    let off = |name: &str| -> anyhow::Result<usize> {
+        let f = c
+            .fields
+            .iter()
+            .find(|f| f.name == name)
+            .ok_or_else(|| anyhow::anyhow!("point cloud has no field {name:?}"))?;
+        anyhow::ensure!(
+            f.datatype == PointField::FLOAT32,
+            "field {name:?} is not float32"
+        );
+        Ok(f.offset as usize)
+    };
+    let (ox, oy, oz) = (off("x")?, off("y")?, off("z")?);
+    let n = (c.width * c.height) as usize;
+    let step = c.point_step as usize;
+    anyhow::ensure!(
+        c.data.len() >= n * step && step >= 12,
+        "point cloud data has {} bytes, {} points of {} bytes expected",
+        c.data.len(),
+        n,
+        step
+    );
+    let rd = |k: usize| f32::from_le_bytes(c.data[k..k + 4].try_into().unwrap());
+    Ok((0..n)
+        .map(|i| [rd(i * step + ox), rd(i * step + oy), rd(i * step + oz)])
+        .collect())
+}
+
+/// Colour of a strain value: grey-blue at rest, red at `full` strain.
+fn strain_colour(e: f64, full: f64) -> ColorRGBA {
+    let t = (e.max(0.0) / full).min(1.0) as f32;
+    ColorRGBA {
+        r: 0.35 + 0.6 * t,
+        g: 0.45 * (1.0 - t) + 0.1,
+        b: 0.75 * (1.0 - t) + 0.1,
+        a: 1.0,
+    }
+}
+
+/// The cloth surface as a TRIANGLE_LIST marker coloured by strain (red at 2 %).
+pub fn cloth_marker(sim: &Simulation, header: Header) -> Marker {
+    let strain = vertex_strain(sim);
+    let tris = &sim.cloth.triangles;
+    let mut points = Vec::with_capacity(3 * tris.len());
+    let mut colors = Vec::with_capacity(3 * tris.len());
+    for t in tris {
+        for &i in t {
+            points.push(Point::from(sim.cloth.x[i]));
+            colors.push(strain_colour(strain[i], 0.02));
+        }
+    }
+    Marker {
+        header,
+        ns: "cloth".into(),
+        id: 0,
+        type_: Marker::TRIANGLE_LIST,
+        action: Marker::ADD,
+        pose: Pose::default(),
+        scale: Vector3 {
+            x: 1.0,
+            y: 1.0,
+            z: 1.0,
+        },
+        color: ColorRGBA {
+            r: 0.4,
+            g: 0.5,
+            b: 0.8,
+            a: 1.0,
+        },
+        points,
+        colors,
+        ..Default::default()
+    }
+}
+
+/// The obstacles as TRIANGLE_LIST markers (namespace `obstacles`, one id per
+/// obstacle in scene order), preceded by a DELETEALL so removed obstacles vanish.
+pub fn obstacle_markers(sim: &Simulation, header: Header) -> MarkerArray {
+    let mut markers = vec![Marker {
+        header: header.clone(),
+        ns: "obstacles".into(),
+        action: Marker::DELETEALL,
+        ..Default::default()
+    }];
+    for (k, o) in sim.obstacles.iter().enumerate() {
+        let (v, t) = o.local_triangles();
+        let points = t
+            .iter()
+            .flat_map(|tri| {
+                tri.iter().map(|&i| {
+                    let p = v[i as usize];
+                    Point {
+                        x: p[0],
+                        y: p[1],
+                        z: p[2],
+                    }
+                })
+            })
+            .collect();
+        markers.push(Marker {
+            header: header.clone(),
+            ns: "obstacles".into(),
+            id: k as i32,
+            type_: Marker::TRIANGLE_LIST,
+            action: Marker::ADD,
+            pose: Pose::from_isometry(&o.pose),
+            scale: Vector3 {
+                x: 1.0,
+                y: 1.0,
+                z: 1.0,
+            },
+            color: ColorRGBA {
+                r: 0.6,
+                g: 0.6,
+                b: 0.55,
+                a: 0.8,
+            },
+            text: o.id.clone(),
+            points,
+            ..Default::default()
+        });
+    }
+    MarkerArray { markers }
+}
+
+/// Figures for `diagnostics`.
+#[derive(Debug, Clone, Default)]
+pub struct DiagnosticFigures {
+    pub step_time_ms: f64,
+    pub iterations: usize,
+    pub real_time_factor: f64,
+    pub rejected_messages: u64,
+    pub paused: bool,
+    pub last_error: String,
+}
+
+/// One DiagnosticStatus `garment_sim: solver` with the step figures.
+pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> DiagnosticArray {
+    let kv = |k: &str, v: String| KeyValue {
+        key: k.into(),
+        value: v,
+    };
+    let (level, message) = if !f.last_error.is_empty() {
+        (DiagnosticStatus::WARN, f.last_error.clone())
+    } else if f.paused {
+        (DiagnosticStatus::OK, "paused".to_string())
+    } else {
+        (DiagnosticStatus::OK, "running".to_string())
+    };
+    DiagnosticArray {
+        header,
+        status: vec![DiagnosticStatus {
+            level,
+            name: "garment_sim: solver".into(),
+            message,
+            hardware_id: "garment_sim".into(),
+            values: vec![
+                kv("sim_time_s", format!("{:.6}", sim.time)),
+                kv("steps", sim.steps.to_string()),
+                kv("dt_s", format!("{}", sim.params.dt)),
+                kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
+                kv("solver_iterations", f.iterations.to_string()),
+                kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
+                kv("rejected_messages", f.rejected_messages.to_string()),
+                kv("vertices", sim.cloth.len().to_string()),
+                kv("pins", sim.pins.len().to_string()),
+                kv("obstacles", sim.obstacles.len().to_string()),
+            ],
+        }],
+    }
+}
+
+/// Header stamped with the simulated time.
+pub fn header(sim: &Simulation, frame_id: &str) -> Header {
+    Header {
+        stamp: Time::from_secs(sim.time),
+        frame_id: frame_id.to_string(),
+    }
+}
