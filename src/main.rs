@@ -21,6 +21,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Run the simulation as a ROS 2 node (see README: topics, parameters,
+    /// services). Options as in any ROS 2 node:
+    /// `garment_sim node --ros-args -p publish_rate:=10.0 -r __ns:=/robot1`.
+    Node {
+        /// ROS arguments: --ros-args -p name:=value --params-file FILE -r from:=to
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        ros_args: Vec<String>,
+    },
     /// Run a scene headless and write final.ply, energy.csv and summary.json.
     Drape {
         /// Scene file, e.g. config/scenes/table_drape.yaml
@@ -143,6 +151,7 @@ fn progress_printer(label: String) -> impl FnMut(f64, f64) {
 
 fn real_main(cli: Cli) -> Result<()> {
     match cli.cmd {
+        Cmd::Node { ros_args } => garment_sim::ros::node::run(&ros_args),
         Cmd::Drape {
             scene,
             out,

@@ -3,5 +3,8 @@
 //! command-line arguments ([`args`]) and the node itself ([`node`]).
 //! The physics modules never depend on this one.
 
+pub mod args;
+pub mod control;
 pub mod msgs;
+pub mod node;
 pub mod publish;

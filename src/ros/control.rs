@@ -1,0 +1,570 @@
+//! What the `obstacles` and `pins` messages do to a running simulation.
+//! Every message is checked in full before anything changes: a bad one is
+//! refused with an error naming the field and index, and the scene is left
+//! as it was.
+
+use super::msgs;
+use crate::collision::{Obstacle, ShapeSpec};
+use crate::solver::{Pin, PinPath, Simulation};
+use nalgebra::{Isometry3, Vector3};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Default contact thickness of message obstacles (thesis: table thickened by 6 mm), m.
+pub const DEFAULT_THICKNESS: f64 = 0.006;
+/// Default Coulomb friction coefficient of message obstacles.
+pub const DEFAULT_FRICTION: f64 = 0.3;
+
+/// Which simulation obstacles make up each message obstacle: an obstacle with
+/// several primitives and meshes becomes several shapes (`id#0`, `id#1`, ...)
+/// moved together, each with its pose relative to the obstacle frame.
+#[derive(Debug, Default, Clone)]
+pub struct ObstacleRegistry {
+    parts: HashMap<String, Vec<(String, Isometry3<f64>)>>,
+}
+
+impl ObstacleRegistry {
+    /// Registers the scene's own obstacles (one shape each).
+    pub fn from_sim(sim: &Simulation) -> ObstacleRegistry {
+        let mut r = ObstacleRegistry::default();
+        for o in &sim.obstacles {
+            r.parts
+                .insert(o.id.clone(), vec![(o.id.clone(), Isometry3::identity())]);
+        }
+        r
+    }
+
+    pub fn len(&self) -> usize {
+        self.parts.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.parts.is_empty()
+    }
+}
+
+fn finite(v: &[f64]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+fn check_frame(got: &str, frame_id: &str) -> Result<(), String> {
+    if !got.is_empty() && got != frame_id {
+        return Err(format!(
+            "header.frame_id {got:?} is not the simulation frame {frame_id:?} \
+             (the node does not use TF: send poses in {frame_id:?})"
+        ));
+    }
+    Ok(())
+}
+
+fn pose(p: &msgs::Pose, what: &str) -> Result<Isometry3<f64>, String> {
+    p.to_isometry().map_err(|e| format!("{what}: {e}"))
+}
+
+fn shape(p: &msgs::SolidPrimitive, k: usize) -> Result<ShapeSpec, String> {
+    let d = &p.dimensions;
+    let need = |n: usize, names: &str| -> Result<(), String> {
+        if d.len() != n {
+            return Err(format!(
+                "primitives[{k}]: {} dimensions given, {n} expected ({names})",
+                d.len()
+            ));
+        }
+        if !finite(d) || d.iter().any(|x| *x <= 0.0) {
+            return Err(format!("primitives[{k}]: dimensions {d:?} must be > 0 m"));
+        }
+        Ok(())
+    };
+    Ok(match p.type_ {
+        msgs::SolidPrimitive::BOX => {
+            need(3, "x, y, z")?;
+            ShapeSpec::Box {
+                size: [d[0], d[1], d[2]],
+            }
+        }
+        msgs::SolidPrimitive::SPHERE => {
+            need(1, "radius")?;
+            ShapeSpec::Sphere { radius: d[0] }
+        }
+        msgs::SolidPrimitive::CYLINDER => {
+            need(2, "height, radius")?;
+            ShapeSpec::Cylinder {
+                height: d[0],
+                radius: d[1],
+            }
+        }
+        msgs::SolidPrimitive::CONE => {
+            need(2, "height, radius")?;
+            ShapeSpec::Cone {
+                height: d[0],
+                radius: d[1],
+            }
+        }
+        t => {
+            return Err(format!(
+                "primitives[{k}]: type {t} not supported (BOX=1, SPHERE=2, CYLINDER=3, CONE=4)"
+            ))
+        }
+    })
+}
+
+/// Applies an `obstacles` message. Returns a one-line account of what changed.
+pub fn apply_obstacle(
+    sim: &mut Simulation,
+    reg: &mut ObstacleRegistry,
+    m: &msgs::Obstacle,
+    frame_id: &str,
+) -> Result<String, String> {
+    let id = m.id.as_str();
+    let fail = |e: String| format!("obstacle {id:?}: {e}");
+    if id.is_empty() {
+        return Err("obstacle: empty id".into());
+    }
+    check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
+    let twist = [
+        m.velocity.linear.x,
+        m.velocity.linear.y,
+        m.velocity.linear.z,
+        m.velocity.angular.x,
+        m.velocity.angular.y,
+        m.velocity.angular.z,
+    ];
+    if !finite(&twist) {
+        return Err(fail(format!("velocity {twist:?} is not finite")));
+    }
+    let lin = m.velocity.linear.vector();
+    let ang = m.velocity.angular.vector();
+    match m.operation {
+        msgs::Obstacle::REMOVE => {
+            let parts = reg
+                .parts
+                .remove(id)
+                .ok_or_else(|| fail("no such obstacle to remove".into()))?;
+            sim.obstacles
+                .retain(|o| !parts.iter().any(|(pid, _)| *pid == o.id));
+            Ok(format!("removed obstacle {id:?}"))
+        }
+        msgs::Obstacle::MOVE => {
+            let frame = pose(&m.pose, "pose").map_err(fail)?;
+            let parts = reg
+                .parts
+                .get(id)
+                .ok_or_else(|| fail("no such obstacle to move (ADD it first)".into()))?;
+            for (pid, sub) in parts {
+                if let Some(o) = sim.obstacles.iter_mut().find(|o| &o.id == pid) {
+                    set_motion(o, &frame, sub, &lin, &ang);
+                }
+            }
+            Ok(format!("moved obstacle {id:?}"))
+        }
+        msgs::Obstacle::ADD => {
+            let frame = pose(&m.pose, "pose").map_err(fail)?;
+            let thickness = if m.thickness.is_nan() {
+                DEFAULT_THICKNESS
+            } else {
+                m.thickness
+            };
+            let friction = if m.friction.is_nan() {
+                DEFAULT_FRICTION
+            } else {
+                m.friction
+            };
+            if m.primitives.len() != m.primitive_poses.len() {
+                return Err(fail(format!(
+                    "{} primitives but {} primitive_poses",
+                    m.primitives.len(),
+                    m.primitive_poses.len()
+                )));
+            }
+            if m.meshes.len() != m.mesh_poses.len() {
+                return Err(fail(format!(
+                    "{} meshes but {} mesh_poses",
+                    m.meshes.len(),
+                    m.mesh_poses.len()
+                )));
+            }
+            let mut specs = Vec::new();
+            for (k, (p, q)) in m.primitives.iter().zip(&m.primitive_poses).enumerate() {
+                specs.push((
+                    shape(p, k).map_err(fail)?,
+                    pose(q, &format!("primitive_poses[{k}]")).map_err(fail)?,
+                ));
+            }
+            for (k, (mesh, q)) in m.meshes.iter().zip(&m.mesh_poses).enumerate() {
+                let vertices: Vec<[f64; 3]> =
+                    mesh.vertices.iter().map(|p| [p.x, p.y, p.z]).collect();
+                let triangles = mesh.triangles.iter().map(|t| t.vertex_indices).collect();
+                specs.push((
+                    ShapeSpec::Triangles {
+                        vertices,
+                        triangles,
+                    },
+                    pose(q, &format!("mesh_poses[{k}]")).map_err(fail)?,
+                ));
+            }
+            if specs.is_empty() {
+                return Err(fail("no primitives and no meshes".into()));
+            }
+            let many = specs.len() > 1;
+            let mut built = Vec::new();
+            let mut parts = Vec::new();
+            for (k, (spec, sub)) in specs.into_iter().enumerate() {
+                let pid = if many {
+                    format!("{id}#{k}")
+                } else {
+                    id.to_string()
+                };
+                let mut o =
+                    Obstacle::new(&pid, spec, frame * sub, thickness, friction, Path::new("."))
+                        .map_err(|e| format!("{e:#}"))?;
+                set_motion(&mut o, &frame, &sub, &lin, &ang);
+                built.push(o);
+                parts.push((pid, sub));
+            }
+            let replaced = if let Some(old) = reg.parts.remove(id) {
+                sim.obstacles
+                    .retain(|o| !old.iter().any(|(pid, _)| *pid == o.id));
+                true
+            } else {
+                false
+            };
+            let n = built.len();
+            sim.obstacles.extend(built);
+            reg.parts.insert(id.to_string(), parts);
+            Ok(format!(
+                "{} obstacle {id:?} ({n} shape{})",
+                if replaced { "replaced" } else { "added" },
+                if n == 1 { "" } else { "s" }
+            ))
+        }
+        op => Err(fail(format!(
+            "operation {op} unknown (ADD=0, REMOVE=1, MOVE=3)"
+        ))),
+    }
+}
+
+fn set_motion(
+    o: &mut Obstacle,
+    frame: &Isometry3<f64>,
+    sub: &Isometry3<f64>,
+    lin: &Vector3<f64>,
+    ang: &Vector3<f64>,
+) {
+    o.pose = frame * sub;
+    let r = o.pose.translation.vector - frame.translation.vector;
+    o.linear_velocity = lin + ang.cross(&r);
+    o.angular_velocity = *ang;
+}
+
+/// Applies a `pins` message. Returns a one-line account of what changed.
+pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<String, String> {
+    let fail = |e: String| format!("pins: {e}");
+    check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
+    if m.operation == msgs::Pin::RELEASE_ALL {
+        let n = sim.pins.len();
+        sim.set_pins(Vec::new()).map_err(|e| fail(e.to_string()))?;
+        return Ok(format!("released all {n} pins"));
+    }
+    let n = sim.cloth.len();
+    let vertices: Vec<usize> = if !m.vertices.is_empty() {
+        if !m.grid_i.is_empty() || !m.grid_j.is_empty() {
+            return Err(fail("give vertices or grid_i/grid_j, not both".into()));
+        }
+        let mut v = Vec::with_capacity(m.vertices.len());
+        for (k, &i) in m.vertices.iter().enumerate() {
+            if i as usize >= n {
+                return Err(fail(format!(
+                    "vertices[{k}] = {i} out of range: the cloth has {n} vertices"
+                )));
+            }
+            v.push(i as usize);
+        }
+        v
+    } else {
+        if m.grid_i.len() != m.grid_j.len() {
+            return Err(fail(format!(
+                "{} grid_i but {} grid_j",
+                m.grid_i.len(),
+                m.grid_j.len()
+            )));
+        }
+        let mut v = Vec::with_capacity(m.grid_i.len());
+        for (k, (&i, &j)) in m.grid_i.iter().zip(&m.grid_j).enumerate() {
+            v.push(
+                sim.cloth
+                    .index(i as usize, j as usize)
+                    .map_err(|e| fail(format!("grid (i, j)[{k}] = ({i}, {j}): {e}")))?,
+            );
+        }
+        v
+    };
+    if vertices.is_empty() {
+        return Err(fail("no vertices given".into()));
+    }
+    let check_len = |what: &str, len: usize| -> Result<(), String> {
+        if len != 0 && len != vertices.len() {
+            return Err(fail(format!(
+                "{len} {what} for {} vertices (give one per vertex, or none)",
+                vertices.len()
+            )));
+        }
+        Ok(())
+    };
+    check_len("targets", m.targets.len())?;
+    check_len("velocities", m.velocities.len())?;
+    for (k, p) in m.targets.iter().enumerate() {
+        if !finite(&[p.x, p.y, p.z]) {
+            return Err(fail(format!(
+                "targets[{k}] = ({}, {}, {}) is not finite",
+                p.x, p.y, p.z
+            )));
+        }
+    }
+    for (k, p) in m.velocities.iter().enumerate() {
+        if !finite(&[p.x, p.y, p.z]) {
+            return Err(fail(format!(
+                "velocities[{k}] = ({}, {}, {}) is not finite",
+                p.x, p.y, p.z
+            )));
+        }
+    }
+    let mut pins = sim.pins.clone();
+    let at = |k: usize| -> PinPath {
+        let target = m
+            .targets
+            .get(k)
+            .map(|p| p.vector())
+            .unwrap_or(sim.cloth.x[vertices[k]]);
+        match m.velocities.get(k) {
+            Some(v) if v.vector() != Vector3::zeros() => PinPath::Velocity {
+                start: target,
+                velocity: v.vector(),
+                t0: sim.time,
+            },
+            _ => PinPath::Fixed(target),
+        }
+    };
+    let verb = match m.operation {
+        msgs::Pin::PIN => {
+            for (k, &v) in vertices.iter().enumerate() {
+                let path = at(k);
+                match pins.iter_mut().find(|p| p.vertex == v) {
+                    Some(p) => {
+                        p.path = path;
+                        p.release_at = None;
+                    }
+                    None => pins.push(Pin::new(v, path)),
+                }
+            }
+            "pinned"
+        }
+        msgs::Pin::MOVE => {
+            if m.targets.is_empty() {
+                return Err(fail("MOVE needs targets".into()));
+            }
+            for (k, &v) in vertices.iter().enumerate() {
+                let path = at(k);
+                let p = pins.iter_mut().find(|p| p.vertex == v).ok_or_else(|| {
+                    fail(format!("vertex {v} is not pinned (PIN it before MOVE)"))
+                })?;
+                p.path = path;
+            }
+            "moved"
+        }
+        msgs::Pin::RELEASE => {
+            pins.retain(|p| !vertices.contains(&p.vertex));
+            "released"
+        }
+        op => {
+            return Err(fail(format!(
+                "operation {op} unknown (PIN=0, MOVE=1, RELEASE=2, RELEASE_ALL=3)"
+            )))
+        }
+    };
+    sim.set_pins(pins).map_err(|e| fail(e.to_string()))?;
+    Ok(format!("{verb} {} vertices", vertices.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Overrides, Scene};
+
+    fn sim() -> Simulation {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/table_drape.yaml");
+        Scene::load(&p)
+            .unwrap()
+            .build(&Overrides {
+                spacing: Some(0.1),
+                ..Default::default()
+            })
+            .unwrap()
+    }
+
+    fn pose_at(x: f64, y: f64, z: f64) -> msgs::Pose {
+        msgs::Pose {
+            position: msgs::Point { x, y, z },
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn obstacle_add_move_remove_with_parts() {
+        let mut s = sim();
+        let mut reg = ObstacleRegistry::from_sim(&s);
+        let n0 = s.obstacles.len();
+        let mut m = msgs::Obstacle {
+            id: "gripper".into(),
+            pose: pose_at(0.0, 0.0, 1.0),
+            primitives: vec![
+                msgs::SolidPrimitive {
+                    type_: msgs::SolidPrimitive::SPHERE,
+                    dimensions: vec![0.02],
+                    ..Default::default()
+                },
+                msgs::SolidPrimitive {
+                    type_: msgs::SolidPrimitive::BOX,
+                    dimensions: vec![0.02, 0.02, 0.1],
+                    ..Default::default()
+                },
+            ],
+            primitive_poses: vec![pose_at(0.1, 0.0, 0.0), pose_at(-0.1, 0.0, 0.0)],
+            thickness: f64::NAN,
+            friction: f64::NAN,
+            operation: msgs::Obstacle::ADD,
+            ..Default::default()
+        };
+        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        assert_eq!(s.obstacles.len(), n0 + 2);
+        let part = s.obstacles.iter().find(|o| o.id == "gripper#0").unwrap();
+        assert!((part.pose.translation.vector - Vector3::new(0.1, 0.0, 1.0)).norm() < 1e-12);
+        assert_eq!(part.thickness, DEFAULT_THICKNESS);
+        // move the frame up 0.5 m while turning about z: parts follow, with
+        // the velocity of their own origin
+        m.operation = msgs::Obstacle::MOVE;
+        m.pose = pose_at(0.0, 0.0, 1.5);
+        m.velocity.angular.z = 2.0;
+        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        let part = s.obstacles.iter().find(|o| o.id == "gripper#1").unwrap();
+        assert!((part.pose.translation.vector - Vector3::new(-0.1, 0.0, 1.5)).norm() < 1e-12);
+        assert!((part.linear_velocity - Vector3::new(0.0, -0.2, 0.0)).norm() < 1e-12);
+        m.operation = msgs::Obstacle::REMOVE;
+        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        assert_eq!(s.obstacles.len(), n0);
+        assert!(apply_obstacle(&mut s, &mut reg, &m, "world")
+            .unwrap_err()
+            .contains("no such obstacle"));
+    }
+
+    #[test]
+    fn bad_obstacles_change_nothing() {
+        let mut s = sim();
+        let mut reg = ObstacleRegistry::from_sim(&s);
+        let n0 = s.obstacles.len();
+        let mesh = msgs::Obstacle {
+            id: "m".into(),
+            meshes: vec![msgs::Mesh {
+                triangles: vec![msgs::MeshTriangle {
+                    vertex_indices: [0, 1, 7],
+                }],
+                vertices: vec![msgs::Point::default(); 3],
+            }],
+            mesh_poses: vec![msgs::Pose::default()],
+            ..Default::default()
+        };
+        let e = apply_obstacle(&mut s, &mut reg, &mesh, "world").unwrap_err();
+        assert!(e.contains("vertex 7"), "{e}");
+        let mut nan = mesh.clone();
+        nan.meshes.clear();
+        nan.mesh_poses.clear();
+        nan.primitives = vec![msgs::SolidPrimitive {
+            type_: msgs::SolidPrimitive::BOX,
+            dimensions: vec![0.1, f64::NAN, 0.1],
+            ..Default::default()
+        }];
+        nan.primitive_poses = vec![msgs::Pose::default()];
+        assert!(apply_obstacle(&mut s, &mut reg, &nan, "world")
+            .unwrap_err()
+            .contains("primitives[0]"));
+        let mut q = nan.clone();
+        q.primitives[0].dimensions = vec![0.1, 0.1, 0.1];
+        q.pose.orientation.w = 0.0;
+        assert!(apply_obstacle(&mut s, &mut reg, &q, "world")
+            .unwrap_err()
+            .contains("quaternion"));
+        assert_eq!(s.obstacles.len(), n0);
+    }
+
+    #[test]
+    fn pins_pin_move_release() {
+        let mut s = sim();
+        let n = s.cloth.len();
+        let corner = s.cloth.index(s.cloth.nx - 1, 0).unwrap();
+        let mut m = msgs::Pin {
+            operation: msgs::Pin::PIN,
+            grid_i: vec![(s.cloth.nx - 1) as u32],
+            grid_j: vec![0],
+            ..Default::default()
+        };
+        apply_pin(&mut s, &m, "world").unwrap();
+        assert_eq!(
+            s.pins.last().unwrap().path,
+            PinPath::Fixed(s.cloth.x[corner])
+        );
+        m.operation = msgs::Pin::MOVE;
+        m.targets = vec![msgs::Point {
+            x: 0.0,
+            y: 0.0,
+            z: 2.0,
+        }];
+        m.velocities = vec![msgs::Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: 0.1,
+        }];
+        apply_pin(&mut s, &m, "world").unwrap();
+        let (p, v) = s.pins.last().unwrap().path.at(s.time + 1.0);
+        assert!((p - Vector3::new(0.0, 0.0, 2.1)).norm() < 1e-12 && v.z == 0.1);
+        let pinned = s.pins.len();
+        // errors: vertex out of range, unpinned MOVE, length mismatch, NaN
+        let bad = msgs::Pin {
+            operation: msgs::Pin::PIN,
+            vertices: vec![n as u32],
+            ..Default::default()
+        };
+        assert!(apply_pin(&mut s, &bad, "world")
+            .unwrap_err()
+            .contains("out of range"));
+        let bad = msgs::Pin {
+            operation: msgs::Pin::MOVE,
+            vertices: vec![0],
+            targets: vec![msgs::Point::default()],
+            ..Default::default()
+        };
+        assert!(apply_pin(&mut s, &bad, "world")
+            .unwrap_err()
+            .contains("not pinned"));
+        let bad = msgs::Pin {
+            operation: msgs::Pin::PIN,
+            vertices: vec![0, 1],
+            targets: vec![msgs::Point::default()],
+            ..Default::default()
+        };
+        assert!(apply_pin(&mut s, &bad, "world")
+            .unwrap_err()
+            .contains("1 targets for 2 vertices"));
+        let bad = msgs::Pin {
+            operation: msgs::Pin::PIN,
+            grid_i: vec![0],
+            grid_j: vec![9999],
+            ..Default::default()
+        };
+        assert!(apply_pin(&mut s, &bad, "world")
+            .unwrap_err()
+            .contains("grid (i, j)[0]"));
+        assert_eq!(s.pins.len(), pinned);
+        m.operation = msgs::Pin::RELEASE;
+        apply_pin(&mut s, &m, "world").unwrap();
+        assert_eq!(s.pins.len(), pinned - 1);
+    }
+}

@@ -1,0 +1,541 @@
+"""The garment_sim node against an independent DDS implementation: Eclipse
+Cyclone DDS (the `cyclonedds` Python binding, the DDS of ROS 2's
+rmw_cyclonedds), speaking the ROS 2 topic and service conventions by hand
+(`rt/` topics, `rq/`/`rr/` service topics, `pkg::msg::dds_::Type_` type names).
+
+Run by tests/ros_node.rs inside a network namespace it makes (loopback only).
+The node binary is in GARMENT_SIM_BIN."""
+
+import math
+import os
+import subprocess
+import time
+from dataclasses import dataclass, field
+
+import pytest
+
+cyclonedds = pytest.importorskip("cyclonedds")
+import cyclonedds.idl.types as t  # noqa: E402
+from cyclonedds.core import Policy, Qos  # noqa: E402
+from cyclonedds.domain import DomainParticipant  # noqa: E402
+from cyclonedds.idl import IdlStruct  # noqa: E402
+from cyclonedds.pub import DataWriter  # noqa: E402
+from cyclonedds.sub import DataReader  # noqa: E402
+from cyclonedds.topic import Topic  # noqa: E402
+
+BIN = os.environ.get("GARMENT_SIM_BIN")
+RELIABLE = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000), Policy.History.KeepLast(50))
+# /rosout is transient-local (depth 1 in ros2-client; 1000 in rcl): a late reader gets the last line.
+LATCHED = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000), Policy.History.KeepLast(50),
+              Policy.Durability.TransientLocal)
+
+
+def ros(pkg, kind, name):
+    return f"{pkg}::{kind}::dds_::{name}_"
+
+
+# ---- ROS 2 Jazzy types, written from their .msg definitions ----
+@dataclass
+class Time(IdlStruct, typename=ros("builtin_interfaces", "msg", "Time")):
+    sec: t.int32 = 0
+    nanosec: t.uint32 = 0
+
+
+@dataclass
+class Duration(IdlStruct, typename=ros("builtin_interfaces", "msg", "Duration")):
+    sec: t.int32 = 0
+    nanosec: t.uint32 = 0
+
+
+@dataclass
+class Header(IdlStruct, typename=ros("std_msgs", "msg", "Header")):
+    stamp: Time = field(default_factory=Time)
+    frame_id: str = ""
+
+
+@dataclass
+class StringMsg(IdlStruct, typename=ros("std_msgs", "msg", "String")):
+    data: str = ""
+
+
+@dataclass
+class Clock(IdlStruct, typename=ros("rosgraph_msgs", "msg", "Clock")):
+    clock: Time = field(default_factory=Time)
+
+
+@dataclass
+class PointField(IdlStruct, typename=ros("sensor_msgs", "msg", "PointField")):
+    name: str
+    offset: t.uint32
+    datatype: t.uint8
+    count: t.uint32
+
+
+@dataclass
+class PointCloud2(IdlStruct, typename=ros("sensor_msgs", "msg", "PointCloud2")):
+    header: Header
+    height: t.uint32
+    width: t.uint32
+    fields: t.sequence[PointField]
+    is_bigendian: bool
+    point_step: t.uint32
+    row_step: t.uint32
+    data: t.sequence[t.uint8]
+    is_dense: bool
+
+
+@dataclass
+class Point(IdlStruct, typename=ros("geometry_msgs", "msg", "Point")):
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+
+
+@dataclass
+class Point32(IdlStruct, typename=ros("geometry_msgs", "msg", "Point32")):
+    x: t.float32 = 0.0
+    y: t.float32 = 0.0
+    z: t.float32 = 0.0
+
+
+@dataclass
+class Vector3(IdlStruct, typename=ros("geometry_msgs", "msg", "Vector3")):
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+
+
+@dataclass
+class Quaternion(IdlStruct, typename=ros("geometry_msgs", "msg", "Quaternion")):
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    w: float = 1.0
+
+
+@dataclass
+class Pose(IdlStruct, typename=ros("geometry_msgs", "msg", "Pose")):
+    position: Point = field(default_factory=Point)
+    orientation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
+class Twist(IdlStruct, typename=ros("geometry_msgs", "msg", "Twist")):
+    linear: Vector3 = field(default_factory=Vector3)
+    angular: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+class Polygon(IdlStruct, typename=ros("geometry_msgs", "msg", "Polygon")):
+    points: t.sequence[Point32] = field(default_factory=list)
+
+
+@dataclass
+class ColorRGBA(IdlStruct, typename=ros("std_msgs", "msg", "ColorRGBA")):
+    r: t.float32
+    g: t.float32
+    b: t.float32
+    a: t.float32
+
+
+@dataclass
+class CompressedImage(IdlStruct, typename=ros("sensor_msgs", "msg", "CompressedImage")):
+    header: Header
+    format: str
+    data: t.sequence[t.uint8]
+
+
+@dataclass
+class UVCoordinate(IdlStruct, typename=ros("visualization_msgs", "msg", "UVCoordinate")):
+    u: t.float32
+    v: t.float32
+
+
+@dataclass
+class MeshFile(IdlStruct, typename=ros("visualization_msgs", "msg", "MeshFile")):
+    filename: str
+    data: t.sequence[t.uint8]
+
+
+@dataclass
+class Marker(IdlStruct, typename=ros("visualization_msgs", "msg", "Marker")):
+    header: Header
+    ns: str
+    id: t.int32
+    type: t.int32
+    action: t.int32
+    pose: Pose
+    scale: Vector3
+    color: ColorRGBA
+    lifetime: Duration
+    frame_locked: bool
+    points: t.sequence[Point]
+    colors: t.sequence[ColorRGBA]
+    texture_resource: str
+    texture: CompressedImage
+    uv_coordinates: t.sequence[UVCoordinate]
+    text: str
+    mesh_resource: str
+    mesh_file: MeshFile
+    mesh_use_embedded_materials: bool
+
+
+@dataclass
+class MarkerArray(IdlStruct, typename=ros("visualization_msgs", "msg", "MarkerArray")):
+    markers: t.sequence[Marker]
+
+
+@dataclass
+class KeyValue(IdlStruct, typename=ros("diagnostic_msgs", "msg", "KeyValue")):
+    key: str
+    value: str
+
+
+@dataclass
+class DiagnosticStatus(IdlStruct, typename=ros("diagnostic_msgs", "msg", "DiagnosticStatus")):
+    level: t.uint8
+    name: str
+    message: str
+    hardware_id: str
+    values: t.sequence[KeyValue]
+
+
+@dataclass
+class DiagnosticArray(IdlStruct, typename=ros("diagnostic_msgs", "msg", "DiagnosticArray")):
+    header: Header
+    status: t.sequence[DiagnosticStatus]
+
+
+@dataclass
+class Log(IdlStruct, typename=ros("rcl_interfaces", "msg", "Log")):
+    stamp: Time
+    level: t.uint8
+    name: str
+    msg: str
+    file: str
+    function: str
+    line: t.uint32
+
+
+@dataclass
+class SolidPrimitive(IdlStruct, typename=ros("shape_msgs", "msg", "SolidPrimitive")):
+    type: t.uint8 = 0
+    dimensions: t.sequence[float, 3] = field(default_factory=list)
+    polygon: Polygon = field(default_factory=Polygon)
+
+
+@dataclass
+class MeshTriangle(IdlStruct, typename=ros("shape_msgs", "msg", "MeshTriangle")):
+    vertex_indices: t.array[t.uint32, 3]
+
+
+@dataclass
+class Mesh(IdlStruct, typename=ros("shape_msgs", "msg", "Mesh")):
+    triangles: t.sequence[MeshTriangle] = field(default_factory=list)
+    vertices: t.sequence[Point] = field(default_factory=list)
+
+
+# ---- garment_sim_msgs (msg/) ----
+@dataclass
+class Obstacle(IdlStruct, typename=ros("garment_sim_msgs", "msg", "Obstacle")):
+    header: Header = field(default_factory=Header)
+    id: str = ""
+    pose: Pose = field(default_factory=Pose)
+    primitives: t.sequence[SolidPrimitive] = field(default_factory=list)
+    primitive_poses: t.sequence[Pose] = field(default_factory=list)
+    meshes: t.sequence[Mesh] = field(default_factory=list)
+    mesh_poses: t.sequence[Pose] = field(default_factory=list)
+    velocity: Twist = field(default_factory=Twist)
+    thickness: float = math.nan
+    friction: float = math.nan
+    operation: t.uint8 = 0
+
+
+@dataclass
+class Pin(IdlStruct, typename=ros("garment_sim_msgs", "msg", "Pin")):
+    header: Header = field(default_factory=Header)
+    operation: t.uint8 = 0
+    vertices: t.sequence[t.uint32] = field(default_factory=list)
+    grid_i: t.sequence[t.uint32] = field(default_factory=list)
+    grid_j: t.sequence[t.uint32] = field(default_factory=list)
+    targets: t.sequence[Point] = field(default_factory=list)
+    velocities: t.sequence[Vector3] = field(default_factory=list)
+
+
+# ---- services (request/reply types of the ROS 2 DDS mapping) ----
+@dataclass
+class SetBool_Request(IdlStruct, typename=ros("std_srvs", "srv", "SetBool_Request")):
+    data: bool
+
+
+@dataclass
+class SetBool_Response(IdlStruct, typename=ros("std_srvs", "srv", "SetBool_Response")):
+    success: bool
+    message: str
+
+
+@dataclass
+class Trigger_Request(IdlStruct, typename=ros("std_srvs", "srv", "Trigger_Request")):
+    structure_needs_at_least_one_member: t.uint8 = 0
+
+
+@dataclass
+class Trigger_Response(IdlStruct, typename=ros("std_srvs", "srv", "Trigger_Response")):
+    success: bool
+    message: str
+
+
+@dataclass
+class Step_Request(IdlStruct, typename=ros("garment_sim_msgs", "srv", "Step_Request")):
+    steps: t.uint32
+
+
+@dataclass
+class Step_Response(IdlStruct, typename=ros("garment_sim_msgs", "srv", "Step_Response")):
+    success: bool
+    message: str
+    sim_time: Time
+
+
+@dataclass
+class ParameterValue(IdlStruct, typename=ros("rcl_interfaces", "msg", "ParameterValue")):
+    type: t.uint8 = 0
+    bool_value: bool = False
+    integer_value: t.int64 = 0
+    double_value: float = 0.0
+    string_value: str = ""
+    byte_array_value: t.sequence[t.uint8] = field(default_factory=list)
+    bool_array_value: t.sequence[bool] = field(default_factory=list)
+    integer_array_value: t.sequence[t.int64] = field(default_factory=list)
+    double_array_value: t.sequence[float] = field(default_factory=list)
+    string_array_value: t.sequence[str] = field(default_factory=list)
+
+
+@dataclass
+class Parameter(IdlStruct, typename=ros("rcl_interfaces", "msg", "Parameter")):
+    name: str
+    value: ParameterValue
+
+
+@dataclass
+class SetParametersResult(IdlStruct, typename=ros("rcl_interfaces", "msg", "SetParametersResult")):
+    successful: bool
+    reason: str
+
+
+@dataclass
+class SetParameters_Request(IdlStruct, typename=ros("rcl_interfaces", "srv", "SetParameters_Request")):
+    parameters: t.sequence[Parameter]
+
+
+@dataclass
+class SetParameters_Response(IdlStruct, typename=ros("rcl_interfaces", "srv", "SetParameters_Response")):
+    results: t.sequence[SetParametersResult]
+
+
+@dataclass
+class GetParameters_Request(IdlStruct, typename=ros("rcl_interfaces", "srv", "GetParameters_Request")):
+    names: t.sequence[str]
+
+
+@dataclass
+class GetParameters_Response(IdlStruct, typename=ros("rcl_interfaces", "srv", "GetParameters_Response")):
+    values: t.sequence[ParameterValue]
+
+
+# ---- helpers ----
+class Node:
+    """A garment_sim node process and a Cyclone DDS participant beside it."""
+
+    def __init__(self, *ros_args, ns=""):
+        assert BIN, "run through `cargo test --release --test ros_node`"
+        self.ns = ns
+        self.proc = subprocess.Popen(
+            [BIN, "node", "--ros-args", *ros_args],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )
+        self.dp = DomainParticipant(0)
+        self.readers = {}
+
+    def reader(self, topic, typ, qos=RELIABLE):
+        if topic not in self.readers:
+            self.readers[topic] = DataReader(self.dp, Topic(self.dp, "rt" + topic, typ), qos=qos)
+        return self.readers[topic]
+
+    def writer(self, topic, typ):
+        return DataWriter(self.dp, Topic(self.dp, "rt" + topic, typ), qos=RELIABLE)
+
+    def wait(self, topic, typ, pred=lambda m: True, timeout=30.0):
+        latched = topic == "/rosout" or topic.endswith("scene_description")
+        r = self.reader(topic, typ, LATCHED if latched else RELIABLE)
+        end = time.time() + timeout
+        while time.time() < end:
+            assert self.proc.poll() is None, "node exited:\n" + self.proc.stdout.read()
+            for m in r.take(N=100):
+                if pred(m):
+                    return m
+            time.sleep(0.02)
+        raise AssertionError(f"nothing on {topic} within {timeout} s")
+
+    def latest(self, topic, typ, timeout=30.0):
+        """The newest sample after what is already queued (waits for a fresh one)."""
+        r = self.reader(topic, typ)
+        r.take(N=1000)
+        m = self.wait(topic, typ, timeout=timeout)
+        rest = r.take(N=1000)
+        return rest[-1] if rest else m
+
+    def call(self, service, req_t, resp_t, request, timeout=30.0):
+        """One request on rq/<service>Request, sent once both service topics have
+        matched the node's endpoints; the reply comes on rr/<service>Reply."""
+        w = DataWriter(self.dp, Topic(self.dp, f"rq{service}Request", req_t), qos=RELIABLE)
+        r = DataReader(self.dp, Topic(self.dp, f"rr{service}Reply", resp_t), qos=RELIABLE)
+        end = time.time() + timeout
+        while not (w.get_matched_subscriptions() and r.get_matched_publications()):
+            assert time.time() < end, f"service {service} not discovered within {timeout} s"
+            assert self.proc.poll() is None, "node exited:\n" + self.proc.stdout.read()
+            time.sleep(0.05)
+        time.sleep(0.2)
+        w.write(request)
+        while time.time() < end:
+            assert self.proc.poll() is None, "node exited:\n" + self.proc.stdout.read()
+            got = r.take(N=10)
+            if got:
+                return got[0]
+            time.sleep(0.02)
+        raise AssertionError(f"no reply from {service} within {timeout} s")
+
+    def diag(self, d):
+        return {kv.key: kv.value for kv in d.status[0].values}
+
+    def stop(self):
+        self.proc.terminate()
+        try:
+            out, _ = self.proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            out, _ = self.proc.communicate()
+        return self.proc.returncode, out
+
+
+def xyz(cloud):
+    import numpy as np
+
+    a = np.frombuffer(bytes(cloud.data), dtype=np.float32).reshape(cloud.width, cloud.point_step // 4)
+    names = [f.name for f in cloud.fields]
+    return a[:, [names.index("x"), names.index("y"), names.index("z")]]
+
+
+def secs(t):
+    return t.sec + 1e-9 * t.nanosec
+
+
+def stamp(h):
+    return secs(h.stamp)
+
+
+# ---- tests ----
+def test_publishes_under_namespace_and_remap(tmp_path):
+    params = tmp_path / "params.yaml"
+    params.write_text("/**:\n  ros__parameters:\n    frame_id: map\n    spacing: 0.05\n")
+    n = Node("--params-file", str(params), "-p", "real_time_factor:=0.0", "-p", "publish_rate:=50.0",
+             "-r", "__ns:=/lab", "-r", "cloth/mesh:=/viz/cloth")
+    try:
+        c = n.wait("/lab/cloth/points", PointCloud2, lambda m: stamp(m.header) > 0.2)
+        assert c.header.frame_id == "map"
+        assert [f.name for f in c.fields][:3] == ["x", "y", "z"]
+        assert c.width == 121 and c.height == 1  # 0.5 m cloth at 5 cm
+        p = xyz(c)
+        assert p[:, 2].max() < 0.8 and p[:, 2].min() > 0.0
+        m = n.wait("/viz/cloth", Marker)
+        assert m.type == 11 and len(m.points) == 3 * 2 * 100
+        o = n.wait("/lab/obstacles/markers", MarkerArray, lambda a: len(a.markers) >= 2)
+        assert o.markers[0].action == 3 and o.markers[1].text == "board"
+        d = n.wait("/lab/diagnostics", DiagnosticArray)
+        kv = n.diag(d)
+        assert float(kv["step_time_ms"]) > 0 and kv["rejected_messages"] == "0"
+        ck = n.wait("/clock", Clock, lambda k: secs(k.clock) > stamp(c.header))
+        log = n.wait("/rosout", Log, lambda l: "scene" in l.msg)
+        desc = n.wait("/lab/scene_description", StringMsg)  # latched: arrives though published at start
+        assert "# scene:" in desc.data and "# fabric:" in desc.data and "areal_mass" in desc.data
+        assert log.name.endswith("garment_sim")
+        # stamps advance at the publish rate in simulated time
+        s = [stamp(n.wait("/lab/cloth/points", PointCloud2).header) for _ in range(5)]
+        assert all(b > a for a, b in zip(s, s[1:]))
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+
+
+def test_obstacles_pins_bad_input_and_services():
+    n = Node("-p", "spacing:=0.05", "-p", "real_time_factor:=0.0", "-p", "publish_rate:=50.0")
+    try:
+        n.wait("/cloth/points", PointCloud2)
+        obs = n.writer("/obstacles", Obstacle)
+        pins = n.writer("/pins", Pin)
+        time.sleep(1.0)
+        # add a sphere obstacle
+        sphere = Obstacle(header=Header(frame_id="world"), id="ball",
+                          pose=Pose(position=Point(x=0.3, y=0.0, z=1.2)),
+                          primitives=[SolidPrimitive(type=2, dimensions=[0.05])], primitive_poses=[Pose()])
+        obs.write(sphere)
+        a = n.wait("/obstacles/markers", MarkerArray, lambda a: any(m.text == "ball" for m in a.markers))
+        ball = [m for m in a.markers if m.text == "ball"][0]
+        assert abs(ball.pose.position.z - 1.2) < 1e-12
+        # bad input: vertex out of range, NaN target, wrong frame: refused, counted, node keeps going
+        pins.write(Pin(header=Header(frame_id="world"), operation=0, vertices=[99999]))
+        pins.write(Pin(header=Header(frame_id="world"), operation=0, vertices=[0],
+                       targets=[Point(x=math.nan, y=0.0, z=1.0)]))
+        obs.write(Obstacle(header=Header(frame_id="base_link"), id="x",
+                           primitives=[SolidPrimitive(type=1, dimensions=[0.1, 0.1, 0.1])],
+                           primitive_poses=[Pose()]))
+        d = n.wait("/diagnostics", DiagnosticArray, lambda d: n.diag(d)["rejected_messages"] == "3")
+        assert "frame" in d.status[0].message or "not finite" in d.status[0].message or "range" in d.status[0].message
+        n.wait("/rosout", Log, lambda l: "99999" in l.msg and "out of range" in l.msg)
+        # a valid pin: vertex 0 held at a point above the table
+        pins.write(Pin(header=Header(frame_id="world"), operation=0, grid_i=[0], grid_j=[0],
+                       targets=[Point(x=-0.5, y=-0.5, z=1.5)]))
+        c = n.wait("/cloth/points", PointCloud2, lambda c: abs(float(xyz(c)[0, 2]) - 1.5) < 1e-5)
+        assert abs(float(xyz(c)[0, 0]) + 0.5) < 1e-5
+        # pause, step 10, reset
+        r = n.call("/garment_sim/set_paused", SetBool_Request, SetBool_Response, SetBool_Request(data=True))
+        assert r.success
+        time.sleep(0.5)
+        t0 = stamp(n.latest("/cloth/points", PointCloud2).header)
+        time.sleep(0.5)
+        assert stamp(n.latest("/cloth/points", PointCloud2).header) == t0  # paused: still published, same time
+        r = n.call("/garment_sim/step", Step_Request, Step_Response, Step_Request(steps=10))
+        assert r.success, r.message
+        t1 = secs(r.sim_time)
+        assert abs((t1 - t0) - 10 * 0.001) < 1e-6, (t0, t1)
+        r = n.call("/garment_sim/reset", Trigger_Request, Trigger_Response, Trigger_Request())
+        assert r.success, r.message
+        c = n.wait("/cloth/points", PointCloud2, lambda c: stamp(c.header) == 0.0)
+        assert c.width == 121
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+    assert "3 messages rejected" in out, out
+
+
+def test_parameter_services():
+    n = Node("-p", "spacing:=0.05", "-p", "real_time_factor:=0.0")
+    try:
+        n.wait("/cloth/points", PointCloud2)
+        g = n.call("/garment_sim/get_parameters", GetParameters_Request, GetParameters_Response,
+                   GetParameters_Request(names=["publish_rate", "frame_id", "spacing"]))
+        assert [v.type for v in g.values] == [3, 4, 3]
+        assert g.values[0].double_value == 30.0 and g.values[1].string_value == "world"
+        assert g.values[2].double_value == 0.05
+        r = n.call("/garment_sim/set_parameters", SetParameters_Request, SetParameters_Response,
+                   SetParameters_Request(parameters=[
+                       Parameter("frame_id", ParameterValue(type=4, string_value="odom")),
+                       Parameter("publish_rate", ParameterValue(type=3, double_value=-1.0)),
+                   ]))
+        assert r.results[0].successful
+        assert not r.results[1].successful and "publish_rate" in r.results[1].reason
+        c = n.wait("/cloth/points", PointCloud2, lambda c: c.header.frame_id == "odom")
+        assert c.width == 121
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
