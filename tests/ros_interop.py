@@ -536,6 +536,19 @@ def test_parameter_services():
         assert not r.results[1].successful and "publish_rate" in r.results[1].reason
         c = n.wait("/cloth/points", PointCloud2, lambda c: c.header.frame_id == "odom")
         assert c.width == 121
+        # pacing: real_time_factor 0.5 at run time → simulated time runs at half the wall clock
+        r = n.call("/garment_sim/set_parameters", SetParameters_Request, SetParameters_Response,
+                   SetParameters_Request(parameters=[
+                       Parameter("real_time_factor", ParameterValue(type=3, double_value=0.5))]))
+        assert r.results[0].successful
+        time.sleep(0.5)
+        a = n.latest("/cloth/points", PointCloud2)
+        wa = time.time()
+        time.sleep(3.0)
+        b = n.latest("/cloth/points", PointCloud2)
+        ratio = (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
+        print(f"real-time factor 0.5 asked, {ratio:.3f} measured")
+        assert 0.4 < ratio < 0.56, ratio
     finally:
         code, out = n.stop()
     assert code == 0, out

@@ -30,7 +30,7 @@ fn node_interoperates_with_cyclone_dds() {
     // Loopback up with multicast (DDS discovery) inside the new namespace.
     let script = "ip link set lo up && ip link set lo multicast on && \
                   ip route add 224.0.0.0/4 dev lo && \
-                  exec python3 -m pytest -q -rs -x tests/ros_interop.py";
+                  exec python3 -m pytest -q -s -rs -x tests/ros_interop.py";
     let out = Command::new("unshare")
         .args(["-rn", "sh", "-c", script])
         .env("GARMENT_SIM_BIN", env!("CARGO_BIN_EXE_garment_sim"))
