@@ -6,13 +6,15 @@
 //! (the warp/weft grid) feed [`solver`] (forces, Jacobians, implicit step),
 //! which [`collision`] constrains; [`scene`] builds it all from YAML;
 //! [`run`] writes shapes, curves and summaries; [`capture`] reads and
-//! writes motion captures (C3D, CSV) and [`lab`] runs the thesis experiments.
+//! writes motion captures (C3D, CSV), [`lab`] runs the thesis experiments
+//! and [`plot`] draws their curves as PNG.
 
 pub mod capture;
 pub mod cloth;
 pub mod collision;
 pub mod fabric;
 pub mod lab;
+pub mod plot;
 pub mod ros;
 pub mod run;
 pub mod scene;

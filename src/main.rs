@@ -8,6 +8,8 @@ use garment_sim::solver::LinearSolverKind;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
+mod cli_lab;
+
 #[derive(Parser)]
 #[command(
     name = "garment_sim",
@@ -105,6 +107,8 @@ enum Cmd {
         #[arg(long, default_value_t = 0.2)]
         warmup: f64,
     },
+    /// Virtual Kawabata lab: KES-FB tensile, shear and bending tests on a simulated specimen.
+    Kes(cli_lab::KesArgs),
 }
 
 fn main() {
@@ -231,6 +235,7 @@ fn real_main(cli: Cli) -> Result<()> {
         } => identify_cmd(
             capture, fabric, vertical, window, grid, spacing, warp_major, out,
         ),
+        Cmd::Kes(a) => cli_lab::kes(a),
         Cmd::Bench {
             scene,
             spacing,

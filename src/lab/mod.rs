@@ -1,4 +1,7 @@
 //! The experiments of the thesis run on the simulator: the damping
-//! identification from a motion capture (ch. 5).
+//! identification from a motion capture (ch. 5), the virtual Kawabata lab
+//! (§2.3.1, §4.5), the fitting of laws to KES curves (§3.4.2) and the
+//! drapemeter (§2.3.2).
 
 pub mod identify;
+pub mod kes_lab;
