@@ -380,6 +380,7 @@ fn identify_cmd(
     );
     let fab_out = out.join("fabric_measured.yaml");
     std::fs::write(&fab_out, serde_yaml::to_string(&file)?)?;
+    let plots = garment_sim::lab::identify::write_plots(r, &out)?;
     println!(
         "capture          {} ({} frames, {} markers at {} Hz)",
         rep.capture, rep.frames, rep.markers, rep.rate_hz
@@ -426,6 +427,9 @@ fn identify_cmd(
         out.display(),
         fab_out.display()
     );
+    for p in plots {
+        println!("plot             {}", p.display());
+    }
     Ok(())
 }
 

@@ -170,4 +170,20 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
     // the measured fabric loads and carries the measured α
     let f = garment_sim::fabric::Fabric::load(&dir.join("out/fabric_measured.yaml")).unwrap();
     assert!((f.damping.alpha - alpha).abs() < 1e-12);
+    // the thesis' figures: PNG files with something drawn on them
+    for name in [
+        "mean_speed.png",
+        "alpha.png",
+        "beta_bend.png",
+        "beta_shear.png",
+        "beta_tension.png",
+    ] {
+        let bytes = std::fs::read(dir.join("out").join(name)).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{name} is not a PNG");
+        assert!(
+            bytes.len() > 5_000,
+            "{name}: {} bytes, nearly empty",
+            bytes.len()
+        );
+    }
 }

@@ -475,3 +475,91 @@ pub fn identify_file(
         result,
     })
 }
+
+/// The thesis' identification figures as PNG files in `out`:
+/// `mean_speed.png` (Fig. 5.11: mean marker speed, viscous window marked) and
+/// one per parameter, `alpha.png`, `beta_bend.png`, `beta_shear.png`,
+/// `beta_tension.png` (Fig. 5.12–5.15: per-frame value over the window, with
+/// the mean and ± one standard deviation). Returns the files written.
+pub fn write_plots(rep: &Identification, out: &std::path::Path) -> Result<Vec<std::path::PathBuf>> {
+    use crate::plot::{LinePlot, Style};
+    let mut files = Vec::new();
+    let t = |k: usize| k as f64 / rep.rate_hz;
+    let mut p = LinePlot::new(
+        "Mean marker speed (thesis Fig. 5.11)",
+        "time (s)",
+        "mean speed (m/s)",
+    );
+    p.add(
+        "mean speed",
+        rep.mean_speed
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (t(k), *v))
+            .collect(),
+        Style::Line,
+    );
+    let top = rep.mean_speed.iter().cloned().fold(0.0, f64::max);
+    for (k, label) in [(rep.window.0, "window start"), (rep.window.1, "window end")] {
+        p.add(label, vec![(t(k), 0.0), (t(k), top)], Style::Dashed);
+    }
+    let f = out.join("mean_speed.png");
+    p.save_png(&f)?;
+    files.push(f);
+    let (wa, wb) = (t(rep.window.0), t(rep.window.1));
+    for (e, file, unit, fig) in [
+        (&rep.alpha, "alpha.png", "alpha (1/s)", "5.12"),
+        (&rep.beta_bend, "beta_bend.png", "beta_f (s)", "5.13"),
+        (&rep.beta_shear, "beta_shear.png", "beta_c (s)", "5.14"),
+        (&rep.beta_tension, "beta_tension.png", "beta_t (s)", "5.15"),
+    ] {
+        let mut p = LinePlot::new(
+            &format!("{}, per frame (thesis Fig. {fig})", e.name),
+            "time (s)",
+            unit,
+        );
+        let pts: Vec<(f64, f64)> = e
+            .per_frame
+            .iter()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(k, v)| (t(*k), *v))
+            .collect();
+        if pts.is_empty() {
+            continue;
+        }
+        // y range from the values inside the viscous window (those outside,
+        // in the free fall's first frames, can be orders of magnitude off)
+        let inside: Vec<f64> = pts
+            .iter()
+            .filter(|(x, _)| *x >= wa && *x <= wb)
+            .map(|p| p.1)
+            .collect();
+        if !inside.is_empty() {
+            let lo = inside.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = inside.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            let pad = 0.25 * (hi - lo).max(1e-12 * hi.abs().max(1e-300));
+            p.y_range = Some((lo - pad, hi + pad));
+        }
+        p.add("per frame", pts, Style::Points);
+        p.add(
+            &format!("mean {:.4e} over the window", e.mean),
+            vec![(wa, e.mean), (wb, e.mean)],
+            Style::Line,
+        );
+        p.add(
+            &format!("mean +/- std ({:.2e})", e.std),
+            vec![
+                (wa, e.mean + e.std),
+                (wb, e.mean + e.std),
+                (wb, e.mean - e.std),
+                (wa, e.mean - e.std),
+                (wa, e.mean + e.std),
+            ],
+            Style::Dashed,
+        );
+        let f = out.join(file);
+        p.save_png(&f)?;
+        files.push(f);
+    }
+    Ok(files)
+}
