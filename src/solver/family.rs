@@ -110,6 +110,59 @@ impl Simulation {
         k
     }
 
+    /// The stiffness the implicit step uses for a family, as `∂f/∂x` (that is
+    /// `−K̃s`): projected like [`Self::family_jacobian`] but with the step
+    /// tangents of the hysteretic laws (the stiffer of branch and reversal, see
+    /// [`crate::fabric::Law::eval_for_step`]). The damping identification
+    /// needs it to write the step's own equation on captured shapes.
+    pub fn family_step_jacobian(&self, fam: Family) -> BlockMatrix {
+        let c = &self.cloth;
+        let f = &self.fabric;
+        let mut k = self.a.clone();
+        k.clear();
+        let mut axial_add = |a: usize, b: usize, t: f64, dts: f64, l: f64, dir: Vector3<f64>| {
+            let p = axial_block(&Axial { t, dt: dts, l, dir }, true);
+            let (aa, ab, ba, bb) = (k.index(a, a), k.index(a, b), k.index(b, a), k.index(b, b));
+            k.val[aa] -= p;
+            k.val[bb] -= p;
+            k.val[ab] += p;
+            k.val[ba] += p;
+        };
+        match fam {
+            Family::Tension => {
+                for (s, st) in c.tension.iter().zip(&c.tension_state) {
+                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+                    let (t, _, dts, _) =
+                        tension_law_step(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+                    axial_add(s.a, s.b, t, dts, l, dir);
+                }
+            }
+            Family::Shear => {
+                for (s, st) in c.shear.iter().zip(&c.shear_state) {
+                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
+                    let (t, _, dts, _) = shear_law_step(s, &f.shear, st, l);
+                    axial_add(s.a, s.b, t, dts, l, dir);
+                }
+            }
+            Family::Bending => {
+                for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
+                    let law = &f.dir(hg.weft).bending;
+                    let (theta, g) = dihedral_and_grad(hinge_positions(hg, &c.x));
+                    let (_, _, dss) = law.eval_for_step(st, theta / hg.h);
+                    let ks = hg.len * dss.max(0.0) / hg.h;
+                    let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
+                    for p in 0..4 {
+                        for q in 0..4 {
+                            let idx = k.index(hg.v[p], hg.v[q]);
+                            k.val[idx] -= gs(p) * gs(q).transpose() * ks;
+                        }
+                    }
+                }
+            }
+        }
+        k
+    }
+
     /// Total force including gravity and damping at velocities `v` (for the
     /// ∂f/∂v check): `f_el + M g + C v`.
     pub fn total_force_at_velocity(&self, v: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
