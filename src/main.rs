@@ -67,6 +67,10 @@ enum Cmd {
         /// Capture of a falling ball (first marker) giving the vertical.
         #[arg(long)]
         vertical: Option<PathBuf>,
+        /// Upward direction in the capture's coordinates, e.g. 0,0,1 or 0,1,0
+        /// (instead of --vertical; default: the capture's +z is up).
+        #[arg(long, allow_hyphen_values = true)]
+        up: Option<String>,
         /// Viscous window in frames, e.g. 40..100 (default: from the mean-speed curve).
         #[arg(long)]
         window: Option<String>,
@@ -227,13 +231,14 @@ fn real_main(cli: Cli) -> Result<()> {
             capture,
             fabric,
             vertical,
+            up,
             window,
             grid,
             spacing,
             warp_major,
             out,
         } => identify_cmd(
-            capture, fabric, vertical, window, grid, spacing, warp_major, out,
+            capture, fabric, vertical, up, window, grid, spacing, warp_major, out,
         ),
         Cmd::Kes(a) => cli_lab::kes(a),
         Cmd::Bench {
@@ -321,6 +326,7 @@ fn identify_cmd(
     capture: PathBuf,
     fabric: PathBuf,
     vertical: Option<PathBuf>,
+    up: Option<String>,
     window: Option<String>,
     grid: String,
     spacing: f64,
@@ -358,6 +364,20 @@ fn identify_cmd(
             spacing: [spacing, spacing],
         },
         window,
+        up: match up {
+            None => None,
+            Some(text) => {
+                let v: Vec<f64> = text
+                    .split(',')
+                    .map(|c| c.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| anyhow::anyhow!("--up {text:?}: expected three numbers x,y,z"))?;
+                if v.len() != 3 {
+                    anyhow::bail!("--up {text:?}: expected three numbers x,y,z");
+                }
+                Some(nalgebra::Vector3::new(v[0], v[1], v[2]))
+            }
+        },
         ..Default::default()
     };
     let rep = identify_file(&capture, vertical.as_deref(), &fab, &opts, warp_major)?;

@@ -59,6 +59,9 @@ pub struct IdentifyOptions {
     pub window: Option<(usize, usize)>,
     /// Gravity in the capture's (rotated) frame, m/s².
     pub gravity: Vector3<f64>,
+    /// The upward direction in the capture's coordinates, when known
+    /// (instead of a ball drop): the capture is rotated so that it is +z.
+    pub up: Option<Vector3<f64>>,
 }
 
 impl Default for IdentifyOptions {
@@ -67,6 +70,7 @@ impl Default for IdentifyOptions {
             grid: MarkerGrid::default(),
             window: None,
             gravity: Vector3::new(0.0, 0.0, -9.81),
+            up: None,
         }
     }
 }
@@ -568,6 +572,21 @@ pub fn identify_file(
         );
     }
     let mut up = None;
+    if let Some(u) = opts.up {
+        if ball.is_some() {
+            bail!("give the vertical either by a ball capture or as a direction, not both");
+        }
+        if !(u.iter().all(|c| c.is_finite()) && u.norm() > 0.0) {
+            bail!(
+                "up direction ({}, {}, {}): must be a non-zero finite vector",
+                u.x,
+                u.y,
+                u.z
+            );
+        }
+        rotate_capture(&mut cap, &rotation_to_z(&u.normalize()));
+        up = Some([u.x, u.y, u.z]);
+    }
     if let Some(b) = ball {
         let bc = read(b)?;
         let track: Vec<Vector3<f64>> = bc
