@@ -80,3 +80,61 @@ fn a_bad_scene_is_a_clear_error_not_a_panic() {
     assert!(err.contains("s.yaml") && err.contains("duration"), "{err}");
     assert!(!err.contains("panicked"));
 }
+
+/// The node refuses bad start-up input before it joins the DDS domain, and
+/// says which parameter, file or line is wrong.
+#[test]
+fn node_start_up_errors_name_what_is_wrong() {
+    let dir = tmp("node_args");
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad_yaml = dir.join("bad.yaml");
+    std::fs::write(
+        &bad_yaml,
+        "/**:\n  ros__parameters:\n    publish_rate: [1, 2\n",
+    )
+    .unwrap();
+    let wrong_type = dir.join("wrong.yaml");
+    std::fs::write(
+        &wrong_type,
+        "garment_sim:\n  ros__parameters:\n    paused: 3\n",
+    )
+    .unwrap();
+    let missing_scene = dir.join("nowhere.yaml");
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec!["-p".into(), "bogus:=1".into()],
+            "unknown parameter \"bogus\"",
+        ),
+        (
+            vec!["-p".into(), "publish_rate:=-3".into()],
+            "publish_rate = -3",
+        ),
+        (vec!["-p".into(), "solver:=lu".into()], "solver = \"lu\""),
+        (vec!["-r".into(), "__ns:=/1bad".into()], "namespace"),
+        (vec!["-x".into()], "unknown argument \"-x\""),
+        (
+            vec!["--params-file".into(), bad_yaml.display().to_string()],
+            "not valid YAML",
+        ),
+        (
+            vec!["--params-file".into(), wrong_type.display().to_string()],
+            "paused",
+        ),
+        (
+            vec!["-p".into(), format!("scene:={}", missing_scene.display())],
+            "nowhere.yaml",
+        ),
+    ];
+    for (args, expect) in cases {
+        let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+            .arg("node")
+            .arg("--ros-args")
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(err.contains(expect), "{args:?}: {err}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

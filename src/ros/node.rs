@@ -355,9 +355,24 @@ pub fn scene_description(scene: &Path, sim: &Simulation) -> String {
     )
 }
 
+const HELP: &str = "garment_sim node [--ros-args ...]: the simulation as a ROS 2 node\n\
+\n\
+ROS arguments: -p NAME:=VALUE, --params-file FILE, -r FROM:=TO (also __ns:=/ns, __node:=name)\n\
+Parameters: scene (path), frame_id (world), publish_rate (30.0 Hz), real_time_factor (1.0; 0 = as\n\
+  fast as possible), paused (false), duration (0 = run until stopped, s), dt, spacing, solver\n\
+  (overrides of the scene), record_bag (directory; empty = none)\n\
+Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout\n\
+Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin)\n\
+Services: ~/reset (std_srvs/Trigger), ~/set_paused (std_srvs/SetBool), ~/step (garment_sim_msgs/Step)\n\
+Environment: ROS_DOMAIN_ID. See README.md and launch-notes.md.";
+
 /// Runs the node until SIGINT/SIGTERM or `duration`.
 pub fn run(ros_args: &[String]) -> Result<()> {
     let (rest, ra) = args::parse(ros_args)?;
+    if rest.iter().any(|a| a == "-h" || a == "--help") {
+        println!("{HELP}");
+        return Ok(());
+    }
     if !rest.is_empty() {
         bail!(
             "node: unexpected arguments {rest:?} (node options go after --ros-args, \
