@@ -70,6 +70,7 @@ fn messages_match_rosbags_byte_for_byte() {
             iterations: 7,
             real_time_factor: 0.9,
             rejected_messages: 2,
+            dropped_messages: 5,
             paused: false,
             last_error: "pin: vertex 99999 out of range".into(),
         },

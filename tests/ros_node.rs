@@ -47,7 +47,7 @@ fn node_interoperates_with_cyclone_dds() {
     let _ = std::fs::remove_dir_all(&dir);
     assert!(out.status.success(), "{text}");
     assert!(
-        text.contains("3 passed") && !text.contains("skipped"),
+        text.contains("5 passed") && !text.contains("skipped"),
         "{text}"
     );
 }

@@ -109,11 +109,13 @@ fn shape(p: &msgs::SolidPrimitive, k: usize) -> Result<ShapeSpec, String> {
 }
 
 /// Applies an `obstacles` message. Returns a one-line account of what changed.
+/// `max_triangles` bounds each mesh (parameter `max_mesh_triangles`).
 pub fn apply_obstacle(
     sim: &mut Simulation,
     reg: &mut ObstacleRegistry,
     m: &msgs::Obstacle,
     frame_id: &str,
+    max_triangles: usize,
 ) -> Result<String, String> {
     let id = m.id.as_str();
     let fail = |e: String| format!("obstacle {id:?}: {e}");
@@ -191,6 +193,12 @@ pub fn apply_obstacle(
                 ));
             }
             for (k, (mesh, q)) in m.meshes.iter().zip(&m.mesh_poses).enumerate() {
+                if mesh.triangles.len() > max_triangles {
+                    return Err(fail(format!(
+                        "meshes[{k}] has {} triangles, more than max_mesh_triangles = {max_triangles}",
+                        mesh.triangles.len()
+                    )));
+                }
                 let vertices: Vec<[f64; 3]> =
                     mesh.vertices.iter().map(|p| [p.x, p.y, p.z]).collect();
                 let triangles = mesh.triangles.iter().map(|t| t.vertex_indices).collect();
@@ -434,7 +442,7 @@ mod tests {
             operation: msgs::Obstacle::ADD,
             ..Default::default()
         };
-        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
         assert_eq!(s.obstacles.len(), n0 + 2);
         let part = s.obstacles.iter().find(|o| o.id == "gripper#0").unwrap();
         assert!((part.pose.translation.vector - Vector3::new(0.1, 0.0, 1.0)).norm() < 1e-12);
@@ -444,14 +452,14 @@ mod tests {
         m.operation = msgs::Obstacle::MOVE;
         m.pose = pose_at(0.0, 0.0, 1.5);
         m.velocity.angular.z = 2.0;
-        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
         let part = s.obstacles.iter().find(|o| o.id == "gripper#1").unwrap();
         assert!((part.pose.translation.vector - Vector3::new(-0.1, 0.0, 1.5)).norm() < 1e-12);
         assert!((part.linear_velocity - Vector3::new(0.0, -0.2, 0.0)).norm() < 1e-12);
         m.operation = msgs::Obstacle::REMOVE;
-        apply_obstacle(&mut s, &mut reg, &m, "world").unwrap();
+        apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
         assert_eq!(s.obstacles.len(), n0);
-        assert!(apply_obstacle(&mut s, &mut reg, &m, "world")
+        assert!(apply_obstacle(&mut s, &mut reg, &m, "world", 1000)
             .unwrap_err()
             .contains("no such obstacle"));
     }
@@ -472,8 +480,10 @@ mod tests {
             mesh_poses: vec![msgs::Pose::default()],
             ..Default::default()
         };
-        let e = apply_obstacle(&mut s, &mut reg, &mesh, "world").unwrap_err();
+        let e = apply_obstacle(&mut s, &mut reg, &mesh, "world", 1000).unwrap_err();
         assert!(e.contains("vertex 7"), "{e}");
+        let e = apply_obstacle(&mut s, &mut reg, &mesh, "world", 0).unwrap_err();
+        assert!(e.contains("max_mesh_triangles = 0"), "{e}");
         let mut nan = mesh.clone();
         nan.meshes.clear();
         nan.mesh_poses.clear();
@@ -483,13 +493,13 @@ mod tests {
             ..Default::default()
         }];
         nan.primitive_poses = vec![msgs::Pose::default()];
-        assert!(apply_obstacle(&mut s, &mut reg, &nan, "world")
+        assert!(apply_obstacle(&mut s, &mut reg, &nan, "world", 1000)
             .unwrap_err()
             .contains("primitives[0]"));
         let mut q = nan.clone();
         q.primitives[0].dimensions = vec![0.1, 0.1, 0.1];
         q.pose.orientation.w = 0.0;
-        assert!(apply_obstacle(&mut s, &mut reg, &q, "world")
+        assert!(apply_obstacle(&mut s, &mut reg, &q, "world", 1000)
             .unwrap_err()
             .contains("quaternion"));
         assert_eq!(s.obstacles.len(), n0);

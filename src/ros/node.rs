@@ -78,6 +78,12 @@ pub struct Settings {
     pub solver: String,
     /// Bag directory to record into ("": no recording).
     pub record_bag: String,
+    /// Messages applied per topic between two steps; more are dropped
+    /// (counted, logged): a sender faster than the simulation cannot queue
+    /// work without bound (runtime).
+    pub max_messages_per_step: i64,
+    /// Largest obstacle mesh accepted, triangles (runtime).
+    pub max_mesh_triangles: i64,
 }
 
 impl Default for Settings {
@@ -93,6 +99,8 @@ impl Default for Settings {
             spacing: 0.0,
             solver: String::new(),
             record_bag: String::new(),
+            max_messages_per_step: 100,
+            max_mesh_triangles: 200_000,
         }
     }
 }
@@ -184,10 +192,25 @@ impl Settings {
                 self.solver = s
             }
             "record_bag" => self.record_bag = text(v)?,
+            "max_messages_per_step" | "max_mesh_triangles" => {
+                let k = match v {
+                    Value::Int(i) => *i,
+                    other => bail!("parameter {name}: {other:?} is not an integer"),
+                };
+                if k < 1 {
+                    bail!("parameter {name} = {k}: must be ≥ 1");
+                }
+                if name == "max_messages_per_step" {
+                    self.max_messages_per_step = k
+                } else {
+                    self.max_mesh_triangles = k.min(crate::collision::MAX_MESH_TRIANGLES as i64)
+                }
+            }
             "use_sim_time" => {}
             other => bail!(
                 "unknown parameter {other:?} (known: scene, frame_id, publish_rate, \
-                 real_time_factor, paused, duration, dt, spacing, solver, record_bag)"
+                 real_time_factor, paused, duration, dt, spacing, solver, record_bag, \
+                 max_messages_per_step, max_mesh_triangles)"
             ),
         }
         Ok(())
@@ -521,6 +544,11 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     );
 
     let mut rejected: u64 = 0;
+    let mut dropped: u64 = 0;
+    let mut dropped_now: u64 = 0;
+    let mut last_drop_log = Instant::now() - Duration::from_secs(10);
+    let wall_start = Instant::now();
+    let steps_start = loaded.sim.steps;
     let mut last_error = String::new();
     let mut pending_steps: u64 = 0;
     let mut next_publish = loaded.sim.time;
@@ -552,12 +580,21 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             pace_origin = (Instant::now(), loaded.sim.time);
         }
         // messages
+        let cap = settings.max_messages_per_step as usize;
+        let mut taken = 0usize;
         while let Ok(Some((m, _))) = sub_obstacles.take() {
+            taken += 1;
+            if taken > cap {
+                dropped += 1;
+                dropped_now += 1;
+                continue;
+            }
             match control::apply_obstacle(
                 &mut loaded.sim,
                 &mut loaded.registry,
                 &m,
                 &settings.frame_id,
+                settings.max_mesh_triangles as usize,
             ) {
                 Ok(what) => info!("{what}"),
                 Err(e) => {
@@ -568,7 +605,14 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             }
             publish_now = true;
         }
+        let mut taken = 0usize;
         while let Ok(Some((m, _))) = sub_pins.take() {
+            taken += 1;
+            if taken > cap {
+                dropped += 1;
+                dropped_now += 1;
+                continue;
+            }
             match control::apply_pin(&mut loaded.sim, &m, &settings.frame_id) {
                 Ok(what) => info!("{what}"),
                 Err(e) => {
@@ -577,6 +621,15 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                     last_error = e;
                 }
             }
+        }
+        if dropped_now > 0 && last_drop_log.elapsed() > Duration::from_secs(1) {
+            last_error = format!(
+                "dropped {dropped_now} messages arriving faster than the simulation steps \
+                 (max_messages_per_step = {cap} per topic)"
+            );
+            warn!("{last_error}");
+            dropped_now = 0;
+            last_drop_log = Instant::now();
         }
         // services
         while let Ok(Some((id, _))) = srv_reset.receive_request() {
@@ -714,6 +767,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                 iterations: last_iters,
                 real_time_factor: last_rt,
                 rejected_messages: rejected,
+                dropped_messages: dropped,
                 paused: settings.paused,
                 last_error: last_error.clone(),
             };
@@ -751,9 +805,17 @@ pub fn run(ros_args: &[String]) -> Result<()> {
         clock: msgs::Time::from_secs(loaded.sim.time),
     });
     std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
+    let wall = wall_start.elapsed().as_secs_f64();
+    let steps = loaded.sim.steps.saturating_sub(steps_start).max(1);
     eprintln!(
-        "[garment_sim] stopped at t = {:.3} s after {} steps; {} messages rejected",
-        loaded.sim.time, loaded.sim.steps, rejected
+        "[garment_sim] stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
+         {} messages rejected, {} dropped",
+        loaded.sim.time,
+        loaded.sim.steps,
+        wall,
+        1e3 * wall / steps as f64,
+        rejected,
+        dropped
     );
     Ok(())
 }

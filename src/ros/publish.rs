@@ -205,6 +205,8 @@ pub struct DiagnosticFigures {
     pub iterations: usize,
     pub real_time_factor: f64,
     pub rejected_messages: u64,
+    /// Messages dropped because they came faster than the steps.
+    pub dropped_messages: u64,
     pub paused: bool,
     pub last_error: String,
 }
@@ -237,6 +239,7 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
                 kv("solver_iterations", f.iterations.to_string()),
                 kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
                 kv("rejected_messages", f.rejected_messages.to_string()),
+                kv("dropped_messages", f.dropped_messages.to_string()),
                 kv("vertices", sim.cloth.len().to_string()),
                 kv("pins", sim.pins.len().to_string()),
                 kv("obstacles", sim.obstacles.len().to_string()),

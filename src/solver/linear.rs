@@ -177,6 +177,8 @@ pub struct Direct {
     tmp: Vec<Vector3<f64>>,
     /// Row of each block of the pattern.
     block_row: Vec<usize>,
+    /// Threads of the numeric factorisation and solve.
+    par: Par,
 }
 
 impl std::fmt::Debug for Direct {
@@ -188,7 +190,14 @@ impl std::fmt::Debug for Direct {
 }
 
 impl Direct {
-    pub fn new(a: &BlockMatrix) -> Result<Direct> {
+    /// `threads` > 1 factorises on that many threads (faer's rayon
+    /// parallelism over the elimination tree and inside the supernodes).
+    pub fn new(a: &BlockMatrix, threads: usize) -> Result<Direct> {
+        let par = if threads > 1 {
+            Par::rayon(threads)
+        } else {
+            Par::Seq
+        };
         let csc = LowerCsc::new(a);
         let sym = SymbolicSparseColMatRef::new_checked(
             csc.dim,
@@ -202,8 +211,8 @@ impl Direct {
                 .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, par),
         ]);
         Ok(Direct {
             rhs: vec![0.0; csc.dim],
@@ -215,6 +224,7 @@ impl Direct {
             block_row: (0..a.n)
                 .flat_map(|i| std::iter::repeat_n(i, a.row_ptr[i + 1] - a.row_ptr[i]))
                 .collect(),
+            par,
         })
     }
 
@@ -269,7 +279,7 @@ impl Direct {
                 mat,
                 Side::Lower,
                 LltRegularization::default(),
-                Par::Seq,
+                self.par,
                 stack,
                 Default::default(),
             )
@@ -277,7 +287,7 @@ impl Direct {
                 anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}")
             })?;
         let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, self.csc.dim, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, MemStack::new(&mut self.mem));
+        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
         for i in 0..n {
             dv[i] = Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]) + z[i];
         }

@@ -226,7 +226,7 @@ impl Simulation {
         let part = assemble::partition(&mut cloth, threads);
         let slots = assemble::Slots::new(&a, &cloth);
         let direct = match params.linear_solver {
-            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
+            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a, threads)?),
             LinearSolverKind::Pcg | LinearSolverKind::Auto => None,
         };
         let z = vec![Vector3::zeros(); n];
@@ -289,7 +289,10 @@ impl Simulation {
     pub fn set_linear_solver(&mut self, kind: LinearSolverKind) -> Result<()> {
         self.params.linear_solver = kind;
         if kind == LinearSolverKind::Cholesky && self.direct.is_none() {
-            self.direct = Some(linear::Direct::new(&self.a)?);
+            self.direct = Some(linear::Direct::new(
+                &self.a,
+                self.part.bounds.len().saturating_sub(1),
+            )?);
         }
         Ok(())
     }
@@ -485,7 +488,10 @@ impl Simulation {
 
     fn solve_direct(&mut self) -> Result<usize> {
         if self.direct.is_none() {
-            self.direct = Some(linear::Direct::new(&self.a)?);
+            self.direct = Some(linear::Direct::new(
+                &self.a,
+                self.part.bounds.len().saturating_sub(1),
+            )?);
         }
         let d = self.direct.as_mut().expect("direct solver built");
         d.solve(
@@ -518,7 +524,10 @@ impl Simulation {
         let update = |old: f64, new: f64| if probe { new } else { ema(old, new) };
         if use_direct && self.direct.is_none() {
             // the one-off symbolic analysis is not part of a step's cost
-            self.direct = Some(linear::Direct::new(&self.a)?);
+            self.direct = Some(linear::Direct::new(
+                &self.a,
+                self.part.bounds.len().saturating_sub(1),
+            )?);
         }
         let t = Instant::now();
         if use_direct {
