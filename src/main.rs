@@ -101,6 +101,8 @@ enum Cmd {
     },
     /// Virtual Kawabata lab: KES-FB tensile, shear and bending tests on a simulated specimen.
     Kes(cli_lab::KesArgs),
+    /// Drapemeter: drape coefficient and nodes of a circular specimen on a disk.
+    Drapemeter(cli_lab::DrapemeterArgs),
 }
 
 fn main() {
@@ -227,6 +229,7 @@ fn real_main(cli: Cli) -> Result<()> {
             capture, fabric, vertical, window, grid, spacing, warp_major, out,
         ),
         Cmd::Kes(a) => cli_lab::kes(a),
+        Cmd::Drapemeter(a) => cli_lab::drapemeter(a),
         Cmd::Bench {
             scene,
             spacing,

@@ -3,5 +3,6 @@
 //! (§2.3.1, §4.5), the fitting of laws to KES curves (§3.4.2) and the
 //! drapemeter (§2.3.2).
 
+pub mod drapemeter;
 pub mod identify;
 pub mod kes_lab;
