@@ -173,3 +173,80 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
     );
     Ok(())
 }
+
+/// `garment_sim fit-kes`: fit the laws to raw KES curves and write a fabric file.
+#[derive(clap::Args)]
+pub struct FitKesArgs {
+    /// Curves CSV: direction,test,x,y,branch in KES units (as `kes --all` writes curves.csv).
+    pub curves: PathBuf,
+    /// Fabric file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Fabric file giving the name, areal mass, thickness and damping.
+    #[arg(long)]
+    pub base: Option<PathBuf>,
+    /// Areal mass W, mg/cm² (required without --base).
+    #[arg(long)]
+    pub areal_mass: Option<f64>,
+    /// Fabric name.
+    #[arg(long)]
+    pub name: Option<String>,
+}
+
+pub fn fit_kes(a: FitKesArgs) -> Result<()> {
+    use garment_sim::fabric::{Damping, FabricFile};
+    use garment_sim::lab::fit_kes::{fit_fabric, read_curves_csv, FitMeta};
+    let curves = read_curves_csv(&a.curves)?;
+    let base: Option<FabricFile> = match &a.base {
+        Some(p) => Some(Fabric::load(p)?.file),
+        None => None,
+    };
+    let areal = match (a.areal_mass, &base) {
+        (Some(w), _) => w,
+        (None, Some(b)) => b.areal_mass_mg_per_cm2,
+        (None, None) => bail!("give --areal-mass (mg/cm²) or --base FABRIC.yaml"),
+    };
+    let meta = FitMeta {
+        name: a.name.clone().unwrap_or_else(|| match &base {
+            Some(b) => format!("{} (fitted to {})", b.name, a.curves.display()),
+            None => format!("fitted to {}", a.curves.display()),
+        }),
+        source: format!("KES curves {}", a.curves.display()),
+        areal_mass_mg_per_cm2: areal,
+        thickness_mm: base.as_ref().and_then(|b| b.thickness_mm),
+        // without a base: the thesis' measured damping (Table 5.1, row 1)
+        damping: base.as_ref().map(|b| b.damping).unwrap_or(Damping {
+            alpha: -7.0,
+            beta_bend: -6.8e-3,
+            beta_shear: -3.1e-4,
+            beta_tension: -3.9e-6,
+        }),
+    };
+    let (file, fits) = fit_fabric(&curves, &meta)?;
+    // the file must load
+    Fabric::from_file(file.clone(), std::path::Path::new("."))
+        .context("the fitted fabric does not load")?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(&a.out, serde_yaml::to_string(&file)?)
+        .with_context(|| format!("cannot write {}", a.out.display()))?;
+    println!(
+        "{:<6} {:<8} {:>14} {:>10} {:>16} {:>6}",
+        "dir", "test", "residual", "of peak", "linear start", "iters"
+    );
+    for f in &fits {
+        println!(
+            "{:<6} {:<8} {:>14.4} {:>9.2}% {:>16.4} {:>6}",
+            f.direction,
+            f.test,
+            f.residual,
+            100.0 * f.residual_relative,
+            f.residual_linear_start,
+            f.iterations
+        );
+    }
+    println!("(residuals: RMS force error of the fitted law driven along each curve, KES units)");
+    println!("wrote            {}", a.out.display());
+    Ok(())
+}

@@ -4,5 +4,6 @@
 //! drapemeter (§2.3.2).
 
 pub mod drapemeter;
+pub mod fit_kes;
 pub mod identify;
 pub mod kes_lab;
