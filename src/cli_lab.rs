@@ -151,9 +151,10 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         ),
     }
     println!(
-        "drape coefficient  {:.2} % ({:.2} % of the nominal annulus)",
+        "drape coefficient  {:.2} % of the annulus ({:.2} % of the flat discrete specimen, which covers {:.1} % of the annulus)",
         100.0 * rep.drape_coefficient,
-        100.0 * rep.drape_coefficient_nominal
+        100.0 * rep.drape_coefficient_flat_normalised,
+        100.0 * rep.flat_specimen_fraction
     );
     let angles: Vec<String> = rep
         .node_angles_deg

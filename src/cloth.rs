@@ -697,4 +697,128 @@ mod tests {
         assert!((w - 0.5).abs() < 1e-12);
         assert!(c.index(26, 0).is_err());
     }
+
+    fn check_elements(c: &Cloth, outline: &Outline) {
+        let n = c.len();
+        let inside = |v: usize| outline.contains(c.material[v], 1e-9);
+        for s in &c.tension {
+            assert!(s.a < n && s.b < n && inside(s.a) && inside(s.b));
+            assert!(s.width > 0.0);
+        }
+        for s in &c.shear {
+            assert!(s.a < n && s.b < n && inside(s.a) && inside(s.b));
+        }
+        for h in &c.hinges {
+            assert!(h.v.iter().all(|&v| v < n && inside(v)));
+        }
+        for t in &c.triangles {
+            assert!(t.iter().all(|&v| v < n));
+        }
+        // the map and the vertices agree
+        let kept = c.grid_vertex.iter().filter(|&&v| v != REMOVED).count();
+        assert_eq!(kept, n);
+    }
+
+    #[test]
+    fn clipped_circle_mass_and_elements() {
+        let r = 0.15;
+        let outline = Outline::Circle {
+            center: [0.0, 0.0],
+            radius: r,
+        };
+        for h in [0.02, 0.01, 0.005] {
+            let c =
+                Cloth::clipped(&outline, [h, h], [0.0, 0.0], &Isometry3::identity(), 0.2).unwrap();
+            check_elements(&c, &outline);
+            let want = 0.2 * std::f64::consts::PI * r * r;
+            let err = (c.total_mass() - want).abs() / want;
+            // only slivers of cells with no corner inside are lost: O(h²/r²)
+            assert!(
+                err < 0.3 * (h / r).powi(2) + 2e-5,
+                "h {h}: mass error {err}"
+            );
+            // the centre is a vertex and an interior cell is whole
+            let centre = c.index(c.nx / 2, c.ny / 2).unwrap();
+            assert!(c.material[centre][0].abs() < 1e-12 && c.material[centre][1].abs() < 1e-12);
+            assert!((c.mass[centre] - 0.2 * h * h).abs() < 1e-15);
+            // removed nodes are reported as such
+            assert!(c.index(0, 0).is_err());
+        }
+    }
+
+    #[test]
+    fn clipped_rectangle_is_the_full_grid() {
+        let outline = Outline::Polygon(vec![[0.0, 0.0], [0.5, 0.0], [0.5, 0.3], [0.0, 0.3]]);
+        let c = Cloth::clipped(
+            &outline,
+            [0.05, 0.05],
+            [0.0, 0.0],
+            &Isometry3::identity(),
+            0.213,
+        )
+        .unwrap();
+        let g = Cloth::grid(
+            &GridSpec {
+                size: [0.5, 0.3],
+                spacing: [0.05, 0.05],
+                pose: Isometry3::identity(),
+            },
+            0.213,
+        )
+        .unwrap();
+        assert_eq!(c.len(), g.len());
+        assert_eq!(
+            (c.tension.len(), c.shear.len(), c.hinges.len()),
+            (g.tension.len(), g.shear.len(), g.hinges.len())
+        );
+        assert_eq!(c.triangles.len(), g.triangles.len());
+        for (a, b) in c.mass.iter().zip(&g.mass) {
+            assert!((a - b).abs() < 1e-15);
+        }
+        let w = |c: &Cloth| c.tension.iter().map(|s| s.width).sum::<f64>();
+        assert!((w(&c) - w(&g)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn clipped_concave_polygon() {
+        // an L shape: 30 × 30 cm less its 15 × 15 cm top-right quarter, grid
+        // offset so that no node falls on the outline
+        let outline = Outline::Polygon(vec![
+            [0.0, 0.0],
+            [0.3, 0.0],
+            [0.3, 0.15],
+            [0.15, 0.15],
+            [0.15, 0.3],
+            [0.0, 0.3],
+        ]);
+        let c = Cloth::clipped(
+            &outline,
+            [0.02, 0.02],
+            [0.005, 0.005],
+            &Isometry3::identity(),
+            0.1,
+        )
+        .unwrap();
+        check_elements(&c, &outline);
+        let want = 0.1 * outline.area();
+        assert!((outline.area() - 0.0675).abs() < 1e-12);
+        assert!(
+            (c.total_mass() - want).abs() < 1e-12 * want.max(1.0),
+            "{} vs {want}",
+            c.total_mass()
+        );
+        // no spring crosses the notch: both ends of every spring are inside
+        assert!(c.tension.iter().all(|s| {
+            let (a, b) = (c.material[s.a], c.material[s.b]);
+            !(a[0] > 0.15 && a[1] > 0.15) && !(b[0] > 0.15 && b[1] > 0.15)
+        }));
+        assert!(Cloth::clipped(
+            &Outline::Polygon(vec![[0.0, 0.0], [1.0, 0.0]]),
+            [0.1, 0.1],
+            [0.0, 0.0],
+            &Isometry3::identity(),
+            0.1
+        )
+        .is_err());
+    }
 }

@@ -909,27 +909,19 @@ fn memory_length(fabric: &Fabric, test: KesTest, dir: Direction) -> f64 {
     }
 }
 
-/// Writes `DIR/<test>_<dir>.csv` (a valid fabric `curve:` file, plus time)
+/// Writes `DIR/<test>_<dir>.csv` (a valid fabric `curve:` file)
 /// and `DIR/<test>_<dir>.png` (input curve and simulated loop).
 pub fn write_outputs(run: &KesRun, dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let stem = format!("{}_{}", run.test.name(), run.direction.name());
     let (xl, yl, sx, sy) = run.test.units();
-    let mut csv = format!("{},time_s\n", run.test.csv_header());
-    for w in run.path.windows(2) {
-        let b = if w[1].1 > w[0].1 {
-            "load"
-        } else if w[1].1 < w[0].1 {
-            "recover"
-        } else {
-            continue;
-        };
-        csv.push_str(&format!(
-            "{:.6},{:.6},{b},{:.4}\n",
-            w[1].1 * sx,
-            w[1].2 * sy,
-            w[1].0
-        ));
+    // in KES branch order (load with x rising, then recovery with x falling),
+    // so that the file is a valid fabric `curve:` file
+    let mut csv = format!("{}\n", run.test.csv_header());
+    for (b, pts) in [("load", &run.curve.load), ("recover", &run.curve.recover)] {
+        for &(x, y) in pts.iter() {
+            csv.push_str(&format!("{:.6},{:.6},{b}\n", x * sx, y * sy));
+        }
     }
     let p = dir.join(format!("{stem}.csv"));
     std::fs::write(&p, csv).with_context(|| format!("cannot write {}", p.display()))?;
