@@ -810,7 +810,8 @@ mod tests {
         // no spring crosses the notch: both ends of every spring are inside
         assert!(c.tension.iter().all(|s| {
             let (a, b) = (c.material[s.a], c.material[s.b]);
-            !(a[0] > 0.15 && a[1] > 0.15) && !(b[0] > 0.15 && b[1] > 0.15)
+            let notch = |p: [f64; 2]| p[0] > 0.15 && p[1] > 0.15;
+            !notch(a) && !notch(b)
         }));
         assert!(Cloth::clipped(
             &Outline::Polygon(vec![[0.0, 0.0], [1.0, 0.0]]),

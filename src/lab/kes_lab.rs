@@ -602,7 +602,7 @@ fn bending(
     };
     let ys: Vec<f64> = cloth.x.iter().map(|p| p.y).collect();
     let fixed: Vec<usize> = (0..gw.len()).filter(|&i| row(i) <= 1).collect();
-    let moving: Vec<usize> = (0..gw.len()).filter(|&i| row(i) >= n + 1).collect();
+    let moving: Vec<usize> = (0..gw.len()).filter(|&i| row(i) > n).collect();
     let edge: Vec<usize> = (0..gw.len()).filter(|&i| row(i) == n + 1).collect();
     let mut sim = Simulation::new(cloth, fabric.clone(), params(opt.dt))?;
     // shift the grid so row 0 (material g = l) sits at the origin
