@@ -60,7 +60,8 @@ pub fn kes(a: KesArgs) -> Result<()> {
     for (t, d) in jobs {
         let label = format!("kes {} {}", t.name(), d.name());
         let mut pr = crate::progress_printer(label);
-        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f, 1.0))?;
+        let dur = kes_lab::protocol_duration(&fabric, t, d);
+        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f * dur, dur))?;
         kes_lab::write_outputs(&run, &a.out)?;
         print!("{}", kes_lab::format_run(&run));
         runs.push(run);

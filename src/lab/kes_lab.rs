@@ -281,7 +281,25 @@ fn reaction(forces: &[Vector3<f64>], verts: &[usize]) -> Vector3<f64> {
     -verts.iter().map(|&i| forces[i]).sum::<Vector3<f64>>()
 }
 
-/// Runs one KES test on the fabric. `progress(fraction)` is called now and then.
+/// Simulated duration of a test's protocol, s (tensile: estimated from the
+/// fabric's EMT; for progress reports).
+pub fn protocol_duration(fabric: &Fabric, test: KesTest, dir: Direction) -> f64 {
+    match test {
+        KesTest::Tensile => {
+            let emt = fabric
+                .dir(dir.is_weft())
+                .tensile_curve
+                .load
+                .last()
+                .map_or(0.05, |p| p.0);
+            2.0 * emt / TENSILE_STRAIN_RATE
+        }
+        KesTest::Shear => 4.0 * SHEAR_MAX_DEG * DEG / SHEAR_RATE,
+        KesTest::Bending => 4.0 * BENDING_MAX_PER_CM * PER_CM / BENDING_RATE,
+    }
+}
+
+/// Runs one KES test on the fabric. `progress(fraction done)` is called now and then.
 pub fn run_test(
     fabric: &Fabric,
     test: KesTest,
