@@ -110,6 +110,9 @@ pub struct DrapemeterArgs {
     /// Seed of the initial out-of-plane perturbation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Keep the grid's staircase border instead of moving border nodes onto the circle.
+    #[arg(long)]
+    pub staircase_border: bool,
     /// Output directory (report.json, top_view.png).
     #[arg(long, default_value = "out/drapemeter")]
     pub out: PathBuf,
@@ -125,6 +128,7 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         dt: a.dt,
         max_duration: a.duration,
         seed: a.seed,
+        border_on_outline: !a.staircase_border,
         ..Default::default()
     };
     let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));
