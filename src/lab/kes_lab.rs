@@ -20,10 +20,14 @@
 //!   isometric): every moving-clamp vertex (the thesis' control masses) moves
 //!   on a circle of radius `d` (the tensioned gauge) about its fixed partner,
 //!   `dx = d (cos θ − cos θ_prev)`, `dy = d (sin θ − sin θ_prev)`, at
-//!   0.00834 rad/s through 0 → +8° → −8° → 0. The clamp distance stays
-//!   constant, so the threads across the gauge keep their tension. The shear
-//!   force per width is the reaction's component along the clamp's path (the
-//!   force conjugate to θ); the tension along the radius is reported beside it.
+//!   0.00834 rad/s through 0 → +8° → −8° → 0. The dead weight hangs freely in
+//!   the instrument, so the tension across the gauge stays at 10 gf/cm: here
+//!   the circles' radius follows that tension (a servo: half the tension error
+//!   over the specimen's stiffness per step); it changes by about 0.035 mm over
+//!   the cycle and the tension stays within 10 ± 0.1 gf/cm (with a fixed radius
+//!   the hysteretic diagonals' radial pull moves it over 9.6–11.4 gf/cm). The
+//!   shear force per width is the reaction's component along the clamp's path
+//!   (the force conjugate to θ); the tension along the radius is reported.
 //! - **Bending** (KES-FB2, thesis §2.3.1.4, annex A.2): 20 cm wide × 1 cm
 //!   between the clamps, pure bending at 0.5 cm⁻¹/s through
 //!   0 → +2.5 → −2.5 → 0 cm⁻¹. Each clamp holds two rows of the grid (the edge
@@ -208,6 +212,10 @@ pub struct KesRun {
     /// Shear only: tension per width across the gauge during the shear, gf/cm (min, max).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub shear_tension_gf_cm: Option<[f64; 2]>,
+    /// Shear only: range of the control masses' circle radius, m (the servo
+    /// holding the dead weight's tension).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shear_radius_change_m: Option<f64>,
     /// Bending only: distance of the moving clamp's edge from the continuous
     /// cochleoid at the largest curvature, m.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -366,6 +374,7 @@ fn new_run(test: KesTest, dir: Direction, fabric: &Fabric, sim: &Simulation) -> 
         loop_rms_outside_turnovers_relative: 0.0,
         input_peak: 0.0,
         shear_tension_gf_cm: None,
+        shear_radius_change_m: None,
         cochleoid_gap_m: None,
         path: Vec::new(),
         curve: KesCurve::default(),
@@ -490,6 +499,10 @@ fn shear(
     let w = SHEAR_TENSION_GF_CM * GF_PER_CM;
     let v = TENSILE_STRAIN_RATE * gauge;
     let mut disp = 0.0;
+    // stiffness of the specimen across the gauge at the dead weight's tension,
+    // N/m per m of clamp travel (for the servo below)
+    let mut stiffness: f64;
+    let mut last_f = 0.0;
     loop {
         for (k, p) in sim.pins[first_moving..].iter_mut().enumerate() {
             p.path = PinPath::Velocity {
@@ -502,6 +515,8 @@ fn shear(
             .with_context(|| format!("shear test (tensioning), t = {:.3} s", sim.time))?;
         disp += v * opt.dt;
         let f = reaction(&sim.internal_forces(), &moving).x / width;
+        stiffness = (f - last_f) / (v * opt.dt);
+        last_f = f;
         if f >= w {
             break;
         }
@@ -516,8 +531,11 @@ fn shear(
     for _ in 0..5 {
         sim.step()?;
     }
-    // 2. isometric shear: control masses on circles of radius d
-    let d = gauge + disp;
+    // 2. isometric shear: control masses on circles of radius d; the radius
+    //    follows the tension across the gauge so that it stays at the dead
+    //    weight's (a servo standing for the freely hanging weight)
+    let mut d = gauge + disp;
+    let stiffness = stiffness.max(w / gauge);
     let th_max = SHEAR_MAX_DEG * DEG;
     let quarter = th_max / SHEAR_RATE;
     let total = 4.0 * quarter;
@@ -539,6 +557,7 @@ fn shear(
     let t_start = sim.time;
     run.path.push((0.0, 0.0, 0.0));
     let mut tension = [f64::INFINITY, f64::NEG_INFINITY];
+    let mut radius = [d, d];
     for k in 0..n {
         let t = k as f64 * opt.dt;
         let (_, rate) = theta(t + 0.5 * opt.dt);
@@ -560,14 +579,21 @@ fn shear(
         let tang = Vector3::new(-th1.sin(), th1.cos(), 0.0);
         let radial = Vector3::new(th1.cos(), th1.sin(), 0.0);
         let fs = r.dot(&tang) / width;
-        let ft = r.dot(&radial) / width / GF_PER_CM;
-        tension = [tension[0].min(ft), tension[1].max(ft)];
+        let ft = r.dot(&radial) / width;
+        tension = [
+            tension[0].min(ft / GF_PER_CM),
+            tension[1].max(ft / GF_PER_CM),
+        ];
+        let step = (0.5 * (ft - w) / stiffness).clamp(-1e-5, 1e-5);
+        d -= step;
+        radius = [radius[0].min(d), radius[1].max(d)];
         run.path.push((sim.time - t_start, th1, fs));
         if run.steps.is_multiple_of(200) {
             progress(t / total);
         }
     }
     run.shear_tension_gf_cm = Some(tension);
+    run.shear_radius_change_m = Some(radius[1] - radius[0]);
     progress(1.0);
     Ok(run)
 }
@@ -1045,7 +1071,8 @@ pub fn format_run(r: &KesRun) -> String {
     ));
     if let Some([a, b]) = r.shear_tension_gf_cm {
         s.push_str(&format!(
-            "  tension across the gauge during shear {a:.2} … {b:.2} gf/cm\n"
+            "  tension across the gauge during shear {a:.2} … {b:.2} gf/cm (clamp radius varied by {:.4} mm)\n",
+            1e3 * r.shear_radius_change_m.unwrap_or(0.0)
         ));
     }
     if let Some(g) = r.cochleoid_gap_m {
