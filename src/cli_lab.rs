@@ -60,7 +60,8 @@ pub fn kes(a: KesArgs) -> Result<()> {
     for (t, d) in jobs {
         let label = format!("kes {} {}", t.name(), d.name());
         let mut pr = crate::progress_printer(label);
-        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f, 1.0))?;
+        let dur = kes_lab::protocol_duration(&fabric, t, d);
+        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f * dur, dur))?;
         kes_lab::write_outputs(&run, &a.out)?;
         print!("{}", kes_lab::format_run(&run));
         runs.push(run);
@@ -83,5 +84,175 @@ pub fn kes(a: KesArgs) -> Result<()> {
     if report.runs.is_empty() {
         bail!("no test ran");
     }
+    Ok(())
+}
+
+/// `garment_sim drapemeter`: drape coefficient and nodes of a circular specimen.
+#[derive(clap::Args)]
+pub struct DrapemeterArgs {
+    /// Fabric file, e.g. config/fabrics/wool_tropical.yaml
+    pub fabric: PathBuf,
+    /// Specimen diameter, m.
+    #[arg(long, default_value_t = 0.30)]
+    pub diameter: f64,
+    /// Support disk diameter, m.
+    #[arg(long, default_value_t = 0.18)]
+    pub disk: f64,
+    /// Grid spacing, m.
+    #[arg(long, default_value_t = 0.01)]
+    pub spacing: f64,
+    /// Fixed time step, s.
+    #[arg(long, default_value_t = 1e-3)]
+    pub dt: f64,
+    /// Longest simulated time (the run stops earlier once settled), s.
+    #[arg(long, default_value_t = 4.0)]
+    pub duration: f64,
+    /// Seed of the initial out-of-plane perturbation.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Keep the grid's staircase border instead of moving border nodes onto the circle.
+    #[arg(long)]
+    pub staircase_border: bool,
+    /// Output directory (report.json, top_view.png).
+    #[arg(long, default_value = "out/drapemeter")]
+    pub out: PathBuf,
+}
+
+pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
+    use garment_sim::lab::drapemeter::{self, DrapeOptions};
+    let fabric = Fabric::load(&a.fabric)?;
+    let opt = DrapeOptions {
+        diameter: a.diameter,
+        disk: a.disk,
+        spacing: a.spacing,
+        dt: a.dt,
+        max_duration: a.duration,
+        seed: a.seed,
+        border_on_outline: !a.staircase_border,
+        ..Default::default()
+    };
+    let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));
+    let (rep, _, shadow) = drapemeter::run(&fabric, &opt, &mut pr)?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let rp = a.out.join("report.json");
+    std::fs::write(&rp, serde_json::to_string_pretty(&rep)?)
+        .with_context(|| format!("cannot write {}", rp.display()))?;
+    drapemeter::top_view(&shadow, &rep).save_png(&a.out.join("top_view.png"))?;
+    println!("fabric             {}", rep.fabric);
+    println!(
+        "specimen           {} m on a {} m disk, grid {} m ({} vertices), dt {} s",
+        rep.diameter_m, rep.disk_m, rep.spacing_m, rep.vertices, rep.dt_s
+    );
+    match rep.settled_at_s {
+        Some(t) => println!(
+            "settled            at {t:.3} s (simulated {:.3} s)",
+            rep.simulated_s
+        ),
+        None => println!(
+            "settled            no (rms speed still ≥ {} m/s at {:.3} s)",
+            drapemeter::SETTLE_SPEED,
+            rep.simulated_s
+        ),
+    }
+    println!(
+        "drape coefficient  {:.2} % of the annulus ({:.2} % of the flat discrete specimen, which covers {:.1} % of the annulus)",
+        100.0 * rep.drape_coefficient,
+        100.0 * rep.drape_coefficient_flat_normalised,
+        100.0 * rep.flat_specimen_fraction
+    );
+    let angles: Vec<String> = rep
+        .node_angles_deg
+        .iter()
+        .map(|a| format!("{a:.0}°"))
+        .collect();
+    println!("nodes              {} at {}", rep.nodes, angles.join(", "));
+    println!(
+        "shadow radius      {:.1} … {:.1} cm; lowest point {:.1} cm below the disk",
+        100.0 * rep.shadow_radius_m[0],
+        100.0 * rep.shadow_radius_m[1],
+        100.0 * rep.drop_m
+    );
+    println!(
+        "wrote              {}/report.json, top_view.png",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// `garment_sim fit-kes`: fit the laws to raw KES curves and write a fabric file.
+#[derive(clap::Args)]
+pub struct FitKesArgs {
+    /// Curves CSV: direction,test,x,y,branch in KES units (as `kes --all` writes curves.csv).
+    pub curves: PathBuf,
+    /// Fabric file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Fabric file giving the name, areal mass, thickness and damping.
+    #[arg(long)]
+    pub base: Option<PathBuf>,
+    /// Areal mass W, mg/cm² (required without --base).
+    #[arg(long)]
+    pub areal_mass: Option<f64>,
+    /// Fabric name.
+    #[arg(long)]
+    pub name: Option<String>,
+}
+
+pub fn fit_kes(a: FitKesArgs) -> Result<()> {
+    use garment_sim::fabric::{Damping, FabricFile};
+    use garment_sim::lab::fit_kes::{fit_fabric, read_curves_csv, FitMeta};
+    let curves = read_curves_csv(&a.curves)?;
+    let base: Option<FabricFile> = match &a.base {
+        Some(p) => Some(Fabric::load(p)?.file),
+        None => None,
+    };
+    let areal = match (a.areal_mass, &base) {
+        (Some(w), _) => w,
+        (None, Some(b)) => b.areal_mass_mg_per_cm2,
+        (None, None) => bail!("give --areal-mass (mg/cm²) or --base FABRIC.yaml"),
+    };
+    let meta = FitMeta {
+        name: a.name.clone().unwrap_or_else(|| match &base {
+            Some(b) => format!("{} (fitted to {})", b.name, a.curves.display()),
+            None => format!("fitted to {}", a.curves.display()),
+        }),
+        source: format!("KES curves {}", a.curves.display()),
+        areal_mass_mg_per_cm2: areal,
+        thickness_mm: base.as_ref().and_then(|b| b.thickness_mm),
+        // without a base: the thesis' measured damping (Table 5.1, row 1)
+        damping: base.as_ref().map(|b| b.damping).unwrap_or(Damping {
+            alpha: -7.0,
+            beta_bend: -6.8e-3,
+            beta_shear: -3.1e-4,
+            beta_tension: -3.9e-6,
+        }),
+    };
+    let (file, fits) = fit_fabric(&curves, &meta)?;
+    // the file must load
+    Fabric::from_file(file.clone(), std::path::Path::new("."))
+        .context("the fitted fabric does not load")?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(&a.out, serde_yaml::to_string(&file)?)
+        .with_context(|| format!("cannot write {}", a.out.display()))?;
+    println!(
+        "{:<6} {:<8} {:>14} {:>10} {:>16} {:>6}",
+        "dir", "test", "residual", "of peak", "linear start", "iters"
+    );
+    for f in &fits {
+        println!(
+            "{:<6} {:<8} {:>14.4} {:>9.2}% {:>16.4} {:>6}",
+            f.direction,
+            f.test,
+            f.residual,
+            100.0 * f.residual_relative,
+            f.residual_linear_start,
+            f.iterations
+        );
+    }
+    println!("(residuals: RMS force error of the fitted law driven along each curve, KES units)");
+    println!("wrote            {}", a.out.display());
     Ok(())
 }

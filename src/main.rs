@@ -113,6 +113,10 @@ enum Cmd {
     },
     /// Virtual Kawabata lab: KES-FB tensile, shear and bending tests on a simulated specimen.
     Kes(cli_lab::KesArgs),
+    /// Fit the spring laws to raw KES curves (global least squares) and write a fabric file.
+    FitKes(cli_lab::FitKesArgs),
+    /// Drapemeter: drape coefficient and nodes of a circular specimen on a disk.
+    Drapemeter(cli_lab::DrapemeterArgs),
 }
 
 fn main() {
@@ -241,6 +245,8 @@ fn real_main(cli: Cli) -> Result<()> {
             capture, fabric, vertical, up, window, grid, spacing, warp_major, out,
         ),
         Cmd::Kes(a) => cli_lab::kes(a),
+        Cmd::FitKes(a) => cli_lab::fit_kes(a),
+        Cmd::Drapemeter(a) => cli_lab::drapemeter(a),
         Cmd::Bench {
             scene,
             spacing,

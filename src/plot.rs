@@ -297,6 +297,29 @@ impl LinePlot {
         }
     }
 
+    /// Several curves sharing one x column (e.g. per-frame values against
+    /// time): one solid line per `(label, ys)`, in palette order. Points
+    /// where x or y is not finite are skipped (gaps).
+    pub fn columns(
+        title: &str,
+        x_label: &str,
+        y_label: &str,
+        xs: &[f64],
+        series: &[(&str, &[f64])],
+    ) -> LinePlot {
+        let mut p = LinePlot::new(title, x_label, y_label);
+        for (label, ys) in series {
+            let pts = xs
+                .iter()
+                .zip(ys.iter())
+                .filter(|(x, y)| x.is_finite() && y.is_finite())
+                .map(|(&x, &y)| (x, y))
+                .collect();
+            p.add(label, pts, Style::Line);
+        }
+        p
+    }
+
     /// Adds a series with the next palette colour.
     pub fn add(&mut self, label: &str, points: Vec<(f64, f64)>, style: Style) -> &mut Self {
         let color = PALETTE[self.series.len() % PALETTE.len()];
@@ -367,12 +390,11 @@ impl LinePlot {
         let px = |x: f64| left as f64 + (x - x0) / (x1 - x0) * (right - left) as f64;
         let py = |y: f64| bottom as f64 - (y - y0) / (y1 - y0) * (bottom - top) as f64;
         // grid and ticks
-        for (k, &t) in xt.iter().enumerate() {
+        for &t in xt.iter() {
             let x = px(t);
             img.line((x, top as f64), (x, bottom as f64), LIGHT_GREY, 1);
             img.line((x, bottom as f64), (x, bottom as f64 + 5.0), BLACK, 1);
             let s = tick_label(t, &xt);
-            let _ = k;
             img.text(x as i64 - text_width(&s, 1) / 2, bottom + 9, &s, 1, BLACK);
         }
         for (t, s) in yt.iter().zip(&ylabels) {
@@ -391,16 +413,13 @@ impl LinePlot {
         }
         // series, clipped to the plot area
         for s in &self.series {
-            let mut clipped = Image::new(w, h, WHITE);
-            let _ = &mut clipped;
             let mut travelled = 0.0;
-            for (k, win) in s.points.windows(2).enumerate() {
+            for win in s.points.windows(2) {
                 let (a, b) = ((px(win[0].0), py(win[0].1)), (px(win[1].0), py(win[1].1)));
                 if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
                     continue;
                 }
                 let seg = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
-                let _ = k;
                 match s.style {
                     Style::Line => {
                         draw_clipped(&mut img, a, b, s.color, s.width, (left, top, right, bottom))
@@ -606,7 +625,7 @@ pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
     let step = [1.0, 2.0, 5.0, 10.0]
         .iter()
         .map(|m| m * mag)
-        .find(|s| (hi - lo) / s <= target as f64)
+        .find(|s| (hi - lo) / s <= target as f64 + 0.5)
         .unwrap_or(10.0 * mag);
     let first = (lo / step).ceil() as i64;
     let last = (hi / step).floor() as i64;
@@ -666,6 +685,26 @@ mod tests {
         // text is drawn (black pixels well beyond the frame lines)
         let black = img.pixels.iter().filter(|&&c| c == BLACK).count();
         assert!(black > 3000, "{black}");
+    }
+
+    #[test]
+    fn columns_make_one_series_per_column_and_save() {
+        let t: Vec<f64> = (0..100).map(|k| k as f64 / 120.0).collect();
+        let a: Vec<f64> = t.iter().map(|x| x.sin()).collect();
+        let b: Vec<f64> = t
+            .iter()
+            .map(|x| if *x > 0.4 { f64::NAN } else { x.cos() })
+            .collect();
+        let p = LinePlot::columns("markers", "time (s)", "z (m)", &t, &[("a", &a), ("b", &b)]);
+        assert_eq!(p.series.len(), 2);
+        assert_eq!(p.series[0].points.len(), 100);
+        assert!(p.series[1].points.len() < 100);
+        assert_ne!(p.series[0].color, p.series[1].color);
+        let path = std::env::temp_dir().join(format!("gs_plot_{}.png", std::process::id()));
+        p.save_png(&path).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let _ = std::fs::remove_file(&path);
     }
 
     #[test]

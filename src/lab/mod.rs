@@ -3,5 +3,7 @@
 //! (§2.3.1, §4.5), the fitting of laws to KES curves (§3.4.2) and the
 //! drapemeter (§2.3.2).
 
+pub mod drapemeter;
+pub mod fit_kes;
 pub mod identify;
 pub mod kes_lab;

@@ -1,0 +1,338 @@
+//! Virtual Kawabata lab (issue 3): every shipped fabric gives back its own KES
+//! summary values through the full solver, the answer does not depend on the
+//! grid, and fabric → virtual curves → fit-kes → fabric is a round trip.
+
+use garment_sim::fabric::kes::*;
+use garment_sim::fabric::Fabric;
+use garment_sim::lab::fit_kes::{curve_set, fit_fabric, FitMeta};
+use garment_sim::lab::kes_lab::*;
+use std::path::Path;
+use std::process::Command;
+
+fn shipped() -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir("config/fabrics")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 5, "{v:?}");
+    v
+}
+
+fn all_runs(f: &Fabric, opt: &LabOptions) -> Vec<KesRun> {
+    let mut out = Vec::new();
+    for t in KesTest::ALL {
+        for d in Direction::ALL {
+            out.push(run_test(f, t, d, opt, &mut |_| {}).unwrap());
+        }
+    }
+    out
+}
+
+/// Runs whose loop RMS over the whole path misses 3 % of the peak, with the
+/// figure measured and the reason (README, "Virtual Kawabata lab").
+/// - acrylic weft shear: 3.32 %. The model has one shear curve for both
+///   directions (thesis eq. 4.50: the mean of warp G 0.80 and weft G 0.75), so
+///   the weft loop is 3.5 % steeper than the weft input; and the input built
+///   from summary values jumps between branches at ±8° where the law turns
+///   over across ~3 memory lengths (0.25° each).
+/// - cotton broadcloth bending, both directions: 3.47 %. Its 2HB (0.124) is
+///   35 % of the peak moment, and the input's jump at ±2.5 cm⁻¹ is rounded by
+///   the law over ~3 memory lengths (0.1 cm⁻¹ each).
+///
+/// Outside those turn-overs every loop is within 2 % (asserted below).
+const RMS_EXCEPTIONS: [(&str, KesTest, Direction, f64); 3] = [
+    ("acrylic", KesTest::Shear, Direction::Weft, 0.034),
+    (
+        "cotton_broadcloth",
+        KesTest::Bending,
+        Direction::Warp,
+        0.036,
+    ),
+    (
+        "cotton_broadcloth",
+        KesTest::Bending,
+        Direction::Weft,
+        0.036,
+    ),
+];
+
+#[test]
+fn every_shipped_fabric_gives_back_its_kes_values() {
+    let opt = LabOptions::default();
+    let mut table = String::new();
+    for path in shipped() {
+        let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+        let f = Fabric::load(&path).unwrap();
+        for r in all_runs(&f, &opt) {
+            for v in &r.summary {
+                let bound = match v.name.as_str() {
+                    "G" | "B" | "EMT" | "WT" | "LT" => 0.05,
+                    "2HG" | "2HG5" | "2HB" | "RT" => 0.10,
+                    other => panic!("unexpected summary value {other}"),
+                };
+                table.push_str(&format!(
+                    "{stem} {} {} {} sim {:.4} fabric {:.4} err {:+.2}%\n",
+                    r.test.name(),
+                    r.direction.name(),
+                    v.name,
+                    v.simulated,
+                    v.input,
+                    100.0 * v.relative_error
+                ));
+                assert!(
+                    v.relative_error.abs() <= bound,
+                    "{stem} {} {} {}: simulated {} vs fabric {} ({:+.2} %, bound {} %)",
+                    r.test.name(),
+                    r.direction.name(),
+                    v.name,
+                    v.simulated,
+                    v.input,
+                    100.0 * v.relative_error,
+                    100.0 * bound
+                );
+            }
+            let exception = RMS_EXCEPTIONS
+                .iter()
+                .find(|e| e.0 == stem && e.1 == r.test && e.2 == r.direction);
+            let bound = exception.map_or(0.03, |e| e.3);
+            assert!(
+                r.loop_rms_relative <= bound,
+                "{stem} {} {}: loop RMS {:.2} % of the peak (bound {} %)",
+                r.test.name(),
+                r.direction.name(),
+                100.0 * r.loop_rms_relative,
+                100.0 * bound
+            );
+            if exception.is_some() {
+                // the exception is real: the figure is above 3 %
+                assert!(
+                    r.loop_rms_relative > 0.03,
+                    "{stem}: exception no longer needed"
+                );
+            }
+            assert!(
+                r.loop_rms_outside_turnovers_relative <= 0.02,
+                "{stem} {} {}: loop RMS outside the turn-overs {:.2} %",
+                r.test.name(),
+                r.direction.name(),
+                100.0 * r.loop_rms_outside_turnovers_relative
+            );
+            if let Some([lo, hi]) = r.shear_tension_gf_cm {
+                // the dead weight's 10 gf/cm holds through the whole shear cycle
+                assert!(lo > 9.8 && hi < 10.2, "{stem}: tension {lo} … {hi} gf/cm");
+                let dr = r.shear_radius_change_m.unwrap();
+                assert!(dr > 0.0 && dr < 1e-4, "{stem}: radius moved {dr} m");
+            }
+        }
+    }
+    println!("{table}");
+}
+
+#[test]
+fn answers_do_not_depend_on_the_grid_or_the_step() {
+    let f = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let coarse = LabOptions::default();
+    let fine = LabOptions {
+        fb1_spacing: coarse.fb1_spacing / 2.0,
+        fb2_spacing: coarse.fb2_spacing / 2.0,
+        width_spacing: coarse.width_spacing / 2.0,
+        dt: coarse.dt / 2.0,
+    };
+    for t in KesTest::ALL {
+        let a = run_test(&f, t, Direction::Warp, &coarse, &mut |_| {}).unwrap();
+        let b = run_test(&f, t, Direction::Warp, &fine, &mut |_| {}).unwrap();
+        assert!(b.grid[0] * b.grid[1] > 2 * a.grid[0] * a.grid[1]);
+        for (x, y) in a.summary.iter().zip(&b.summary) {
+            let d = (x.simulated - y.simulated) / y.simulated;
+            println!(
+                "{} {}: coarse {:.4}, fine {:.4} ({:+.2} %)",
+                t.name(),
+                x.name,
+                x.simulated,
+                y.simulated,
+                100.0 * d
+            );
+            assert!(
+                d.abs() < 0.01,
+                "{} {}: {:+.3} %",
+                t.name(),
+                x.name,
+                100.0 * d
+            );
+        }
+    }
+}
+
+#[test]
+fn discrete_cochleoid_keeps_lengths_and_tends_to_the_cochleoid() {
+    let (k, len) = (250.0, 0.01); // 2.5 1/cm, 1 cm
+    let mut gaps = Vec::new();
+    for n in [4usize, 8, 16, 32] {
+        let l = len / n as f64;
+        let p = discrete_cochleoid(k, l, n);
+        assert_eq!(p.len(), n + 3);
+        for w in p.windows(2) {
+            let d = ((w[1].0 - w[0].0).powi(2) + (w[1].1 - w[0].1).powi(2)).sqrt();
+            assert!((d - l).abs() < 1e-12);
+        }
+        // every vertex turns by K·l
+        for w in p.windows(3) {
+            let a0 = (w[1].1 - w[0].1).atan2(w[1].0 - w[0].0);
+            let a1 = (w[2].1 - w[1].1).atan2(w[2].0 - w[1].0);
+            assert!((a1 - a0 - k * l).abs() < 1e-12);
+        }
+        let (cx, cz) = cochleoid(k, len);
+        gaps.push(((p[n + 1].0 - cx).powi(2) + (p[n + 1].1 - cz).powi(2)).sqrt());
+    }
+    // first order in the spacing: halving it halves the gap
+    for w in gaps.windows(2) {
+        assert!((w[1] / w[0] - 0.5).abs() < 0.05, "{gaps:?}");
+    }
+    // the continuous cochleoid ends a semicircle at K = π / L
+    let (x, z) = cochleoid(std::f64::consts::PI / len, len);
+    assert!(x.abs() < 1e-12 && (z - 2.0 * len / std::f64::consts::PI).abs() < 1e-12);
+}
+
+#[test]
+fn fit_kes_round_trip_within_two_percent() {
+    let f = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let opt = LabOptions::default();
+    let first = all_runs(&f, &opt);
+    let meta = FitMeta {
+        name: "acrylic refitted".into(),
+        source: "virtual KES curves".into(),
+        areal_mass_mg_per_cm2: f.file.areal_mass_mg_per_cm2,
+        thickness_mm: None,
+        damping: f.damping,
+    };
+    let (file, fits) = fit_fabric(&curve_set(&first), &meta).unwrap();
+    for fit in &fits {
+        // the global fit improves on its linear start and follows the loop closely
+        assert!(fit.residual <= fit.residual_linear_start, "{fit:?}");
+        assert!(fit.residual_relative < 0.01, "{fit:?}");
+    }
+    // through YAML, as the command writes it
+    let yaml = serde_yaml::to_string(&file).unwrap();
+    let back: garment_sim::fabric::FabricFile = serde_yaml::from_str(&yaml).unwrap();
+    let g = Fabric::from_file(back, Path::new(".")).unwrap();
+    let second = all_runs(&g, &opt);
+    for (a, b) in first.iter().zip(&second) {
+        for (x, y) in a.summary.iter().zip(&b.summary) {
+            let d = (y.simulated - x.simulated) / x.simulated;
+            println!(
+                "{} {} {}: first {:.4}, refitted {:.4} ({:+.2} %)",
+                a.test.name(),
+                a.direction.name(),
+                x.name,
+                x.simulated,
+                y.simulated,
+                100.0 * d
+            );
+            assert!(
+                d.abs() < 0.02,
+                "{} {} {}: {:+.2} %",
+                a.test.name(),
+                a.direction.name(),
+                x.name,
+                100.0 * d
+            );
+        }
+    }
+}
+
+#[test]
+fn summary_values_of_constructed_curves_are_the_fabrics() {
+    // the extraction reads the construction of kes.rs back exactly
+    let s = ShearSummary {
+        g: 0.8,
+        hg: 0.9,
+        hg5: 1.8,
+    };
+    let v = summarise(KesTest::Shear, &shear_curve(&s)).unwrap();
+    assert!((v[0] - 0.8).abs() < 1e-9 && (v[1] - 0.9).abs() < 1e-9 && (v[2] - 1.8).abs() < 1e-9);
+    let b = summarise(
+        KesTest::Bending,
+        &bending_curve(&BendingSummary { b: 0.08, hb: 0.05 }),
+    )
+    .unwrap();
+    assert!((b[0] - 0.08).abs() < 1e-9 && (b[1] - 0.05).abs() < 1e-9);
+    let t = TensileSummary {
+        lt: 0.65,
+        wt: 8.71,
+        rt: 62.0,
+        emt: 5.36,
+    };
+    let v = summarise(KesTest::Tensile, &tensile_curve(&t, 500.0)).unwrap();
+    assert!((v[0] - 0.65).abs() < 2e-3, "LT {}", v[0]);
+    assert!((v[1] - 8.71).abs() < 0.02, "WT {}", v[1]);
+    assert!((v[2] - 62.0).abs() < 0.5, "RT {}", v[2]);
+    assert!((v[3] - 5.36).abs() < 1e-9, "EMT {}", v[3]);
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("gs_kes_{name}_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn kes_command_writes_curve_plot_and_report() {
+    let out = tmp("cli");
+    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        .args([
+            "kes",
+            "config/fabrics/wool_tropical.yaml",
+            "--test",
+            "bending",
+            "--dir",
+            "weft",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(stdout.contains("B ") && stdout.contains("2HB") && stdout.contains("loop RMS"));
+    let png = std::fs::read(out.join("bending_weft.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // the CSV is a valid fabric curve file whose summary is the report's
+    let c = read_curve_csv(&out.join("bending_weft.csv")).unwrap();
+    let v = summarise(KesTest::Bending, &c).unwrap();
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let run = &rep["runs"][0];
+    assert_eq!(run["test"], "bending");
+    assert_eq!(run["direction"], "weft");
+    let b = &run["summary"][0];
+    assert_eq!(b["name"], "B");
+    assert!((b["simulated"].as_f64().unwrap() - v[0]).abs() < 1e-3 * v[0]);
+    assert_eq!(b["input"].as_f64().unwrap(), 0.067);
+    assert!(run["loop_rms_relative"].as_f64().unwrap() < 0.03);
+    // fit-kes names the bad line of a curves file
+    let bad = out.join("bad.csv");
+    std::fs::write(
+        &bad,
+        "direction,test,x,y,branch\nwarp,tensile,0,0,load\nwarp,tensile,1,x,load\n",
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        .args(["fit-kes"])
+        .arg(&bad)
+        .args(["--areal-mass", "20", "--out"])
+        .arg(out.join("f.yaml"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("line 3") && err.contains("bad number"),
+        "{err}"
+    );
+}
