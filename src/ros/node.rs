@@ -548,6 +548,8 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let mut dropped_now: u64 = 0;
     let mut last_drop_log = Instant::now() - Duration::from_secs(10);
     let wall_start = Instant::now();
+    let mut publish_s = 0.0;
+    let mut publishes = 0u64;
     let steps_start = loaded.sim.steps;
     let mut last_error = String::new();
     let mut pending_steps: u64 = 0;
@@ -754,6 +756,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                 last_rt = (loaded.sim.time - last_rtf.1) / wall;
             }
             last_rtf = (now, loaded.sim.time);
+            let t_pub = Instant::now();
             let h = publish::header(&loaded.sim, &settings.frame_id);
             let _ = pub_points.publish(publish::cloud(&loaded.sim, h.clone()));
             let _ = pub_mesh.publish(publish::cloth_marker(&loaded.sim, h.clone()));
@@ -773,6 +776,8 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             };
             let _ = pub_diag.publish(publish::diagnostics(&loaded.sim, h.clone(), &fig));
             let _ = pub_clock.publish(msgs::Clock { clock: h.stamp });
+            publish_s += t_pub.elapsed().as_secs_f64();
+            publishes += 1;
             step_ms_sum = 0.0;
             step_count = 0;
             if loaded.sim.time + 1e-12 >= next_publish {
@@ -809,13 +814,15 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let steps = loaded.sim.steps.saturating_sub(steps_start).max(1);
     eprintln!(
         "[garment_sim] stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
-         {} messages rejected, {} dropped",
+         {} messages rejected, {} dropped; {} publications, {:.3} ms each",
         loaded.sim.time,
         loaded.sim.steps,
         wall,
         1e3 * wall / steps as f64,
         rejected,
-        dropped
+        dropped,
+        publishes,
+        1e3 * publish_s / publishes.max(1) as f64
     );
     Ok(())
 }
