@@ -633,15 +633,16 @@ def test_obstacles_pins_bad_input_and_services():
 
 
 def test_parameter_services():
-    n = Node("-p", "spacing:=0.05", "-p", "real_time_factor:=0.0")
+    # renamed node (-r __node:=...): its services follow its name
+    n = Node("-p", "spacing:=0.05", "-p", "real_time_factor:=0.0", "-r", "__node:=cloth_sim")
     try:
         n.wait("/cloth/points", PointCloud2)
-        g = n.call("/garment_sim/get_parameters", GetParameters_Request, GetParameters_Response,
+        g = n.call("/cloth_sim/get_parameters", GetParameters_Request, GetParameters_Response,
                    GetParameters_Request(names=["publish_rate", "frame_id", "spacing"]))
         assert [v.type for v in g.values] == [3, 4, 3]
         assert g.values[0].double_value == 30.0 and g.values[1].string_value == "world"
         assert g.values[2].double_value == 0.05
-        r = n.call("/garment_sim/set_parameters", SetParameters_Request, SetParameters_Response,
+        r = n.call("/cloth_sim/set_parameters", SetParameters_Request, SetParameters_Response,
                    SetParameters_Request(parameters=[
                        Parameter("frame_id", ParameterValue(type=4, string_value="odom")),
                        Parameter("publish_rate", ParameterValue(type=3, double_value=-1.0)),
@@ -651,7 +652,7 @@ def test_parameter_services():
         c = n.wait("/cloth/points", PointCloud2, lambda c: c.header.frame_id == "odom")
         assert c.width == 121
         # pacing: real_time_factor 0.5 at run time → simulated time runs at half the wall clock
-        r = n.call("/garment_sim/set_parameters", SetParameters_Request, SetParameters_Response,
+        r = n.call("/cloth_sim/set_parameters", SetParameters_Request, SetParameters_Response,
                    SetParameters_Request(parameters=[
                        Parameter("real_time_factor", ParameterValue(type=3, double_value=0.5))]))
         assert r.results[0].successful
