@@ -9,6 +9,7 @@
 //! writes motion captures (C3D, CSV), [`lab`] runs the thesis experiments
 //! and [`plot`] draws their curves as PNG.
 
+pub mod bag;
 pub mod capture;
 pub mod cloth;
 pub mod collision;

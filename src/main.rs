@@ -56,6 +56,13 @@ enum Cmd {
         /// Relative tolerance of the PCG.
         #[arg(long)]
         cg_tolerance: Option<f64>,
+        #[command(flatten)]
+        bag: BagArgs,
+    },
+    /// Read rosbag2 (MCAP) bags: info, export a cloth shape, repair after a crash.
+    Bag {
+        #[command(subcommand)]
+        cmd: BagCmd,
     },
     /// Measure a fabric's damping from a motion capture of a free fall (thesis ch. 5).
     Identify {
@@ -119,6 +126,108 @@ enum Cmd {
     Drapemeter(cli_lab::DrapemeterArgs),
 }
 
+/// Recording a drape as a rosbag2 bag.
+#[derive(clap::Args)]
+struct BagArgs {
+    /// Record the drape into this new rosbag2 bag directory (MCAP + metadata.yaml).
+    #[arg(long)]
+    bag: Option<PathBuf>,
+    /// Frames per simulated second in the bag (any rate ≥ 1/dt records every step).
+    #[arg(long, default_value_t = 30.0)]
+    bag_rate: f64,
+    /// Chunk compression: zstd, lz4 or none.
+    #[arg(long, default_value = "zstd")]
+    bag_compression: garment_sim::bag::Compression,
+    /// Chunk size, bytes (a crash loses at most the chunk being filled).
+    #[arg(long, default_value_t = 1 << 20)]
+    bag_chunk_size: u64,
+}
+
+#[derive(Subcommand)]
+enum BagCmd {
+    /// Topics, message counts, duration, and whether the file is complete.
+    Info {
+        /// Bag directory (or its .mcap file).
+        bag: PathBuf,
+    },
+    /// Write the cloth shape of one frame as PLY or OBJ.
+    Export {
+        /// Bag directory (or its .mcap file).
+        bag: PathBuf,
+        /// Simulated time, s: the last frame at or before it.
+        #[arg(long, conflicts_with = "last", required_unless_present = "last")]
+        time: Option<f64>,
+        /// The last frame.
+        #[arg(long)]
+        last: bool,
+        /// ply or obj.
+        #[arg(long, default_value = "ply")]
+        format: garment_sim::bag::ShapeFormat,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Point cloud topic.
+        #[arg(long, default_value = "/cloth/points")]
+        points_topic: String,
+        /// Mesh marker topic (triangles).
+        #[arg(long, default_value = "/cloth/mesh")]
+        mesh_topic: String,
+    },
+    /// Rebuild summary, indexes and metadata.yaml of a bag cut short by a crash.
+    Repair {
+        /// Bag directory (or its .mcap file).
+        bag: PathBuf,
+    },
+}
+
+fn bag_cmd(cmd: BagCmd) -> Result<()> {
+    use garment_sim::bag;
+    match cmd {
+        BagCmd::Info { bag: dir } => print!("{}", bag::info(&dir)?),
+        BagCmd::Export {
+            bag: dir,
+            time,
+            last,
+            format,
+            out,
+            points_topic,
+            mesh_topic,
+        } => {
+            let when = match (time, last) {
+                (Some(t), false) => bag::ExportTime::At(t),
+                _ => bag::ExportTime::Last,
+            };
+            let shape = bag::shape_at(&dir, when, &points_topic, &mesh_topic)?;
+            bag::write_shape(&shape, format, &out)?;
+            println!(
+                "wrote {} (t = {:.6} s, {} vertices, {} triangles)",
+                out.display(),
+                shape.time_s,
+                shape.vertices.len(),
+                shape.faces.len()
+            );
+        }
+        BagCmd::Repair { bag: dir } => {
+            let r = bag::repair(&dir)?;
+            if r.was_complete {
+                println!(
+                    "{}: complete; metadata.yaml rewritten",
+                    r.bag.file.display()
+                );
+            } else {
+                if let bag::Ending::Truncated { offset, reason } = &r.ending {
+                    println!("{}: cut at byte {offset} ({reason})", r.bag.file.display());
+                }
+                println!(
+                    "repaired: {} messages in {} chunks kept, {} bytes of an incomplete chunk dropped; summary, indexes and metadata.yaml rebuilt",
+                    r.bag.message_count, r.bag.chunks, r.bytes_dropped
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 fn main() {
     let cli = Cli::parse();
     if let Err(e) = real_main(cli) {
@@ -173,6 +282,7 @@ fn real_main(cli: Cli) -> Result<()> {
             solver,
             no_hysteresis,
             cg_tolerance,
+            bag,
         } => {
             let sc = Scene::load(&scene)?;
             let ov = Overrides {
@@ -184,7 +294,19 @@ fn real_main(cli: Cli) -> Result<()> {
                 cg_tolerance,
             };
             let mut pr = progress_printer(format!("drape {}", scene.display()));
-            let (_, s) = run::drape(&sc, &ov, &out, &mut pr)?;
+            let (s, recorded) = match &bag.bag {
+                None => (run::drape(&sc, &ov, &out, &mut pr)?.1, None),
+                Some(dir) => {
+                    use garment_sim::bag as gb;
+                    let mut rec = gb::DrapeBag::new(dir);
+                    rec.rate_hz = bag.bag_rate;
+                    rec.options.compression = bag.bag_compression;
+                    rec.options.chunk_size = bag.bag_chunk_size;
+                    let stop = gb::stop_flag()?;
+                    let r = gb::drape_recorded(&sc, &ov, &out, &mut pr, &rec, &stop)?;
+                    (r.summary.clone(), Some(r))
+                }
+            };
             let e = &s.final_energies;
             println!("scene            {}", s.scene);
             println!("fabric           {}", s.fabric);
@@ -229,8 +351,31 @@ fn real_main(cli: Cli) -> Result<()> {
                 "wrote            {}/final.ply, energy.csv, summary.json",
                 out.display()
             );
+            if let Some(r) = recorded {
+                println!(
+                    "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
+                    r.bag.dir.display(),
+                    r.frames,
+                    r.bag.message_count,
+                    r.bag.bytes as f64 / (1024.0 * 1024.0),
+                    1e3 * r.record_s / r.frames.max(1) as f64,
+                    100.0 * r.record_s / s.wall_s.max(1e-12),
+                    if r.stopped {
+                        ", stopped by a signal: bag finished"
+                    } else {
+                        ""
+                    }
+                );
+                if r.stopped {
+                    eprintln!(
+                        "stopped by a signal at t = {:.4} s; the bag is complete",
+                        s.simulated_s
+                    );
+                }
+            }
             Ok(())
         }
+        Cmd::Bag { cmd } => bag_cmd(cmd),
         Cmd::Identify {
             capture,
             fabric,

@@ -62,6 +62,18 @@ pub struct TimeSplit {
 /// Progress callback: (simulated time, duration).
 pub type Progress<'a> = &'a mut dyn FnMut(f64, f64);
 
+/// What an [`Observer`] tells the run to do next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Control {
+    Continue,
+    /// End the run now (the summary covers the steps done).
+    Stop,
+}
+
+/// Called with the state before the first step and after every step (to
+/// record it, or to stop the run).
+pub type Observer<'a> = &'a mut dyn FnMut(&Simulation) -> Result<Control>;
+
 /// Runs a built simulation for `duration` seconds, sampling energies at `rate` Hz.
 pub fn run(
     sim: &mut Simulation,
@@ -70,7 +82,21 @@ pub fn run(
     settle_speed: f64,
     progress: Progress,
 ) -> Result<(Vec<EnergyRow>, Summary)> {
-    let steps = (duration / sim.params.dt).round() as u64;
+    run_with(sim, duration, rate, settle_speed, progress, &mut |_| {
+        Ok(Control::Continue)
+    })
+}
+
+/// As [`run`], calling `observer` before the first step and after each step.
+pub fn run_with(
+    sim: &mut Simulation,
+    duration: f64,
+    rate: f64,
+    settle_speed: f64,
+    progress: Progress,
+    observer: Observer,
+) -> Result<(Vec<EnergyRow>, Summary)> {
+    let mut steps = (duration / sim.params.dt).round() as u64;
     let every = ((1.0 / rate) / sim.params.dt).round().max(1.0) as u64;
     let mut rows = vec![row(sim)];
     let e0 = sim.energies().total();
@@ -83,6 +109,10 @@ pub fn run(
     let mut max_iters = 0usize;
     let mut split = TimeSplit::default();
     let start = Instant::now();
+    let mut stop = observer(sim)? == Control::Stop;
+    if stop {
+        steps = 0;
+    }
     for k in 1..=steps {
         let st = sim
             .step()
@@ -95,11 +125,18 @@ pub fn run(
         if sim.rms_speed() >= settle_speed {
             last_fast = Some(sim.time);
         }
-        if k % every == 0 || k == steps {
+        if observer(sim)? == Control::Stop {
+            stop = true;
+        }
+        if k % every == 0 || k == steps || stop {
             let mut r = row(sim);
             r.lost = e0 - sim.energies().total();
             rows.push(r);
             progress(sim.time, duration);
+        }
+        if stop {
+            steps = k;
+            break;
         }
     }
     let wall = start.elapsed().as_secs_f64();
@@ -162,13 +199,29 @@ pub fn drape(
     out: &Path,
     progress: Progress,
 ) -> Result<(Simulation, Summary)> {
-    let mut sim = scene.build(ov)?;
-    let (rows, mut summary) = run(
+    let sim = scene.build(ov)?;
+    drape_with(scene, ov, sim, out, progress, &mut |_| {
+        Ok(Control::Continue)
+    })
+}
+
+/// As [`drape`], for a simulation already built from `scene` and `ov`, with
+/// an [`Observer`] called before the first step and after each step.
+pub fn drape_with(
+    scene: &Scene,
+    ov: &Overrides,
+    mut sim: Simulation,
+    out: &Path,
+    progress: Progress,
+    observer: Observer,
+) -> Result<(Simulation, Summary)> {
+    let (rows, mut summary) = run_with(
         &mut sim,
         scene.duration(ov),
         scene.file.output_rate,
         scene.file.settle_speed,
         progress,
+        observer,
     )?;
     summary.scene = scene.path.display().to_string();
     std::fs::create_dir_all(out)

@@ -457,7 +457,7 @@ def test_publishes_under_namespace_and_remap(tmp_path):
         ck = n.wait("/clock", Clock, lambda k: secs(k.clock) > stamp(c.header))
         log = n.wait("/rosout", Log, lambda l: "scene" in l.msg)
         desc = n.wait("/lab/scene_description", StringMsg)  # latched: arrives though published at start
-        assert "# scene:" in desc.data and "# fabric:" in desc.data and "areal_mass" in desc.data
+        assert "scene_yaml:" in desc.data and "fabric_yaml:" in desc.data and "areal_mass" in desc.data
         assert log.name.endswith("garment_sim")
         # stamps advance at the publish rate in simulated time
         s = [stamp(n.wait("/lab/cloth/points", PointCloud2).header) for _ in range(5)]

@@ -355,27 +355,15 @@ struct Loaded {
 fn load(s: &Settings) -> Result<Loaded> {
     let path = PathBuf::from(&s.scene);
     let scene = Scene::load(&path)?;
-    let sim = scene.build(&s.overrides()?)?;
+    let ov = s.overrides()?;
+    let sim = scene.build(&ov)?;
     let registry = ObstacleRegistry::from_sim(&sim);
-    let description = scene_description(&path, &sim);
+    let description = crate::bag::scene_description(&scene, &ov, &sim)?;
     Ok(Loaded {
         sim,
         registry,
         description,
     })
-}
-
-/// The scene file followed by the fabric file (what a bag carries on
-/// `scene_description`).
-pub fn scene_description(scene: &Path, sim: &Simulation) -> String {
-    let text = std::fs::read_to_string(scene).unwrap_or_default();
-    format!(
-        "# scene: {}\n{}\n---\n# fabric: {}\n{}",
-        scene.display(),
-        text,
-        sim.fabric.name,
-        serde_yaml::to_string(&sim.fabric.file).unwrap_or_default()
-    )
 }
 
 const HELP: &str = "garment_sim node [--ros-args ...]: the simulation as a ROS 2 node\n\
@@ -484,6 +472,29 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let _ = pub_scene.publish(msgs::StringMsg {
         data: loaded.description.clone(),
     });
+    let mut recorder = if settings.record_bag.is_empty() {
+        None
+    } else {
+        let topics = crate::bag::TopicNames {
+            points: names.points.clone(),
+            mesh: names.mesh.clone(),
+            obstacles: names.obstacle_markers.clone(),
+            diagnostics: names.diagnostics.clone(),
+            clock: names.clock.clone(),
+            scene_description: names.scene_description.clone(),
+        };
+        let dir = PathBuf::from(&settings.record_bag);
+        let rec = crate::bag::SimRecorder::create(
+            &dir,
+            &crate::bag::BagOptions::default(),
+            &topics,
+            &loaded.description,
+        )
+        .with_context(|| format!("parameter record_bag = {:?}", settings.record_bag))?;
+        Some(rec)
+    };
+    let mut bag_error = false;
+    let mut last_recorded: Option<f64> = None;
     let sub_obstacles = subscription!(msgs::Obstacle, &names.obstacles);
     let sub_pins = subscription!(msgs::Pin, &names.pins);
     let srv_reset = server!(
@@ -563,6 +574,8 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let mut last_rt = 0.0;
     let mut publish_now = true;
     let mut step_reply = None;
+    // the first pass publishes (and records) the initial state before any step
+    let mut initial = true;
     loop {
         if stop.load(Ordering::Relaxed) {
             info!("stopping (signal) at t = {:.3} s", loaded.sim.time);
@@ -652,6 +665,12 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                     next_publish = loaded.sim.time;
                     pace_origin = (Instant::now(), loaded.sim.time);
                     pending_steps = 0;
+                    if let Some(rec) = recorder.as_mut() {
+                        // frames of the new run follow the old ones in the bag
+                        let gap = (1e9 / settings.publish_rate) as u64;
+                        rec.restart(&loaded.description, gap);
+                        last_recorded = None;
+                    }
                     info!("reset: scene {}", settings.scene);
                     publish_now = true;
                     msgs::TriggerResponse {
@@ -709,7 +728,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
         }
 
         let running = !settings.paused || pending_steps > 0;
-        if running {
+        if running && !initial {
             let dt = loaded.sim.params.dt;
             clock_every = ((1e-3 / dt).round() as u64).max(1);
             match loaded.sim.step() {
@@ -758,9 +777,9 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             last_rtf = (now, loaded.sim.time);
             let t_pub = Instant::now();
             let h = publish::header(&loaded.sim, &settings.frame_id);
-            let _ = pub_points.publish(publish::cloud(&loaded.sim, h.clone()));
-            let _ = pub_mesh.publish(publish::cloth_marker(&loaded.sim, h.clone()));
-            let _ = pub_obstacles.publish(publish::obstacle_markers(&loaded.sim, h.clone()));
+            let cloud = publish::cloud(&loaded.sim, h.clone());
+            let mesh = publish::cloth_marker(&loaded.sim, h.clone());
+            let obstacles = publish::obstacle_markers(&loaded.sim, h.clone());
             let fig = publish::DiagnosticFigures {
                 step_time_ms: if step_count > 0 {
                     step_ms_sum / step_count as f64
@@ -774,8 +793,41 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                 paused: settings.paused,
                 last_error: last_error.clone(),
             };
-            let _ = pub_diag.publish(publish::diagnostics(&loaded.sim, h.clone(), &fig));
-            let _ = pub_clock.publish(msgs::Clock { clock: h.stamp });
+            let diag = publish::diagnostics(&loaded.sim, h.clone(), &fig);
+            let clock = msgs::Clock { clock: h.stamp };
+            // the bag gets what is published, once per simulated state (not
+            // the repeats published while paused) unless an obstacle changed
+            let new_state = last_recorded != Some(loaded.sim.time) || publish_now;
+            if let (Some(rec), true) = (recorder.as_mut(), new_state) {
+                let frame = crate::bag::Frame {
+                    cloud: &cloud,
+                    mesh: &mesh,
+                    obstacles: &obstacles,
+                    diagnostics: &diag,
+                    clock: &clock,
+                };
+                match rec.record_frame(&frame) {
+                    Ok(()) => last_recorded = Some(loaded.sim.time),
+                    Err(e) => {
+                        last_error = format!("bag {}: {e:#}", settings.record_bag);
+                        warn!("{last_error}; recording stopped, the bag is closed");
+                        bag_error = true;
+                    }
+                }
+            }
+            if bag_error {
+                if let Some(rec) = recorder.take() {
+                    if let Err(e) = rec.finish() {
+                        warn!("bag {}: {e:#}", settings.record_bag);
+                    }
+                }
+                bag_error = false;
+            }
+            let _ = pub_points.publish(cloud);
+            let _ = pub_mesh.publish(mesh);
+            let _ = pub_obstacles.publish(obstacles);
+            let _ = pub_diag.publish(diag);
+            let _ = pub_clock.publish(clock);
             publish_s += t_pub.elapsed().as_secs_f64();
             publishes += 1;
             step_ms_sum = 0.0;
@@ -788,6 +840,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             }
             publish_now = false;
         }
+        initial = false;
         if settings.duration > 0.0 && loaded.sim.time + 1e-12 >= settings.duration {
             info!("duration {} s reached", settings.duration);
             break;
@@ -809,6 +862,36 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let _ = pub_clock.publish(msgs::Clock {
         clock: msgs::Time::from_secs(loaded.sim.time),
     });
+    if let Some(mut rec) = recorder.take() {
+        if last_recorded != Some(loaded.sim.time) {
+            // the state the node stopped in (as `drape --bag` records it)
+            let h = publish::header(&loaded.sim, &settings.frame_id);
+            let frame = crate::bag::Frame {
+                cloud: &publish::cloud(&loaded.sim, h.clone()),
+                mesh: &publish::cloth_marker(&loaded.sim, h.clone()),
+                obstacles: &publish::obstacle_markers(&loaded.sim, h.clone()),
+                diagnostics: &publish::diagnostics(
+                    &loaded.sim,
+                    h.clone(),
+                    &publish::DiagnosticFigures::default(),
+                ),
+                clock: &msgs::Clock { clock: h.stamp },
+            };
+            if let Err(e) = rec.record_frame(&frame) {
+                warn!("bag {}: {e:#}", settings.record_bag);
+            }
+        }
+        match rec.finish() {
+            Ok(b) => info!(
+                "bag {}: {} messages, {:.3} s, {:.2} MiB",
+                b.dir.display(),
+                b.message_count,
+                b.duration_s(),
+                b.bytes as f64 / (1024.0 * 1024.0)
+            ),
+            Err(e) => warn!("bag {}: {e:#}", settings.record_bag),
+        }
+    }
     std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
     let wall = wall_start.elapsed().as_secs_f64();
     let steps = loaded.sim.steps.saturating_sub(steps_start).max(1);

@@ -1,0 +1,199 @@
+//! rosbag2 bags (MCAP storage, as `ros2 bag record` writes by default since
+//! Iron) of simulations: written headless by `garment_sim drape --bag` and by
+//! the node (`record_bag`), read by `garment_sim bag info | export | repair`,
+//! `ros2 bag`, `rosbags`, the `mcap` tools and Foxglove.
+//!
+//! A bag is a directory holding `<dir name>_0.mcap` and `metadata.yaml`
+//! (format version 9). In the MCAP file: profile `ros2`; one schema per type,
+//! encoding `ros2msg`, holding the full definition with its dependencies
+//! ([`definitions`]); one channel per topic, message encoding `cdr`, with the
+//! offered QoS profiles in its `offered_qos_profiles` metadata (the same
+//! profiles as in `metadata.yaml`); messages as CDR with the 4-byte
+//! encapsulation header, **log time = publish time = the header stamp, i.e.
+//! the simulated time in nanoseconds** (a drape starts at 0); a `rosbag2`
+//! metadata record before the first message and at the end.
+//!
+//! Crash safety: chunks are closed by the writer once they hold
+//! [`BagOptions::chunk_size`] bytes and handed to the operating system at
+//! once, and `metadata.yaml` is rewritten (atomically) after each chunk, so a
+//! killed process leaves a bag readable up to its last complete chunk, with a
+//! `metadata.yaml` describing exactly those messages; [`repair`] then rebuilds
+//! the summary and indexes. SIGINT and SIGTERM set [`stop_flag`], on which
+//! `drape --bag` stops stepping and finishes the bag.
+//!
+//! The physics modules never depend on this one.
+
+pub mod definitions;
+pub mod metadata;
+pub mod reader;
+pub mod recorder;
+pub mod tools;
+pub mod writer;
+
+pub use metadata::{BagInformation, Qos};
+pub use reader::{Ending, Reader};
+pub use recorder::{scene_description, Frame, SimRecorder, TopicNames, TopicQos};
+pub use tools::{
+    info, repair, shape_at, write_shape, BagInfo, ExportTime, RepairReport, Shape, ShapeFormat,
+};
+pub use writer::{BagOptions, BagSummary, Compression, Writer};
+
+use crate::ros::publish::DiagnosticFigures;
+use crate::run::{self, Control, Progress};
+use crate::scene::{Overrides, Scene};
+use anyhow::{bail, Result};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+static STOP: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);
+
+/// The process-wide stop flag, set by SIGINT or SIGTERM (handlers installed
+/// on the first call). A second SIGINT/SIGTERM while the flag is set exits
+/// the process at once (status 1), so a stuck run can still be interrupted.
+pub fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let mut g = STOP.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(f) = g.as_ref() {
+        return Ok(f.clone());
+    }
+    let f = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // order matters: the shutdown check sees the flag before this signal sets it
+        signal_hook::flag::register_conditional_shutdown(sig, 1, f.clone())?;
+        signal_hook::flag::register(sig, f.clone())?;
+    }
+    *g = Some(f.clone());
+    Ok(f)
+}
+
+/// When frames are due, as the node publishes: the first step at or after
+/// each multiple of the period (1/rate) of simulated time, so that a bag
+/// written headless and one recorded by the node hold the same stamps.
+#[derive(Debug, Clone)]
+pub struct FrameClock {
+    period: f64,
+    next: f64,
+}
+
+impl FrameClock {
+    /// Frames at `rate_hz` from simulated time `t0`.
+    pub fn new(rate_hz: f64, t0: f64) -> Result<FrameClock> {
+        if !(rate_hz.is_finite() && rate_hz > 0.0) {
+            bail!("bag rate {rate_hz} Hz: must be a finite number > 0");
+        }
+        Ok(FrameClock {
+            period: 1.0 / rate_hz,
+            next: t0,
+        })
+    }
+
+    /// Whether a frame is due at simulated time `t` (and if so, schedules the next).
+    pub fn due(&mut self, t: f64) -> bool {
+        if t + 1e-12 < self.next {
+            return false;
+        }
+        self.next += self.period;
+        if self.next < t {
+            self.next = t + self.period;
+        }
+        true
+    }
+}
+
+/// How `drape --bag` records.
+#[derive(Debug, Clone)]
+pub struct DrapeBag {
+    pub dir: PathBuf,
+    pub options: BagOptions,
+    /// Frames per simulated second (a frame at the first step at or after
+    /// each multiple of 1/rate; ≥ 1/dt records every step).
+    pub rate_hz: f64,
+    pub topics: TopicNames,
+    pub frame_id: String,
+}
+
+impl DrapeBag {
+    pub fn new(dir: &Path) -> DrapeBag {
+        DrapeBag {
+            dir: dir.to_path_buf(),
+            options: BagOptions::default(),
+            rate_hz: 30.0,
+            topics: TopicNames::default(),
+            frame_id: "world".into(),
+        }
+    }
+}
+
+/// What a recorded drape did.
+#[derive(Debug, Clone)]
+pub struct DrapeRecorded {
+    pub summary: run::Summary,
+    pub bag: BagSummary,
+    pub frames: u64,
+    /// The run was stopped by `stop` before its duration.
+    pub stopped: bool,
+    /// Wall time spent building, serialising, compressing and writing the
+    /// bag's messages, s (included in the summary's wall time).
+    pub record_s: f64,
+}
+
+/// Runs a scene headless as [`run::drape`] does (writing `out`) while
+/// recording it into a bag: a frame before the first step and every
+/// [`steps_per_frame`] steps. Stops stepping when `stop` is set, then
+/// finishes the bag and the outputs.
+pub fn drape_recorded(
+    scene: &Scene,
+    ov: &Overrides,
+    out: &Path,
+    progress: Progress,
+    bag: &DrapeBag,
+    stop: &AtomicBool,
+) -> Result<DrapeRecorded> {
+    let sim = scene.build(ov)?;
+    let mut clock = FrameClock::new(bag.rate_hz, sim.time)?;
+    let description = scene_description(scene, ov, &sim)?;
+    let mut rec = SimRecorder::create(&bag.dir, &bag.options, &bag.topics, &description)?;
+    let mut last = (Instant::now(), sim.steps, sim.time);
+    let mut last_recorded = None;
+    let mut stopped = false;
+    let mut record_s = 0.0;
+    let mut observer = |s: &crate::solver::Simulation| -> Result<Control> {
+        if clock.due(s.time) {
+            let now = Instant::now();
+            let (n, t) = (s.steps - last.1, s.time - last.2);
+            let wall = now.duration_since(last.0).as_secs_f64();
+            let fig = DiagnosticFigures {
+                step_time_ms: if n > 0 { 1e3 * wall / n as f64 } else { 0.0 },
+                real_time_factor: if wall > 0.0 { t / wall } else { 0.0 },
+                ..Default::default()
+            };
+            let t_rec = Instant::now();
+            rec.record(s, &bag.frame_id, &fig)?;
+            record_s += t_rec.elapsed().as_secs_f64();
+            last = (Instant::now(), s.steps, s.time);
+            last_recorded = Some(s.time);
+        }
+        if stop.load(Ordering::Relaxed) {
+            stopped = true;
+            return Ok(Control::Stop);
+        }
+        Ok(Control::Continue)
+    };
+    let (sim, summary) = run::drape_with(scene, ov, sim, out, progress, &mut observer)?;
+    let t_rec = Instant::now();
+    if last_recorded != Some(sim.time) {
+        // the final state, as the node records it when it stops
+        rec.record(&sim, &bag.frame_id, &DiagnosticFigures::default())?;
+    }
+    let frames = rec.frames();
+    let bag = rec.finish()?;
+    record_s += t_rec.elapsed().as_secs_f64();
+    Ok(DrapeRecorded {
+        summary,
+        bag,
+        frames,
+        stopped,
+        record_s,
+    })
+}

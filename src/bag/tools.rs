@@ -1,0 +1,441 @@
+//! `garment_sim bag info | export | repair`: what a bag holds, the cloth
+//! shape at a time, and rebuilding a bag cut short by a crash.
+
+use super::metadata::{BagInformation, TopicCount};
+use super::reader::{Ending, Reader};
+use super::writer::{BagOptions, BagSummary, Compression, Writer};
+use crate::ros::msgs::{from_cdr, Marker, PointCloud2};
+use crate::ros::publish;
+use anyhow::{bail, Context, Result};
+use std::collections::HashMap;
+use std::io::Write;
+use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
+
+/// What `bag info` reports.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BagInfo {
+    pub file: PathBuf,
+    pub bytes: u64,
+    pub message_count: u64,
+    pub bounds: Option<(u64, u64)>,
+    pub chunks: usize,
+    pub compression: Option<String>,
+    /// Topic, type, count, in channel order.
+    pub topics: Vec<(String, String, u64)>,
+    pub ending: Ending,
+    /// Differences between `metadata.yaml` and the MCAP file (empty if they agree).
+    pub metadata_problems: Vec<String>,
+}
+
+impl BagInfo {
+    pub fn duration_s(&self) -> f64 {
+        self.bounds
+            .map(|(a, b)| (b - a) as f64 * 1e-9)
+            .unwrap_or(0.0)
+    }
+}
+
+impl std::fmt::Display for BagInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "Files:             {}", self.file.display())?;
+        writeln!(
+            f,
+            "Bag size:          {:.2} MiB",
+            self.bytes as f64 / (1024.0 * 1024.0)
+        )?;
+        writeln!(f, "Storage id:        mcap")?;
+        writeln!(f, "Duration:          {:.9} s", self.duration_s())?;
+        if let Some((a, b)) = self.bounds {
+            writeln!(
+                f,
+                "Start:             {:.9} s (simulated time)",
+                a as f64 * 1e-9
+            )?;
+            writeln!(
+                f,
+                "End:               {:.9} s (simulated time)",
+                b as f64 * 1e-9
+            )?;
+        }
+        writeln!(f, "Messages:          {}", self.message_count)?;
+        writeln!(
+            f,
+            "Chunks:            {} ({})",
+            self.chunks,
+            match self.compression.as_deref() {
+                None => "none",
+                Some("") => "uncompressed",
+                Some(c) => c,
+            }
+        )?;
+        match &self.ending {
+            Ending::Complete => writeln!(f, "State:             complete")?,
+            Ending::Truncated { offset, reason } => writeln!(
+                f,
+                "State:             TRUNCATED at byte {offset} ({reason}); the messages above are readable; `garment_sim bag repair` rebuilds the summary and metadata.yaml"
+            )?,
+        }
+        for p in &self.metadata_problems {
+            writeln!(f, "metadata.yaml:     {p}")?;
+        }
+        for (k, (t, ty, n)) in self.topics.iter().enumerate() {
+            writeln!(
+                f,
+                "{}Topic: {t} | Type: {ty} | Count: {n} | Serialization Format: cdr",
+                if k == 0 {
+                    "Topic information: "
+                } else {
+                    "                   "
+                }
+            )?;
+        }
+        Ok(())
+    }
+}
+
+fn topic_counts(r: &Reader) -> Result<Vec<TopicCount>> {
+    r.channels
+        .values()
+        .map(|c| {
+            Ok(TopicCount {
+                name: c.topic.clone(),
+                type_name: c.type_name.clone(),
+                qos: c.qos()?,
+                count: c.message_count,
+            })
+        })
+        .collect()
+}
+
+/// Reads a bag (directory or MCAP file) and compares it with its `metadata.yaml`.
+pub fn info(path: &Path) -> Result<BagInfo> {
+    let r = Reader::open(path)?;
+    let mut problems = Vec::new();
+    match BagInformation::read(&r.dir) {
+        Err(e) => problems.push(format!("{e:#}")),
+        Ok(m) => {
+            let file_name = r
+                .path
+                .file_name()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let expect = BagInformation::new(&file_name, &topic_counts(&r)?, r.bounds);
+            if m.message_count != expect.message_count {
+                problems.push(format!(
+                    "says {} messages, the MCAP file holds {}",
+                    m.message_count, expect.message_count
+                ));
+            }
+            if m.relative_file_paths != expect.relative_file_paths {
+                problems.push(format!(
+                    "names files {:?}, the bag's file is {file_name}",
+                    m.relative_file_paths
+                ));
+            }
+            for t in &expect.topics_with_message_count {
+                match m
+                    .topics_with_message_count
+                    .iter()
+                    .find(|x| x.topic_metadata.name == t.topic_metadata.name)
+                {
+                    None => problems.push(format!("lacks topic {}", t.topic_metadata.name)),
+                    Some(x) if x != t => problems.push(format!(
+                        "topic {}: {} messages, type {}; the MCAP file: {} messages, type {} (or the QoS differ)",
+                        t.topic_metadata.name,
+                        x.message_count,
+                        x.topic_metadata.type_name,
+                        t.message_count,
+                        t.topic_metadata.type_name
+                    )),
+                    _ => {}
+                }
+            }
+        }
+    }
+    Ok(BagInfo {
+        file: r.path.clone(),
+        bytes: r.file_size(),
+        message_count: r.message_count,
+        bounds: r.bounds,
+        chunks: r.chunk_count,
+        compression: r.chunk_compression.clone(),
+        topics: r
+            .channels
+            .values()
+            .map(|c| (c.topic.clone(), c.type_name.clone(), c.message_count))
+            .collect(),
+        ending: r.ending.clone(),
+        metadata_problems: problems,
+    })
+}
+
+/// Which frame `bag export` takes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ExportTime {
+    /// The last frame at or before this simulated time, s.
+    At(f64),
+    /// The last frame of the bag.
+    Last,
+}
+
+/// Shape file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeFormat {
+    Ply,
+    Obj,
+}
+
+impl std::str::FromStr for ShapeFormat {
+    type Err = anyhow::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "ply" => Ok(ShapeFormat::Ply),
+            "obj" => Ok(ShapeFormat::Obj),
+            _ => bail!("format {s:?}: expected ply or obj"),
+        }
+    }
+}
+
+/// The cloth shape of one frame of a bag.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Shape {
+    /// Simulated time of the frame, s.
+    pub time_s: f64,
+    /// Vertices in the cloud's order (grid order `j * nx + i` for garment_sim bags), m.
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles (vertex indices), from the mesh marker of the same stamp.
+    pub faces: Vec<[usize; 3]>,
+}
+
+/// Reads the cloth shape at `when` from a bag: the point cloud on
+/// `points_topic` gives the vertices (in its order); the TRIANGLE_LIST marker
+/// of the same stamp on `mesh_topic`, if there is one, gives the triangles and
+/// the positions at full (float64) precision.
+pub fn shape_at(
+    path: &Path,
+    when: ExportTime,
+    points_topic: &str,
+    mesh_topic: &str,
+) -> Result<Shape> {
+    let r = Reader::open(path)?;
+    let clouds = r.topic_messages(points_topic)?;
+    let (first, last) = match (clouds.first(), clouds.last()) {
+        (Some(a), Some(b)) => (a.0, b.0),
+        _ => bail!("{}: no message on {points_topic}", r.path.display()),
+    };
+    const TOL_NS: i128 = 1000;
+    let k = match when {
+        ExportTime::Last => clouds.len() - 1,
+        ExportTime::At(t) => {
+            let tn = (t * 1e9).round() as i128;
+            if !t.is_finite() || tn < first as i128 - TOL_NS || tn > last as i128 + TOL_NS {
+                bail!(
+                    "time {t} s is outside the bag {}: {points_topic} has frames from {:.6} s to {:.6} s",
+                    r.path.display(),
+                    first as f64 * 1e-9,
+                    last as f64 * 1e-9
+                );
+            }
+            clouds
+                .iter()
+                .rposition(|(s, _)| (*s as i128) <= tn + TOL_NS)
+                .expect("t is within the bag")
+        }
+    };
+    let (stamp, bytes) = &clouds[k];
+    let cloud: PointCloud2 = from_cdr(bytes)
+        .with_context(|| format!("{points_topic} at {} ns: not a PointCloud2", stamp))?;
+    let pts =
+        publish::cloud_points(&cloud).with_context(|| format!("{points_topic} at {} ns", stamp))?;
+    let mut vertices: Vec<[f64; 3]> = pts
+        .iter()
+        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+        .collect();
+    let mut faces = Vec::new();
+    if r.channels.values().any(|c| c.topic == mesh_topic) {
+        let mesh_id = r.channel(mesh_topic)?.id;
+        let mut marker: Option<Marker> = None;
+        let mut err = None;
+        r.for_each_message(|m| {
+            if m.channel.id == mesh_id && m.log_time == *stamp {
+                match from_cdr::<Marker>(m.data) {
+                    Ok(mk) => marker = Some(mk),
+                    Err(e) => err = Some(e),
+                }
+                return Ok(ControlFlow::Break(()));
+            }
+            Ok(ControlFlow::Continue(()))
+        })?;
+        if let Some(e) = err {
+            return Err(e.context(format!("{mesh_topic} at {stamp} ns: not a Marker")));
+        }
+        if let Some(mk) = marker.filter(|m| m.type_ == Marker::TRIANGLE_LIST) {
+            // each marker point is a vertex's float64 position; the cloud holds
+            // the same values rounded to float32, which identifies the vertex
+            let key = |p: [f32; 3]| [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
+            let mut index: HashMap<[u32; 3], usize> = HashMap::with_capacity(pts.len());
+            let mut unique = true;
+            for (i, p) in pts.iter().enumerate() {
+                unique &= index.insert(key(*p), i).is_none();
+            }
+            let mut ids = Vec::with_capacity(mk.points.len());
+            for p in &mk.points {
+                match index.get(&key([p.x as f32, p.y as f32, p.z as f32])) {
+                    Some(&i) if unique => {
+                        vertices[i] = [p.x, p.y, p.z];
+                        ids.push(i);
+                    }
+                    _ => {
+                        ids.clear();
+                        break;
+                    }
+                }
+            }
+            if ids.len() == mk.points.len() && ids.len() % 3 == 0 {
+                faces = ids.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+            }
+        }
+    }
+    Ok(Shape {
+        time_s: *stamp as f64 * 1e-9,
+        vertices,
+        faces,
+    })
+}
+
+/// Writes a shape as ASCII PLY (double x y z, triangle faces) or OBJ.
+pub fn write_shape(shape: &Shape, format: ShapeFormat, out: &Path) -> Result<()> {
+    if let Some(d) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+    }
+    let mut w = std::io::BufWriter::new(
+        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?,
+    );
+    match format {
+        ShapeFormat::Ply => {
+            writeln!(
+                w,
+                "ply\nformat ascii 1.0\ncomment garment_sim cloth from a bag at t = {} s, metres",
+                shape.time_s
+            )?;
+            writeln!(
+                w,
+                "element vertex {}\nproperty double x\nproperty double y\nproperty double z",
+                shape.vertices.len()
+            )?;
+            writeln!(
+                w,
+                "element face {}\nproperty list uchar int vertex_indices\nend_header",
+                shape.faces.len()
+            )?;
+            for v in &shape.vertices {
+                writeln!(w, "{} {} {}", v[0], v[1], v[2])?;
+            }
+            for f in &shape.faces {
+                writeln!(w, "3 {} {} {}", f[0], f[1], f[2])?;
+            }
+        }
+        ShapeFormat::Obj => {
+            writeln!(
+                w,
+                "# garment_sim cloth from a bag at t = {} s, metres",
+                shape.time_s
+            )?;
+            for v in &shape.vertices {
+                writeln!(w, "v {} {} {}", v[0], v[1], v[2])?;
+            }
+            for f in &shape.faces {
+                writeln!(w, "f {} {} {}", f[0] + 1, f[1] + 1, f[2] + 1)?;
+            }
+        }
+    }
+    w.flush()
+        .with_context(|| format!("cannot write {}", out.display()))?;
+    Ok(())
+}
+
+/// What `bag repair` did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RepairReport {
+    /// The file was already complete: only `metadata.yaml` was rewritten.
+    pub was_complete: bool,
+    /// Where the damaged file ended, and why.
+    pub ending: Ending,
+    /// Bytes of the damaged file after the last complete record (dropped).
+    pub bytes_dropped: u64,
+    pub bag: BagSummary,
+}
+
+/// Rebuilds a bag cut short by a crash: every message of the complete chunks
+/// is rewritten into a new, finished MCAP file (same topics, schemas, QoS and
+/// compression) that replaces the old one, and `metadata.yaml` is rewritten
+/// from it. A complete bag only gets its `metadata.yaml` rewritten.
+pub fn repair(path: &Path) -> Result<RepairReport> {
+    let r = Reader::open(path)?;
+    let file_name = r
+        .path
+        .file_name()
+        .map(|s| s.to_string_lossy().into_owned())
+        .context("bag file has no name")?;
+    if r.is_complete() {
+        let info = BagInformation::new(&file_name, &topic_counts(&r)?, r.bounds);
+        info.write(&r.dir)?;
+        return Ok(RepairReport {
+            was_complete: true,
+            ending: Ending::Complete,
+            bytes_dropped: 0,
+            bag: BagSummary {
+                dir: r.dir.clone(),
+                file: r.path.clone(),
+                message_count: r.message_count,
+                topics: r
+                    .channels
+                    .values()
+                    .map(|c| (c.topic.clone(), c.type_name.clone(), c.message_count))
+                    .collect(),
+                bounds: r.bounds,
+                bytes: r.file_size(),
+                chunks: r.chunk_count,
+            },
+        });
+    }
+    let compression = match r.chunk_compression.as_deref() {
+        Some("lz4") => Compression::Lz4,
+        Some("") => Compression::None,
+        _ => Compression::Zstd,
+    };
+    let opts = BagOptions {
+        compression,
+        ..BagOptions::default()
+    };
+    let tmp = r.dir.join(format!(".{file_name}.repair"));
+    let mut w = Writer::create_file(&r.dir, &tmp, &file_name, &opts)?;
+    for c in r.channels.values() {
+        let schema = &r.schemas[&c.schema_id];
+        w.add_topic_with_schema(&c.topic, &c.type_name, &schema.text, &c.qos()?)?;
+    }
+    r.for_each_message(|m| {
+        w.write_raw(&m.channel.topic, m.log_time, m.data)?;
+        Ok(ControlFlow::Continue(()))
+    })?;
+    let mut bag = w.finish()?;
+    std::fs::rename(&tmp, &r.path).with_context(|| {
+        format!(
+            "cannot replace {} with the repaired {}",
+            r.path.display(),
+            tmp.display()
+        )
+    })?;
+    bag.file = r.path.clone();
+    let valid = match &r.ending {
+        Ending::Truncated { offset, .. } => *offset,
+        Ending::Complete => r.file_size(),
+    };
+    Ok(RepairReport {
+        was_complete: false,
+        ending: r.ending.clone(),
+        bytes_dropped: r.file_size() - valid,
+        bag,
+    })
+}

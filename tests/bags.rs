@@ -1,0 +1,105 @@
+//! Bags against independent readers (tests/bag_interop.py): the Python
+//! `rosbags` package (its rosbag2 reader and its own CDR deserialiser, with
+//! types built from the bag's own schemas) and the `mcap` package with
+//! `mcap-ros2-support`. The expected cloth trajectory comes from this file:
+//! the simulation stepped in-process, with no bag code on its path, sampled
+//! at the bag's frame times. Signals (SIGINT, SIGTERM, SIGKILL + `bag
+//! repair`) and the node's `record_bag` are exercised there too; everything
+//! runs in a network namespace made for the test (`unshare -rn`, loopback
+//! only) because the node starts DDS.
+
+use garment_sim::bag::FrameClock;
+use garment_sim::scene::{Overrides, Scene};
+use garment_sim::solver::linear::LinearSolverKind;
+use std::path::Path;
+use std::process::Command;
+
+/// The reference run the Python tests record: table drape, 2 cm grid,
+/// dt = 4 ms, 0.3 s, frames at 30 Hz (first step at or after each 1/30 s),
+/// Cholesky (the `auto` choice depends on measured wall time).
+const SPACING: f64 = 0.02;
+const DT: f64 = 0.004;
+const DURATION: f64 = 0.3;
+const RATE: f64 = 30.0;
+
+/// Writes `{"times": [...], "positions": [[x, y, z, ...], ...], "nx", "ny"}`.
+fn write_expected(path: &Path) {
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let ov = Overrides {
+        spacing: Some(SPACING),
+        dt: Some(DT),
+        duration: Some(DURATION),
+        solver: Some(LinearSolverKind::Cholesky),
+        ..Default::default()
+    };
+    let mut sim = sc.build(&ov).unwrap();
+    let mut clock = FrameClock::new(RATE, sim.time).unwrap();
+    let mut times = Vec::new();
+    let mut frames: Vec<Vec<f64>> = Vec::new();
+    let mut sample = |sim: &garment_sim::solver::Simulation, times: &mut Vec<f64>| {
+        times.push(sim.time);
+        frames.push(sim.cloth.x.iter().flat_map(|p| [p.x, p.y, p.z]).collect());
+    };
+    let steps = (DURATION / DT).round() as usize;
+    if clock.due(sim.time) {
+        sample(&sim, &mut times);
+    }
+    for k in 1..=steps {
+        sim.step().unwrap();
+        if clock.due(sim.time) || k == steps && times.last() != Some(&sim.time) {
+            sample(&sim, &mut times);
+        }
+    }
+    let json = serde_json::json!({
+        "times": times,
+        "positions": frames,
+        "nx": sim.cloth.nx,
+        "ny": sim.cloth.ny,
+        "spacing": SPACING,
+        "dt": DT,
+        "duration": DURATION,
+        "rate": RATE,
+    });
+    std::fs::write(path, serde_json::to_string(&json).unwrap()).unwrap();
+}
+
+#[test]
+fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
+    let probe = Command::new("python3")
+        .args(["-c", "import rosbags, mcap, mcap_ros2, numpy, yaml, pytest"])
+        .output()
+        .expect("python3 is needed");
+    assert!(
+        probe.status.success(),
+        "needs Python packages: python3 -m pip install -r tests/requirements.txt\n{}",
+        String::from_utf8_lossy(&probe.stderr)
+    );
+    let dir = std::env::temp_dir().join(format!("garment_sim_bags_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let expected = dir.join("expected.json");
+    write_expected(&expected);
+    let script = "ip link set lo up && ip link set lo multicast on && \
+                  ip route add 224.0.0.0/4 dev lo && \
+                  exec python3 -m pytest -q -s -rs tests/bag_interop.py";
+    let out = Command::new("unshare")
+        .args(["-rn", "sh", "-c", script])
+        .env("GARMENT_SIM_BIN", env!("CARGO_BIN_EXE_garment_sim"))
+        .env("GARMENT_SIM_EXPECTED", &expected)
+        .env("GARMENT_SIM_TMP", &dir)
+        .env_remove("ROS_DOMAIN_ID")
+        .output()
+        .expect("unshare (util-linux) and ip (iproute2) are needed");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("8 passed") && !text.contains("skipped"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
