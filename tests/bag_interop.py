@@ -407,3 +407,39 @@ def test_node_stopped_by_sigterm_leaves_a_complete_bag():
                            upto=min(EXP_T[-1], a[-2][0] * 1e-9))
     with open(mcap_file(nb), "rb") as f:
         assert make_reader(f).get_summary() is not None
+
+
+def test_node_in_a_namespace_killed_leaves_a_repairable_bag():
+    nb = TMP / "node_killed"
+    p = node(nb, "-r", "__ns:=/lab")  # runs until stopped
+    deadline = time.time() + 60
+    before = 0
+    while time.time() < deadline:
+        try:
+            before = metadata(nb)["message_count"]
+        except (FileNotFoundError, TypeError, KeyError, yaml.YAMLError):
+            before = 0
+        if before >= 30:
+            break
+        assert p.poll() is None, p.communicate()
+        time.sleep(0.05)
+    assert before >= 30
+    p.kill()
+    p.communicate(timeout=60)
+    md = metadata(nb)
+    assert md["message_count"] >= before
+    names = {t["topic_metadata"]["name"] for t in md["topics_with_message_count"]}
+    assert "/lab/cloth/points" in names and "/clock" in names, names
+    r = subprocess.run([BIN, "bag", "repair", str(nb)], capture_output=True, text=True)
+    assert r.returncode == 0 and "repaired" in r.stdout, r.stdout + r.stderr
+    msgs, _, count = read_rosbags(nb)
+    assert count == metadata(nb)["message_count"] >= md["message_count"]
+    a = msgs["/lab/cloth/points"]
+    check_against_expected([t for t, _, _ in a], [cloud_xyz(m) for _, _, m in a],
+                           upto=min(EXP_T[-1], a[-1][0] * 1e-9))
+    # export finds the namespaced cloth topics by themselves
+    ply = TMP / "node_last.ply"
+    r = subprocess.run([BIN, "bag", "export", str(nb), "--last", "--out", str(ply)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert f"{EXP['nx'] * EXP['ny']} vertices, {2 * (EXP['nx'] - 1) * (EXP['ny'] - 1)} triangles" in r.stdout, r.stdout

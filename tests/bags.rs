@@ -98,7 +98,7 @@ fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
     println!("{text}");
     assert!(out.status.success(), "{text}");
     assert!(
-        text.contains("8 passed") && !text.contains("skipped"),
+        text.contains("9 passed") && !text.contains("skipped"),
         "{text}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -4,7 +4,7 @@
 use super::metadata::{BagInformation, TopicCount};
 use super::reader::{Ending, Reader};
 use super::writer::{BagOptions, BagSummary, Compression, Writer};
-use crate::ros::msgs::{from_cdr, Marker, PointCloud2};
+use crate::ros::msgs::{from_cdr, Marker, PointCloud2, RosType};
 use crate::ros::publish;
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
@@ -219,6 +219,28 @@ pub fn shape_at(
     mesh_topic: &str,
 ) -> Result<Shape> {
     let r = Reader::open(path)?;
+    // a node in a namespace records e.g. /lab/cloth/points: if the default
+    // names are absent, take the bag's only topics of those names' endings
+    let resolve = |topic: &str, type_name: &str| -> String {
+        if r.channels.values().any(|c| c.topic == topic) {
+            return topic.to_string();
+        }
+        let tail = topic.trim_start_matches('/');
+        let found: Vec<&str> = r
+            .channels
+            .values()
+            .filter(|c| c.type_name == type_name && c.topic.ends_with(&format!("/{tail}")))
+            .map(|c| c.topic.as_str())
+            .collect();
+        match found.as_slice() {
+            [one] => one.to_string(),
+            _ => topic.to_string(),
+        }
+    };
+    let points_topic = resolve(points_topic, PointCloud2::NAME);
+    let points_topic = points_topic.as_str();
+    let mesh_topic = resolve(mesh_topic, Marker::NAME);
+    let mesh_topic = mesh_topic.as_str();
     let clouds = r.topic_messages(points_topic)?;
     let (first, last) = match (clouds.first(), clouds.last()) {
         (Some(a), Some(b)) => (a.0, b.0),
