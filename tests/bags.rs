@@ -8,11 +8,12 @@
 //! runs in a network namespace made for the test (`unshare -rn`, loopback
 //! only) because the node starts DDS.
 
+mod common;
+
 use garment_sim::bag::FrameClock;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::linear::LinearSolverKind;
 use std::path::Path;
-use std::process::Command;
 
 /// The reference run the Python tests record: table drape, 2 cm grid,
 /// dt = 4 ms, 0.3 s, frames at 30 Hz (first step at or after each 1/30 s),
@@ -65,41 +66,22 @@ fn write_expected(path: &Path) {
 
 #[test]
 fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
-    let probe = Command::new("python3")
-        .args(["-c", "import rosbags, mcap, mcap_ros2, numpy, yaml, pytest"])
-        .output()
-        .expect("python3 is needed");
-    assert!(
-        probe.status.success(),
-        "needs Python packages: python3 -m pip install -r tests/requirements.txt\n{}",
-        String::from_utf8_lossy(&probe.stderr)
-    );
     let dir = std::env::temp_dir().join(format!("garment_sim_bags_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let expected = dir.join("expected.json");
     write_expected(&expected);
-    let script = "ip link set lo up && ip link set lo multicast on && \
-                  ip route add 224.0.0.0/4 dev lo && \
-                  exec python3 -m pytest -q -s -rs tests/bag_interop.py";
-    let out = Command::new("unshare")
-        .args(["-rn", "sh", "-c", script])
-        .env("GARMENT_SIM_BIN", env!("CARGO_BIN_EXE_garment_sim"))
-        .env("GARMENT_SIM_EXPECTED", &expected)
-        .env("GARMENT_SIM_TMP", &dir)
-        .env_remove("ROS_DOMAIN_ID")
-        .output()
-        .expect("unshare (util-linux) and ip (iproute2) are needed");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{text}");
-    assert!(out.status.success(), "{text}");
-    assert!(
-        text.contains("9 passed") && !text.contains("skipped"),
-        "{text}"
+    let bin = std::ffi::OsString::from(env!("CARGO_BIN_EXE_garment_sim"));
+    common::pytest(
+        "tests/bag_interop.py",
+        "rosbags, mcap, mcap_ros2, numpy, yaml, pytest",
+        true,
+        &[
+            ("GARMENT_SIM_BIN", &bin),
+            ("GARMENT_SIM_EXPECTED", expected.as_os_str()),
+            ("GARMENT_SIM_TMP", dir.as_os_str()),
+        ],
+        "9 passed",
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

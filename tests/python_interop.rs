@@ -4,30 +4,10 @@
 //! from tests/requirements.txt, which .ci/run installs; without them these
 //! tests fail and say what to install (they never pass silently).
 
-use std::process::Command;
+mod common;
 
 fn pytest(file: &str, modules: &str, expect: &str) {
-    let probe = Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .expect("python3 is needed for the interoperability tests");
-    assert!(
-        probe.status.success(),
-        "{file} needs Python packages: python3 -m pip install -r tests/requirements.txt\n{}",
-        String::from_utf8_lossy(&probe.stderr)
-    );
-    let out = Command::new("python3")
-        .args(["-m", "pytest", "-q", "-rs", file])
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{text}");
-    assert!(out.status.success(), "{text}");
-    assert!(text.contains(expect) && !text.contains("skipped"), "{text}");
+    common::pytest(file, modules, false, &[], expect);
 }
 
 #[test]

@@ -3,12 +3,13 @@
 //! simulation (cloud, cloth and obstacle markers, diagnostics) and the
 //! garment_sim_msgs types from msg/.
 
+mod common;
+
 use garment_sim::ros::msgs::*;
 use garment_sim::ros::publish;
 use garment_sim::scene::{Overrides, Scene};
 use serde::Serialize;
 use std::path::Path;
-use std::process::Command;
 
 fn write<T: Serialize + RosType>(dir: &Path, stem: &str, msg: &T) {
     std::fs::write(dir.join(format!("{stem}.cdr")), to_cdr(msg)).unwrap();
@@ -222,29 +223,12 @@ fn messages_match_rosbags_byte_for_byte() {
         },
     );
 
-    let probe = Command::new("python3")
-        .args(["-c", "import rosbags, numpy, pytest"])
-        .output()
-        .expect("python3 is needed");
-    assert!(
-        probe.status.success(),
-        "needs Python packages: python3 -m pip install -r tests/requirements.txt"
-    );
-    let out = Command::new("python3")
-        .args(["-m", "pytest", "-q", "-rs", "-s", "tests/ros_msgs.py"])
-        .env("GARMENT_SIM_MSG_SAMPLES", &dir)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    println!("{text}");
-    assert!(out.status.success(), "{text}");
-    assert!(
-        text.contains("2 passed") && !text.contains("skipped"),
-        "{text}"
+    common::pytest(
+        "tests/ros_msgs.py",
+        "rosbags, numpy, pytest",
+        false,
+        &[("GARMENT_SIM_MSG_SAMPLES", dir.as_os_str())],
+        "2 passed",
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

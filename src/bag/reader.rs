@@ -333,35 +333,25 @@ impl Reader {
     where
         F: FnMut(MessageRef<'_>) -> Result<ControlFlow<()>>,
     {
+        let mut emit = |header: mcap::records::MessageHeader, data: &[u8]| {
+            f(MessageRef {
+                channel: &self.channels[&header.channel_id],
+                sequence: header.sequence,
+                log_time: header.log_time,
+                publish_time: header.publish_time,
+                data,
+            })
+        };
         for &(a, b) in &self.records {
             let op = self.data[a];
-            let rec = mcap::read::parse_record(op, &self.data[a + 9..b])?;
-            match rec {
-                Record::Message { header, data } => {
-                    let ch = &self.channels[&header.channel_id];
-                    let m = MessageRef {
-                        channel: ch,
-                        sequence: header.sequence,
-                        log_time: header.log_time,
-                        publish_time: header.publish_time,
-                        data: &data,
-                    };
-                    if f(m)?.is_break() {
-                        return Ok(());
-                    }
+            match mcap::read::parse_record(op, &self.data[a + 9..b])? {
+                Record::Message { header, data } if emit(header, &data)?.is_break() => {
+                    return Ok(());
                 }
                 Record::Chunk { header, data } => {
                     for rec in mcap::read::ChunkReader::new(header, &data)? {
                         if let Record::Message { header, data } = rec? {
-                            let ch = &self.channels[&header.channel_id];
-                            let m = MessageRef {
-                                channel: ch,
-                                sequence: header.sequence,
-                                log_time: header.log_time,
-                                publish_time: header.publish_time,
-                                data: &data,
-                            };
-                            if f(m)?.is_break() {
+                            if emit(header, &data)?.is_break() {
                                 return Ok(());
                             }
                         }
