@@ -598,14 +598,35 @@ fn identify_cmd(
     .iter()
     .enumerate()
     {
-        if r.resolved[k] {
+        if r.resolved[k] && r.measured_se[k].is_finite() {
             println!(
                 "  {name:<8} {:>12.4e} ± {:.1e} {unit}",
                 m[k], r.measured_se[k]
             );
+        } else if r.resolved[k] {
+            println!("  {name:<8} {:>12.4e} {unit} (trajectory fit)", m[k]);
         } else {
             println!("  {name:<8} not resolved by this capture (the fabric's own value is kept)");
         }
+    }
+    if let Some(t) = &r.trajectory {
+        println!(
+            "trajectory fit, frames {}..{} ({} simulations): {:.4e}, {:.4e}, {:.4e}, {:.4e}; rms {:.2e} m; \
+             markers moved by a 15 % change: {:.1e}, {:.1e}, {:.1e}, {:.1e} m; resolved {:?}",
+            t.frames.0,
+            t.frames.1,
+            t.simulations,
+            t.theta[0],
+            t.theta[1],
+            t.theta[2],
+            t.theta[3],
+            t.rms_m,
+            t.effect_15pc_m[0],
+            t.effect_15pc_m[1],
+            t.effect_15pc_m[2],
+            t.effect_15pc_m[3],
+            t.resolved
+        );
     }
     println!(
         "all four jointly: {:.4e}, {:.4e}, {:.4e}, {:.4e} (condition number {:.2e})",

@@ -237,10 +237,12 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
 /// The ground truth through the file path: the noise-free capture written as
 /// a CSV file (metres, shortest round-trip decimals: exact) and as a C3D file
 /// (float32, the format's best: 3 m stored to about 0.2 µm), read back by
-/// `identify_file`. From the CSV: α within 2 % and every β within 15 %.
-/// From the C3D: α within 2 %; the β's are reported unresolved, not wrong —
-/// resolving the thesis' β_c and β_t takes positions to about 10 nm (probe:
-/// quantising the capture to 1e-9 m keeps them, to 1e-8 m loses them).
+/// `identify_file`. From the CSV (float64): α within 2 % and every β within
+/// 15 % (the joint equation-error fit). From the C3D (float32: 0.2 µm steps
+/// at 3 m, too coarse for the spring forces on captured shapes): α within
+/// 2 % from the ordered fit, β_f and β_c within 15 % from the trajectory fit;
+/// β_t reported unresolved, not wrong: a 15 % change of it moves the markers
+/// by about 1 nm, far below what float32 positions (or any capture) resolve.
 #[test]
 fn noise_free_files_give_back_alpha_and_betas() {
     use garment_sim::capture::{write_c3d, write_capture_csv, Capture};
@@ -295,6 +297,26 @@ fn noise_free_files_give_back_alpha_and_betas() {
     ] {
         assert!((got / want - 1.0).abs() < 0.15, "{got:e} vs {want:e}");
     }
-    assert_eq!(from_c3d.resolved, [true, false, false, false]);
-    assert!(from_c3d.measured[1..].iter().all(|x| x.is_nan()));
+    let t = from_c3d
+        .trajectory
+        .as_ref()
+        .expect("the C3D needs the trajectory fit");
+    println!(
+        "C3D trajectory fit: frames {:?}, rms {:.2e} m, 15 % moves the markers by {:?} m",
+        t.frames, t.rms_m, t.effect_15pc_m
+    );
+    assert_eq!(from_c3d.resolved, [true, true, true, false]);
+    let m = from_c3d.measured;
+    for (got, want) in [(m[1], d.beta_bend), (m[2], d.beta_shear)] {
+        assert!((got / want - 1.0).abs() < 0.15, "C3D: {got:e} vs {want:e}");
+    }
+    assert!(m[3].is_nan());
+    // β_t is below resolution, not missed: its 15 % moves the markers by less
+    // than a hundredth of what β_c's does, and less than the fit's residual
+    let (dt, dc) = (t.effect_15pc_m[3], t.effect_15pc_m[2]);
+    assert!(
+        dt < 0.01 * dc && dt < t.rms_m,
+        "{dt:e} vs {dc:e}, rms {:e}",
+        t.rms_m
+    );
 }
