@@ -24,10 +24,13 @@ pub enum LinearSolverKind {
     Pcg,
     /// Sparse Cholesky (faer), symbolic factorisation reused.
     Cholesky,
-    /// The default: times both and uses the faster. By benchmark (README) the
-    /// PCG wins at small steps (dt = 1e-4 s: 4–12 iterations) and the Cholesky
-    /// at large ones (dt = 1e-3 s on 1 cm and finer grids, where the PCG needs
-    /// hundreds of iterations), so neither is the faster everywhere.
+    /// The default: the PCG while it converges within the iterations that
+    /// cost as much as the Cholesky (from operation counts), else the
+    /// Cholesky. By benchmark (README) the PCG wins at small steps (dt = 1e-4
+    /// s: 7–25 iterations) and the Cholesky at large ones (dt = 1e-3 s on 1 cm
+    /// and finer grids, where the PCG needs hundreds), so neither is the
+    /// faster everywhere. Decided on iteration counts, never on measured time:
+    /// runs are reproducible.
     #[default]
     Auto,
 }
@@ -87,7 +90,9 @@ pub struct Pcg {
 
 impl Pcg {
     /// Solves with relative tolerance `tol` on the filtered, preconditioned
-    /// residual; `dv` holds the solution. Returns the iteration count.
+    /// residual (relative to the right-hand side's, so the start does not
+    /// change when it stops); `dv` holds the first guess (its filtered part;
+    /// zeros for none) and then the solution. Returns the iteration count.
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -111,7 +116,16 @@ impl Pcg {
                 Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300)))
             });
         }
-        dv.copy_from_slice(z);
+        // start from the caller's guess in dv (the last step's Δv: at small
+        // steps Δv changes little from step to step), made to obey the filter
+        for i in 0..n {
+            let g = if dv[i].iter().all(|c| c.is_finite()) {
+                filter[i].apply(&dv[i])
+            } else {
+                Vector3::zeros()
+            };
+            dv[i] = g + z[i];
+        }
         // δ0 = filter(b)ᵀ P⁻¹ filter(b)
         let mut delta0 = 0.0;
         for i in 0..n {
@@ -226,6 +240,24 @@ impl Direct {
                 .collect(),
             par,
         })
+    }
+
+    /// Non-zeros of the Cholesky factor L.
+    pub fn nnz_l(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// PCG iterations that cost as much as one factorisation and solve, by
+    /// operation counts: the factorisation ≈ nnz(L)²/n flops, a PCG iteration
+    /// ≈ 2 nnz(A) + 30 n, with κ = 0.46 for the dense supernodal kernels'
+    /// speed relative to the sparse products (fitted to this machine's
+    /// benchmark: break-even at 63, 150 and 385 iterations on the 2, 1 and
+    /// 0.5 cm table drapes; the formula gives 58, 150, 417).
+    pub fn break_even_iterations(&self, a: &BlockMatrix) -> usize {
+        let n = self.csc.dim as f64;
+        let l = self.nnz_l() as f64;
+        let per_iter = 2.0 * 9.0 * a.col.len() as f64 + 30.0 * n;
+        (0.46 * l * l / n / per_iter).round().max(10.0) as usize
     }
 
     pub fn solve(

@@ -200,7 +200,8 @@ pub struct Simulation {
     pinned: Vec<Option<usize>>,
     pcg: linear::Pcg,
     direct: Option<linear::Direct>,
-    auto: AutoTiming,
+    /// `auto` mode is on the Cholesky (the PCG needed too many iterations).
+    auto_on_direct: bool,
 }
 
 impl Simulation {
@@ -257,7 +258,7 @@ impl Simulation {
             pinned: vec![None; n],
             pcg: linear::Pcg::default(),
             direct,
-            auto: AutoTiming::default(),
+            auto_on_direct: false,
         })
     }
 
@@ -505,59 +506,42 @@ impl Simulation {
         Ok(1)
     }
 
-    /// Times both solvers (exponential averages) and uses the faster; the
-    /// other is tried again every [`AUTO_PROBE`] steps. A PCG that needs more
-    /// iterations than the Cholesky's time allows stops early and the step is
-    /// solved directly.
+    /// Uses the PCG while it converges within the iterations that cost as
+    /// much as the Cholesky ([`linear::Direct::break_even_iterations`], from
+    /// operation counts), else the Cholesky; on the Cholesky, the PCG is
+    /// tried again every [`AUTO_PROBE`] steps (capped at the same count, so a
+    /// failed try costs at most one direct solve). The choice depends on
+    /// iteration counts only, never on measured time, so a run gives the
+    /// same trajectory every time.
     fn solve_auto(&mut self) -> Result<usize> {
-        let on_direct = self.auto.direct_ms < self.auto.pcg_ms;
-        // a PCG probe costs at most one direct solve (it is capped), so it is
-        // tried often; a direct probe costs a factorisation, so rarely
-        let every = if on_direct {
-            AUTO_PROBE / 10
-        } else {
-            AUTO_PROBE
-        };
-        let probe = self.steps == 3 || (self.steps > 0 && self.steps.is_multiple_of(every));
-        let use_direct = on_direct != probe;
-        // a probe replaces the estimate; ordinary steps average into it
-        let update = |old: f64, new: f64| if probe { new } else { ema(old, new) };
-        if use_direct && self.direct.is_none() {
+        if self.direct.is_none() {
             // the one-off symbolic analysis is not part of a step's cost
             self.direct = Some(linear::Direct::new(
                 &self.a,
                 self.part.bounds.len().saturating_sub(1),
             )?);
         }
-        let t = Instant::now();
-        if use_direct {
-            let it = self.solve_direct()?;
-            self.auto.direct_ms = update(self.auto.direct_ms, 1e3 * t.elapsed().as_secs_f64());
-            return Ok(it);
-        }
-        // cap the PCG at the iterations the direct solve's time allows
-        let cap = if self.auto.direct_ms.is_finite() && self.auto.pcg_ms_per_iter > 0.0 {
-            ((self.auto.direct_ms / self.auto.pcg_ms_per_iter) as usize)
-                .clamp(20, self.params.cg_max_iterations)
-        } else {
-            self.params.cg_max_iterations
-        };
-        match self.solve_pcg(cap) {
-            Ok(it) => {
-                let ms = 1e3 * t.elapsed().as_secs_f64();
-                self.auto.pcg_ms = update(self.auto.pcg_ms, ms);
-                self.auto.pcg_ms_per_iter = ms / (it.max(1) as f64);
-                Ok(it)
-            }
-            Err(_) => {
-                let ms = 1e3 * t.elapsed().as_secs_f64();
-                self.auto.pcg_ms = update(self.auto.pcg_ms, ms.max(self.auto.direct_ms) * 1.5);
-                let t2 = Instant::now();
-                let it = self.solve_direct()?;
-                self.auto.direct_ms = ema(self.auto.direct_ms, 1e3 * t2.elapsed().as_secs_f64());
-                Ok(it + cap)
+        let cap = self
+            .direct
+            .as_ref()
+            .expect("direct solver built")
+            .break_even_iterations(&self.a)
+            .min(self.params.cg_max_iterations);
+        let probe = self.steps.is_multiple_of(AUTO_PROBE);
+        if !self.auto_on_direct || probe {
+            match self.solve_pcg(cap) {
+                Ok(it) => {
+                    self.auto_on_direct = false;
+                    return Ok(it);
+                }
+                Err(_) => {
+                    self.auto_on_direct = true;
+                    let it = self.solve_direct()?;
+                    return Ok(it + cap);
+                }
             }
         }
+        self.solve_direct()
     }
 
     /// Pushes every vertex that ended a step inside an obstacle's contact
@@ -736,35 +720,8 @@ struct FrictionState {
     impulse: f64,
 }
 
-/// Steps between two tries of the slower solver in `auto` mode.
-pub const AUTO_PROBE: u64 = 250;
-
-/// Running costs of the two solvers in `auto` mode, ms.
-#[derive(Debug, Clone, Copy)]
-struct AutoTiming {
-    pcg_ms: f64,
-    pcg_ms_per_iter: f64,
-    direct_ms: f64,
-}
-
-impl Default for AutoTiming {
-    fn default() -> Self {
-        // start with the PCG; the direct solver is timed at the first probe
-        AutoTiming {
-            pcg_ms: 0.0,
-            pcg_ms_per_iter: 0.0,
-            direct_ms: f64::INFINITY,
-        }
-    }
-}
-
-fn ema(old: f64, new: f64) -> f64 {
-    if old.is_finite() && old > 0.0 {
-        0.8 * old + 0.2 * new
-    } else {
-        new
-    }
-}
+/// Steps between two tries of the PCG while `auto` mode is on the Cholesky.
+pub const AUTO_PROBE: u64 = 25;
 
 #[inline]
 fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {
