@@ -13,9 +13,11 @@
 //! the vertices on the disks are pinned (the clamp),
 //! the support disk is a cylinder obstacle under the cloth (the hanging part
 //! meets its rim), and the cloth starts flat at rest. A perfectly symmetric
-//! start would fold only along the grid's symmetry axes, so the free vertices
-//! get a small seeded out-of-plane perturbation (0.2 mm by default), as a real
-//! specimen is never perfectly flat. The run stops once the cloth has settled
+//! start would fold only along the grid's symmetry axes, so the hanging part
+//! starts with a small seeded out-of-plane perturbation (at most 0.2 mm by
+//! default), as a real specimen is never perfectly flat: a smooth field of
+//! the material coordinates ([`StartPerturbation`]), so that every grid
+//! spacing starts from the same shape. The run stops once the cloth has settled
 //! (RMS speed below 2 mm/s for 0.2 s) or at the time limit.
 //!
 //! The coefficient is taken over the nominal annulus (Cusick). By default the
@@ -55,7 +57,8 @@ pub struct DrapeOptions {
     pub dt: f64,
     /// Longest simulated time, s.
     pub max_duration: f64,
-    /// Out-of-plane perturbation of the free vertices at the start, m.
+    /// Largest out-of-plane height of the start perturbation
+    /// ([`StartPerturbation`]), m.
     pub perturbation: f64,
     pub seed: u64,
     /// Raster pixel size of the shadow, m.
@@ -120,6 +123,60 @@ fn next(state: &mut u64) -> f64 {
     (*state >> 11) as f64 / (1u64 << 53) as f64
 }
 
+/// Angular modes of the start perturbation: `cos(kφ)` for k in this range
+/// (Cusick's drapes show 3 to 12 nodes; 2 is the stiffest fabrics' saddle).
+pub const PERTURBATION_MODES: std::ops::RangeInclusive<u32> = 2..=12;
+
+/// The specimen's out-of-plane start perturbation: a smooth seeded field over
+/// the hanging annulus, a function of the material coordinates only, so that
+/// every grid spacing starts from the same shape. It is
+/// `z(r, φ) = A s(r)² Σ_k cos(kφ + φ_k) / N` over the angular modes
+/// [`PERTURBATION_MODES`] with equal amplitudes and seeded random phases `φ_k`,
+/// `s = (r − r_disk)/(r_specimen − r_disk)` clamped to [0, 1] (zero on the
+/// disk, largest at the rim) and `N` the largest |Σ| over φ, so that
+/// `max |z| = A` (the option `perturbation`).
+#[derive(Debug, Clone)]
+pub struct StartPerturbation {
+    amplitude: f64,
+    r_disk: f64,
+    r_specimen: f64,
+    /// (k, phase)
+    modes: Vec<(f64, f64)>,
+    norm: f64,
+}
+
+impl StartPerturbation {
+    pub fn new(opt: &DrapeOptions) -> Self {
+        let mut st = opt.seed.wrapping_mul(0x9E3779B97F4A7C15) | 1;
+        let modes: Vec<(f64, f64)> = PERTURBATION_MODES
+            .map(|k| (k as f64, std::f64::consts::TAU * next(&mut st)))
+            .collect();
+        let sum = |phi: f64| modes.iter().map(|&(k, p)| (k * phi + p).cos()).sum::<f64>();
+        let norm = (0..7200)
+            .map(|i| sum(i as f64 * std::f64::consts::TAU / 7200.0).abs())
+            .fold(0.0, f64::max);
+        StartPerturbation {
+            amplitude: opt.perturbation,
+            r_disk: opt.disk / 2.0,
+            r_specimen: opt.diameter / 2.0,
+            modes,
+            norm,
+        }
+    }
+
+    /// Height at material point (u, v), m.
+    pub fn at(&self, u: f64, v: f64) -> f64 {
+        let r = (u * u + v * v).sqrt();
+        let s = ((r - self.r_disk) / (self.r_specimen - self.r_disk)).clamp(0.0, 1.0);
+        if s == 0.0 {
+            return 0.0;
+        }
+        let phi = v.atan2(u);
+        let sum: f64 = self.modes.iter().map(|&(k, p)| (k * phi + p).cos()).sum();
+        self.amplitude * s * s * sum / self.norm
+    }
+}
+
 /// Runs the drapemeter; returns the report, the final cloth and the shadow.
 pub fn run(
     fabric: &Fabric,
@@ -180,11 +237,10 @@ pub fn run(
     let clamped: Vec<usize> = (0..cloth.len())
         .filter(|&i| radius(&cloth.x[i]) <= rd + 1e-9)
         .collect();
-    let mut st = opt.seed.wrapping_mul(0x9E3779B97F4A7C15) | 1;
+    let bump = StartPerturbation::new(opt);
     for i in 0..cloth.len() {
-        if radius(&cloth.x[i]) > rd + 1e-9 {
-            cloth.x[i].z += opt.perturbation * (2.0 * next(&mut st) - 1.0);
-        }
+        let m = cloth.material[i];
+        cloth.x[i].z += bump.at(m[0], m[1]);
     }
     let mut sim = Simulation::new(cloth, fabric.clone(), params)?;
     sim.obstacles.push(Obstacle::new(
