@@ -131,7 +131,10 @@ fn drape_coefficient_falls_with_weight() {
 ///   which the diagonal springs read as shear (eq. 4.34/4.35 take the angle from
 ///   each diagonal's length alone); the strain grows as (κ·h)², so the coarse
 ///   grid resists folds more and drapes less. With both clamps matched as
-///   above and the fabric's own shear: 61.9 % at 1 cm, 55.2 % at 0.5 cm.
+///   above and the fabric's own shear: 61.9 % at 1 cm, 55.2 % at 0.5 cm; the
+///   cells' Σ u² A where both diagonals change alike is 2.85e-6 against
+///   1.00e-6, the shear proper (their difference) 1.63e-6 against 1.54e-6,
+///   the tension strain the same (RMS 0.15 %).
 ///
 /// The second belongs to the solver's shear element; until it is changed,
 /// matching the clamp alone widens the gap (2.6 → 6.7 points), so the
