@@ -42,6 +42,10 @@ fn all_runs(f: &Fabric, opt: &LabOptions) -> Vec<KesRun> {
 ///   the law over ~3 memory lengths (0.1 cm⁻¹ each).
 ///
 /// Outside those turn-overs every loop is within 2 % (asserted below).
+/// Measured: against the mean of acrylic's warp and weft shear curves (the
+/// law's) both of its shear loops read 2.68 %; with the memory lengths halved
+/// (bending 0.05 cm⁻¹, shear 0.125°, `fabric::Family::memory_length`) cotton's
+/// bending reads 2.40 % and acrylic's weft shear 2.57 %.
 const RMS_EXCEPTIONS: [(&str, KesTest, Direction, f64); 3] = [
     ("acrylic", KesTest::Shear, Direction::Weft, 0.034),
     (
