@@ -42,6 +42,10 @@ fn all_runs(f: &Fabric, opt: &LabOptions) -> Vec<KesRun> {
 ///   the law over ~3 memory lengths (0.1 cm⁻¹ each).
 ///
 /// Outside those turn-overs every loop is within 2 % (asserted below).
+/// Measured: against the mean of acrylic's warp and weft shear curves (the
+/// law's) both of its shear loops read 2.68 %; with the memory lengths halved
+/// (bending 0.05 cm⁻¹, shear 0.125°, `fabric::Family::memory_length`) cotton's
+/// bending reads 2.40 % and acrylic's weft shear 2.57 %.
 const RMS_EXCEPTIONS: [(&str, KesTest, Direction, f64); 3] = [
     ("acrylic", KesTest::Shear, Direction::Weft, 0.034),
     (
@@ -335,4 +339,148 @@ fn kes_command_writes_curve_plot_and_report() {
         err.contains("line 3") && err.contains("bad number"),
         "{err}"
     );
+}
+
+/// The monotone pieces of a test's path `(t, x, f)`: split where the
+/// deformation `x` reverses (tensile: up, down; shear and bending:
+/// 0 → +max, +max → −max, −max → 0).
+fn monotone_pieces(path: &[(f64, f64, f64)]) -> Vec<Vec<(f64, f64)>> {
+    let mut pieces: Vec<Vec<(f64, f64)>> = vec![vec![(path[0].1, path[0].2)]];
+    let mut dir = 0.0f64;
+    for w in path.windows(2) {
+        let dx = w[1].1 - w[0].1;
+        if dx == 0.0 {
+            continue;
+        }
+        if dir != 0.0 && dx.signum() != dir {
+            let last = *pieces.last().unwrap().last().unwrap();
+            pieces.push(vec![last]);
+        }
+        dir = dx.signum();
+        pieces.last_mut().unwrap().push((w[1].1, w[1].2));
+    }
+    pieces
+}
+
+/// Force on the monotone piece `p` at deformation `x` (linear
+/// interpolation), if `x` is within its range.
+fn force_at(p: &[(f64, f64)], x: f64) -> Option<f64> {
+    p.windows(2).find_map(|w| {
+        let (a, b) = (w[0], w[1]);
+        let (lo, hi) = (a.0.min(b.0), a.0.max(b.0));
+        (x >= lo && x <= hi && hi > lo).then(|| a.1 + (b.1 - a.1) * (x - a.0) / (b.0 - a.0))
+    })
+}
+
+/// Deformation where the force on piece `p` first crosses zero (linear
+/// interpolation), if it does.
+fn zero_crossing(p: &[(f64, f64)]) -> Option<f64> {
+    p.windows(2).find_map(|w| {
+        let (a, b) = (w[0], w[1]);
+        (a.1 != 0.0 && a.1.signum() != b.1.signum()).then(|| a.0 - a.1 * (b.0 - a.0) / (b.1 - a.1))
+    })
+}
+
+/// Loop of one virtual test: (largest gap between the loading and unloading
+/// branches at the same deformation, relative to the peak force; residual
+/// deformation where the unloading branch first reaches zero force, relative
+/// to the largest deformation; the deformation, force at the end of the
+/// cycle relative to the largest deformation and the peak force).
+fn loop_shape(r: &KesRun) -> (f64, f64, [f64; 2]) {
+    let pieces = monotone_pieces(&r.path);
+    let expected = if r.test == KesTest::Tensile { 2 } else { 3 };
+    assert_eq!(pieces.len(), expected, "{:?} {:?}", r.test, r.direction);
+    let peak = r.path.iter().fold(0.0f64, |m, p| m.max(p.2.abs()));
+    let xmax = r.path.iter().fold(0.0f64, |m, p| m.max(p.1.abs()));
+    // pairs (loading piece, unloading piece) over the same range
+    let mut gap = 0.0f64;
+    let mut compare = |load: &[(f64, f64)], unload: &[(f64, f64)], sign: f64| {
+        for &(x, f) in unload {
+            // only where both exist, and away from the origin for the last
+            // piece's pair, which starts at the other side's turn
+            if x * sign < 0.0 {
+                continue;
+            }
+            if let Some(fl) = force_at(load, x) {
+                gap = gap.max((f - fl).abs());
+            }
+        }
+    };
+    compare(&pieces[0], &pieces[1], 1.0);
+    if expected == 3 {
+        compare(&pieces[1], &pieces[2], -1.0);
+    }
+    // residual: zero force on the way back from the first turn
+    let residual = match zero_crossing(&pieces[1][1..]) {
+        Some(x) => x,
+        // tensile: the recovery stops at zero force (or at zero strain)
+        None if r.test == KesTest::Tensile => pieces[1].last().unwrap().0,
+        None => panic!("{:?}: the unloading force never reaches zero", r.test),
+    };
+    let end = *r.path.last().unwrap();
+    (gap / peak, residual / xmax, [end.1 / xmax, end.2 / peak])
+}
+
+/// A fabric without hysteresis goes out and back along one curve: the KES
+/// loop closes with zero width and no residual deformation. The same fabric
+/// with its measured hysteresis keeps a residual strain, angle and curvature
+/// after unloading, as KES loops do (thesis Fig. 2.13–2.15, 4.18): acrylic's
+/// RT 62 %, 2HG 0.90 gf/cm, 2HB 0.0245 gf·cm/cm.
+///
+/// Tolerances: a zero-width loop is one whose branches differ by < 0.2 % of
+/// the peak force and whose zero force is within 0.2 % of the largest
+/// deformation (about 7× the measured figures below); what remains is the Rayleigh damping's viscous force at the
+/// slow KES rates (β ≤ 6.8e-3 s times rates ≤ 0.5 cm⁻¹/s), the dead weight's
+/// servo in shear and the sampling of the path at dt.
+#[test]
+fn loops_close_without_hysteresis_and_keep_a_residual_with_it() {
+    let acrylic = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let elastic = acrylic.without_hysteresis();
+    let opt = LabOptions::default();
+    let mut rows = Vec::new();
+    for t in KesTest::ALL {
+        for d in Direction::ALL {
+            let e = run_test(&elastic, t, d, &opt, &mut |_| {}).unwrap();
+            let (gap, residual, end) = loop_shape(&e);
+            let h = run_test(&acrylic, t, d, &opt, &mut |_| {}).unwrap();
+            let (hgap, hresidual, hend) = loop_shape(&h);
+            println!(
+                "{} {}: no hysteresis: width {:.3} % of the peak, residual {:+.3} %, end ({:+.3}, {:+.3}) %; \
+                 measured hysteresis: width {:.1} %, residual {:+.1} % of the largest deformation, end ({:+.1}, {:+.1}) %",
+                t.name(),
+                d.name(),
+                100.0 * gap,
+                100.0 * residual,
+                100.0 * end[0],
+                100.0 * end[1],
+                100.0 * hgap,
+                100.0 * hresidual,
+                100.0 * hend[0],
+                100.0 * hend[1],
+            );
+            rows.push((t, d, gap, residual, end, hgap, hresidual));
+        }
+    }
+    // measured (acrylic, default grid and step): without hysteresis, width
+    // ≤ 0.029 % of the peak, residual ≤ 0.015 %, end ≤ 0.018 %; with it,
+    // widths 22.5–32.8 % of the peak, residual strain 3.7–3.9 % of the
+    // largest (0.20 % strain), angle 7.6 % (0.61°, ≈ 2HG / 2G), curvature
+    // 12.5–13.4 % (0.31–0.34 cm⁻¹, ≈ 2HB / 2B)
+    for (t, d, gap, residual, end, hgap, hresidual) in rows {
+        let what = format!("{} {}", t.name(), d.name());
+        assert!(gap < 0.002, "{what}: elastic loop width {gap}");
+        assert!(
+            residual.abs() < 0.002,
+            "{what}: elastic residual {residual}"
+        );
+        // the cycle ends where it started, unloaded
+        assert!(
+            end[0].abs() < 0.002 && end[1].abs() < 0.002,
+            "{what}: {end:?}"
+        );
+        // with hysteresis: an open loop and a residual of the sign of the
+        // first loading, ten times the elastic tolerance at least
+        assert!(hgap > 0.1, "{what}: loop width {hgap}");
+        assert!(hresidual > 0.02, "{what}: residual {hresidual}");
+    }
 }
