@@ -54,10 +54,14 @@ pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
         els: &mut Vec<E>,
         st: &mut Vec<LawState>,
         key: impl Fn(&E) -> usize,
+        low: impl Fn(&E) -> usize,
         groups: usize,
     ) -> Vec<Range<usize>> {
         let mut idx: Vec<usize> = (0..els.len()).collect();
-        idx.sort_by_key(|&k| key(&els[k]));
+        // by group, then by lowest vertex: [`elements`] walks the three
+        // families in step through vertex tiles, so the blocks they add into
+        // stay in cache
+        idx.sort_by_key(|&k| (key(&els[k]), low(&els[k])));
         *els = idx.iter().map(|&k| els[k]).collect();
         *st = idx.iter().map(|&k| st[k]).collect();
         let mut r = Vec::with_capacity(groups + 1);
@@ -73,18 +77,21 @@ pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
         &mut cloth.tension,
         &mut cloth.tension_state,
         |s| group(&[s.a, s.b]),
+        |s| s.a.min(s.b),
         t,
     );
     let shear = regroup(
         &mut cloth.shear,
         &mut cloth.shear_state,
         |s| group(&[s.a, s.b]),
+        |s| s.a.min(s.b),
         t,
     );
     let hinge = regroup(
         &mut cloth.hinges,
         &mut cloth.hinge_state,
         |h| group(&h.v),
+        |h| h.v.iter().copied().min().unwrap_or(0),
         t,
     );
     Partition {
@@ -161,10 +168,40 @@ struct Out<'a> {
 }
 
 fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: &mut Out) {
+    // the three families advance together through tiles of vertices (the
+    // elements of each group are sorted by lowest vertex), so each tile's
+    // matrix rows are loaded into cache once instead of once per family
+    let c = ctx.c;
+    let (mut t, mut s, mut h) = (tr.start, sr.start, hr.start);
+    let mut bound = 0;
+    while t < tr.end || s < sr.end || h < hr.end {
+        bound += TILE;
+        let t1 = t + c.tension[t..tr.end].partition_point(|e| e.a.min(e.b) < bound);
+        let s1 = s + c.shear[s..sr.end].partition_point(|e| e.a.min(e.b) < bound);
+        let h1 = h
+            + c.hinges[h..hr.end].partition_point(|e| e.v.iter().copied().min().unwrap_or(0) < bound);
+        elements_range(ctx, t..t1, s..s1, h..h1, tr.start, sr.start, hr.start, o);
+        (t, s, h) = (t1, s1, h1);
+    }
+}
+
+/// Vertices per assembly tile (a few grid rows: their blocks fit in L2).
+const TILE: usize = 256;
+
+#[allow(clippy::too_many_arguments)]
+fn elements_range(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    t0: usize,
+    s0: usize,
+    h0: usize,
+    o: &mut Out,
+) {
     let (h, d, f, c, y) = (ctx.h, ctx.d, ctx.f, ctx.c, ctx.y);
     let v = c.v;
     let (bo, vo) = (o.boff, o.voff);
-    let t0 = tr.start;
     for k in tr {
         let s = &c.tension[k];
         let st = &mut o.tstate[k - t0];
@@ -184,7 +221,6 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         };
         axial_element(ctx, o, &ctx.slots.tension[k], &sp);
     }
-    let s0 = sr.start;
     for k in sr {
         let s = &c.shear[k];
         let st = &mut o.sstate[k - s0];
@@ -204,7 +240,6 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         };
         axial_element(ctx, o, &ctx.slots.shear[k], &sp);
     }
-    let h0 = hr.start;
     for k in hr {
         let hg = &c.hinges[k];
         let st = &mut o.hstate[k - h0];
@@ -230,8 +265,12 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
             o.force[hg.v[p] - vo] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
             o.rhs[hg.v[p] - vo] -= gp[p] * (ks * (h * gv + gy));
             if cm != 0.0 {
-                for q in 0..4 {
-                    o.val[sl[4 * p + q] - bo] += gp[p] * gp[q].transpose() * cm;
+                // symmetric: block (q, p) is the transpose of (p, q), bit for bit
+                o.val[sl[5 * p] - bo] += gp[p] * gp[p].transpose() * cm;
+                for q in p + 1..4 {
+                    let m = gp[p] * gp[q].transpose() * cm;
+                    o.val[sl[4 * p + q] - bo] += m;
+                    o.val[sl[4 * q + p] - bo] += m.transpose();
                 }
             }
         }
