@@ -113,7 +113,16 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
-        let nt = super::assemble::threads_for(n).max(1).min(n.max(1));
+        // an iteration on a 101 × 101 cloth takes 0.3 ms on one core: with
+        // three barriers per iteration, a second thread only pays when it is
+        // never descheduled; on the shared 2-core benchmark machine it made
+        // the solve slower (README), so the PCG runs on one thread below
+        // PCG_THREADS_FROM vertices
+        let nt = if n >= PCG_THREADS_FROM {
+            super::assemble::threads_for(n).max(1).min(n)
+        } else {
+            1
+        };
         let sh = Shared {
             r: Ptr(self.r.as_mut_ptr()),
             c: Ptr(self.c.as_mut_ptr()),
@@ -151,6 +160,9 @@ impl Pcg {
         })
     }
 }
+
+/// Vertices from which the PCG runs on several threads.
+pub const PCG_THREADS_FROM: usize = 40_000;
 
 /// Inputs of a PCG solve shared by its threads.
 struct PcgArgs<'a> {
