@@ -21,6 +21,8 @@ pub struct Partition {
     pub tension: Vec<Range<usize>>,
     pub shear: Vec<Range<usize>>,
     pub hinge: Vec<Range<usize>>,
+    /// Largest vertex-index distance within one element.
+    pub span: usize,
 }
 
 /// Number of assembly threads: one per core, at most 8, one for small cloths.
@@ -94,11 +96,23 @@ pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
         |h| h.v.iter().copied().min().unwrap_or(0),
         t,
     );
+    let span = cloth
+        .tension
+        .iter()
+        .map(|s| s.a.abs_diff(s.b))
+        .chain(cloth.shear.iter().map(|s| s.a.abs_diff(s.b)))
+        .chain(cloth.hinges.iter().map(|h| {
+            let (lo, hi) = (h.v.iter().min().unwrap_or(&0), h.v.iter().max().unwrap_or(&0));
+            hi - lo
+        }))
+        .max()
+        .unwrap_or(0);
     Partition {
         bounds,
         tension,
         shear,
         hinge,
+        span,
     }
 }
 
@@ -142,6 +156,11 @@ struct Ctx<'a> {
     c: &'a ClothView<'a>,
     y: &'a [Vector3<f64>],
     slots: &'a Slots,
+    gravity: Vector3<f64>,
+    mass: &'a [f64],
+    row_ptr: &'a [usize],
+    diag: &'a [usize],
+    span: usize,
 }
 
 /// The read-only part of the cloth.
@@ -167,21 +186,61 @@ struct Out<'a> {
     power: f64,
 }
 
-fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: &mut Out) {
+/// Starts rows `rows` of the step: mass and Rayleigh-α terms on the
+/// diagonal, zero elsewhere; gravity and α damping in the force.
+fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
+    let (h, al) = (ctx.h, ctx.d.alpha);
+    for i in rows {
+        let m = ctx.mass[i];
+        let v = ctx.c.v[i];
+        o.force[i - o.voff] = ctx.gravity * m + v * (al * m);
+        o.power += al * m * v.norm_squared();
+        o.rhs[i - o.voff] = Vector3::zeros();
+        for b in &mut o.val[ctx.row_ptr[i] - o.boff..ctx.row_ptr[i + 1] - o.boff] {
+            *b = Matrix3::zeros();
+        }
+        o.val[ctx.diag[i] - o.boff] = Matrix3::identity() * ((1.0 - h * al) * m);
+    }
+}
+
+/// Assembles the given element ranges into `o`; with `init`, `o`'s rows
+/// are started (see [`init_rows`]) just ahead of the tiles that add to them,
+/// so the matrix is walked once.
+fn elements(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    o: &mut Out,
+    init: bool,
+) {
     // the three families advance together through tiles of vertices (the
     // elements of each group are sorted by lowest vertex), so each tile's
     // matrix rows are loaded into cache once instead of once per family
     let c = ctx.c;
     let (mut t, mut s, mut h) = (tr.start, sr.start, hr.start);
+    let vend = o.voff + o.force.len();
+    let mut started = o.voff;
     let mut bound = 0;
     while t < tr.end || s < sr.end || h < hr.end {
         bound += TILE;
+        if init {
+            // this tile's elements reach rows below bound + span
+            let upto = (bound + ctx.span).min(vend);
+            if upto > started {
+                init_rows(ctx, o, started..upto);
+                started = upto;
+            }
+        }
         let t1 = t + c.tension[t..tr.end].partition_point(|e| e.a.min(e.b) < bound);
         let s1 = s + c.shear[s..sr.end].partition_point(|e| e.a.min(e.b) < bound);
         let h1 = h
             + c.hinges[h..hr.end].partition_point(|e| e.v.iter().copied().min().unwrap_or(0) < bound);
         elements_range(ctx, t..t1, s..s1, h..h1, tr.start, sr.start, hr.start, o);
         (t, s, h) = (t1, s1, h1);
+    }
+    if init && started < vend {
+        init_rows(ctx, o, started..vend);
     }
 }
 
@@ -354,14 +413,6 @@ pub fn assemble(
 ) -> f64 {
     let d = fabric.damping;
     let mut power = 0.0;
-    a.clear();
-    for i in 0..cloth.len() {
-        let m = cloth.mass[i];
-        force[i] = gravity * m + cloth.v[i] * (d.alpha * m);
-        power += d.alpha * m * cloth.v[i].norm_squared();
-        rhs[i] = Vector3::zeros();
-        a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
-    }
     let Cloth {
         x,
         v,
@@ -371,6 +422,7 @@ pub fn assemble(
         tension_state,
         shear_state,
         hinge_state,
+        mass,
         ..
     } = cloth;
     let view = ClothView {
@@ -387,6 +439,11 @@ pub fn assemble(
         c: &view,
         y,
         slots,
+        gravity,
+        mass: &mass[..],
+        row_ptr: &a.row_ptr,
+        diag: &a.diag,
+        span: part.span,
     };
     let nt = part.bounds.len() - 1;
     // split every output into per-chunk slices
@@ -441,6 +498,7 @@ pub fn assemble(
             part.shear[0].clone(),
             part.hinge[0].clone(),
             o,
+            true,
         );
     } else {
         std::thread::scope(|sc| {
@@ -453,6 +511,7 @@ pub fn assemble(
                         part.shear[t].clone(),
                         part.hinge[t].clone(),
                         o,
+                        true,
                     )
                 });
             }
@@ -478,6 +537,7 @@ pub fn assemble(
         part.shear[nt].clone(),
         part.hinge[nt].clone(),
         &mut o,
+        false,
     );
     power += o.power;
     for i in 0..o.force.len() {
