@@ -105,7 +105,13 @@ impl Hysteresis {
             st.dir
         };
         let (h, dh) = self.half_width(x);
-        let e = (-dx.abs() / self.xs).exp();
+        // exp(−0) = 1 exactly: skip the call when the state is evaluated
+        // where it was committed (every assembly does that)
+        let e = if dx == 0.0 {
+            1.0
+        } else {
+            (-dx.abs() / self.xs).exp()
+        };
         let sp = s * h + (st.sp - s * h) * e;
         let dsp = s * dh * (1.0 - e) + (h - s * st.sp) * e / self.xs;
         (sp, dsp)

@@ -21,6 +21,8 @@ pub struct Partition {
     pub tension: Vec<Range<usize>>,
     pub shear: Vec<Range<usize>>,
     pub hinge: Vec<Range<usize>>,
+    /// Largest vertex-index distance within one element.
+    pub span: usize,
 }
 
 /// Number of assembly threads: one per core, at most 8, one for small cloths.
@@ -54,10 +56,14 @@ pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
         els: &mut Vec<E>,
         st: &mut Vec<LawState>,
         key: impl Fn(&E) -> usize,
+        low: impl Fn(&E) -> usize,
         groups: usize,
     ) -> Vec<Range<usize>> {
         let mut idx: Vec<usize> = (0..els.len()).collect();
-        idx.sort_by_key(|&k| key(&els[k]));
+        // by group, then by lowest vertex: [`elements`] walks the three
+        // families in step through vertex tiles, so the blocks they add into
+        // stay in cache
+        idx.sort_by_key(|&k| (key(&els[k]), low(&els[k])));
         *els = idx.iter().map(|&k| els[k]).collect();
         *st = idx.iter().map(|&k| st[k]).collect();
         let mut r = Vec::with_capacity(groups + 1);
@@ -73,25 +79,43 @@ pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
         &mut cloth.tension,
         &mut cloth.tension_state,
         |s| group(&[s.a, s.b]),
+        |s| s.a.min(s.b),
         t,
     );
     let shear = regroup(
         &mut cloth.shear,
         &mut cloth.shear_state,
         |s| group(&[s.a, s.b]),
+        |s| s.a.min(s.b),
         t,
     );
     let hinge = regroup(
         &mut cloth.hinges,
         &mut cloth.hinge_state,
         |h| group(&h.v),
+        |h| h.v.iter().copied().min().unwrap_or(0),
         t,
     );
+    let span = cloth
+        .tension
+        .iter()
+        .map(|s| s.a.abs_diff(s.b))
+        .chain(cloth.shear.iter().map(|s| s.a.abs_diff(s.b)))
+        .chain(cloth.hinges.iter().map(|h| {
+            let (lo, hi) = (
+                h.v.iter().min().unwrap_or(&0),
+                h.v.iter().max().unwrap_or(&0),
+            );
+            hi - lo
+        }))
+        .max()
+        .unwrap_or(0);
     Partition {
         bounds,
         tension,
         shear,
         hinge,
+        span,
     }
 }
 
@@ -135,6 +159,11 @@ struct Ctx<'a> {
     c: &'a ClothView<'a>,
     y: &'a [Vector3<f64>],
     slots: &'a Slots,
+    gravity: Vector3<f64>,
+    mass: &'a [f64],
+    row_ptr: &'a [usize],
+    diag: &'a [usize],
+    span: usize,
 }
 
 /// The read-only part of the cloth.
@@ -160,11 +189,81 @@ struct Out<'a> {
     power: f64,
 }
 
-fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: &mut Out) {
+/// Starts rows `rows` of the step: mass and Rayleigh-α terms on the
+/// diagonal, zero elsewhere; gravity and α damping in the force.
+fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
+    let (h, al) = (ctx.h, ctx.d.alpha);
+    for i in rows {
+        let m = ctx.mass[i];
+        let v = ctx.c.v[i];
+        o.force[i - o.voff] = ctx.gravity * m + v * (al * m);
+        o.power += al * m * v.norm_squared();
+        o.rhs[i - o.voff] = Vector3::zeros();
+        for b in &mut o.val[ctx.row_ptr[i] - o.boff..ctx.row_ptr[i + 1] - o.boff] {
+            *b = Matrix3::zeros();
+        }
+        o.val[ctx.diag[i] - o.boff] = Matrix3::identity() * ((1.0 - h * al) * m);
+    }
+}
+
+/// Assembles the given element ranges into `o`; with `init`, `o`'s rows
+/// are started (see [`init_rows`]) just ahead of the tiles that add to them,
+/// so the matrix is walked once.
+fn elements(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    o: &mut Out,
+    init: bool,
+) {
+    // the three families advance together through tiles of vertices (the
+    // elements of each group are sorted by lowest vertex), so each tile's
+    // matrix rows are loaded into cache once instead of once per family
+    let c = ctx.c;
+    let (mut t, mut s, mut h) = (tr.start, sr.start, hr.start);
+    let vend = o.voff + o.force.len();
+    let mut started = o.voff;
+    let mut bound = 0;
+    while t < tr.end || s < sr.end || h < hr.end {
+        bound += TILE;
+        if init {
+            // this tile's elements reach rows below bound + span
+            let upto = (bound + ctx.span).min(vend);
+            if upto > started {
+                init_rows(ctx, o, started..upto);
+                started = upto;
+            }
+        }
+        let t1 = t + c.tension[t..tr.end].partition_point(|e| e.a.min(e.b) < bound);
+        let s1 = s + c.shear[s..sr.end].partition_point(|e| e.a.min(e.b) < bound);
+        let h1 = h + c.hinges[h..hr.end]
+            .partition_point(|e| e.v.iter().copied().min().unwrap_or(0) < bound);
+        elements_range(ctx, t..t1, s..s1, h..h1, tr.start, sr.start, hr.start, o);
+        (t, s, h) = (t1, s1, h1);
+    }
+    if init && started < vend {
+        init_rows(ctx, o, started..vend);
+    }
+}
+
+/// Vertices per assembly tile (a few grid rows: their blocks fit in L2).
+const TILE: usize = 256;
+
+#[allow(clippy::too_many_arguments)]
+fn elements_range(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    t0: usize,
+    s0: usize,
+    h0: usize,
+    o: &mut Out,
+) {
     let (h, d, f, c, y) = (ctx.h, ctx.d, ctx.f, ctx.c, ctx.y);
     let v = c.v;
     let (bo, vo) = (o.boff, o.voff);
-    let t0 = tr.start;
     for k in tr {
         let s = &c.tension[k];
         let st = &mut o.tstate[k - t0];
@@ -184,7 +283,6 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         };
         axial_element(ctx, o, &ctx.slots.tension[k], &sp);
     }
-    let s0 = sr.start;
     for k in sr {
         let s = &c.shear[k];
         let st = &mut o.sstate[k - s0];
@@ -204,7 +302,6 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
         };
         axial_element(ctx, o, &ctx.slots.shear[k], &sp);
     }
-    let h0 = hr.start;
     for k in hr {
         let hg = &c.hinges[k];
         let st = &mut o.hstate[k - h0];
@@ -230,8 +327,12 @@ fn elements(ctx: &Ctx, tr: Range<usize>, sr: Range<usize>, hr: Range<usize>, o: 
             o.force[hg.v[p] - vo] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
             o.rhs[hg.v[p] - vo] -= gp[p] * (ks * (h * gv + gy));
             if cm != 0.0 {
-                for q in 0..4 {
-                    o.val[sl[4 * p + q] - bo] += gp[p] * gp[q].transpose() * cm;
+                // symmetric: block (q, p) is the transpose of (p, q), bit for bit
+                o.val[sl[5 * p] - bo] += gp[p] * gp[p].transpose() * cm;
+                for q in p + 1..4 {
+                    let m = gp[p] * gp[q].transpose() * cm;
+                    o.val[sl[4 * p + q] - bo] += m;
+                    o.val[sl[4 * q + p] - bo] += m.transpose();
                 }
             }
         }
@@ -315,14 +416,6 @@ pub fn assemble(
 ) -> f64 {
     let d = fabric.damping;
     let mut power = 0.0;
-    a.clear();
-    for i in 0..cloth.len() {
-        let m = cloth.mass[i];
-        force[i] = gravity * m + cloth.v[i] * (d.alpha * m);
-        power += d.alpha * m * cloth.v[i].norm_squared();
-        rhs[i] = Vector3::zeros();
-        a.val[a.diag[i]] = Matrix3::identity() * ((1.0 - h * d.alpha) * m);
-    }
     let Cloth {
         x,
         v,
@@ -332,6 +425,7 @@ pub fn assemble(
         tension_state,
         shear_state,
         hinge_state,
+        mass,
         ..
     } = cloth;
     let view = ClothView {
@@ -348,6 +442,11 @@ pub fn assemble(
         c: &view,
         y,
         slots,
+        gravity,
+        mass: &mass[..],
+        row_ptr: &a.row_ptr,
+        diag: &a.diag,
+        span: part.span,
     };
     let nt = part.bounds.len() - 1;
     // split every output into per-chunk slices
@@ -402,6 +501,7 @@ pub fn assemble(
             part.shear[0].clone(),
             part.hinge[0].clone(),
             o,
+            true,
         );
     } else {
         std::thread::scope(|sc| {
@@ -414,6 +514,7 @@ pub fn assemble(
                         part.shear[t].clone(),
                         part.hinge[t].clone(),
                         o,
+                        true,
                     )
                 });
             }
@@ -439,6 +540,7 @@ pub fn assemble(
         part.shear[nt].clone(),
         part.hinge[nt].clone(),
         &mut o,
+        false,
     );
     power += o.power;
     for i in 0..o.force.len() {

@@ -16,6 +16,7 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -93,6 +94,13 @@ impl Pcg {
     /// residual (relative to the right-hand side's, so the start does not
     /// change when it stops); `dv` holds the first guess (its filtered part;
     /// zeros for none) and then the solution. Returns the iteration count.
+    ///
+    /// The whole solve runs on [`super::assemble::threads_for`] threads
+    /// started once per solve: each owns a contiguous range of rows and does
+    /// the product, the vector updates and its part of the dot products on
+    /// it; three barriers per iteration, partial sums added in a fixed order
+    /// (so every thread takes the same branches and the result does not
+    /// depend on scheduling).
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -110,75 +118,255 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
-        for i in 0..n {
-            let d = a.val[a.diag[i]];
-            self.pinv[i] = d.try_inverse().unwrap_or_else(|| {
-                Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300)))
-            });
+        // an iteration on a 101 × 101 cloth takes 0.3 ms on one core: with
+        // three barriers per iteration, a second thread only pays when it is
+        // never descheduled; on the shared 2-core benchmark machine it made
+        // the solve slower (README), so the PCG runs on one thread below
+        // PCG_THREADS_FROM vertices
+        let nt = if n >= PCG_THREADS_FROM {
+            super::assemble::threads_for(n).max(1).min(n)
+        } else {
+            1
+        };
+        let sh = Shared {
+            r: Ptr(self.r.as_mut_ptr()),
+            c: Ptr(self.c.as_mut_ptr()),
+            q: Ptr(self.q.as_mut_ptr()),
+            s: Ptr(self.s.as_mut_ptr()),
+            pinv: Ptr(self.pinv.as_mut_ptr()),
+            dv: Ptr(dv.as_mut_ptr()),
+            partial: (0..3 * nt).map(|_| AtomicU64::new(0)).collect(),
+            barrier: SpinBarrier::new(nt),
+            nt,
+        };
+        let args = PcgArgs {
+            a,
+            b,
+            filter,
+            z,
+            tol,
+            max_iter,
+        };
+        if nt == 1 {
+            return pcg_rows(&args, &sh, 0);
         }
+        std::thread::scope(|sc| {
+            let handles: Vec<_> = (1..nt)
+                .map(|t| {
+                    let (args, sh) = (&args, &sh);
+                    sc.spawn(move || pcg_rows(args, sh, t))
+                })
+                .collect();
+            let r0 = pcg_rows(&args, &sh, 0);
+            for h in handles {
+                let _ = h.join();
+            }
+            r0
+        })
+    }
+}
+
+/// Vertices from which the PCG runs on several threads.
+pub const PCG_THREADS_FROM: usize = 40_000;
+
+/// Inputs of a PCG solve shared by its threads.
+struct PcgArgs<'a> {
+    a: &'a BlockMatrix,
+    b: &'a [Vector3<f64>],
+    filter: &'a [Filter],
+    z: &'a [Vector3<f64>],
+    tol: f64,
+    max_iter: usize,
+}
+
+#[derive(Clone, Copy)]
+struct Ptr<T>(*mut T);
+unsafe impl<T> Send for Ptr<T> {}
+unsafe impl<T> Sync for Ptr<T> {}
+
+/// The PCG vectors, written by row ranges (each thread only its own rows;
+/// `c` is read whole by the product, between barriers).
+struct Shared {
+    r: Ptr<Vector3<f64>>,
+    c: Ptr<Vector3<f64>>,
+    q: Ptr<Vector3<f64>>,
+    s: Ptr<Vector3<f64>>,
+    pinv: Ptr<Matrix3<f64>>,
+    dv: Ptr<Vector3<f64>>,
+    /// Per-thread partial sums, 3 slots per thread.
+    partial: Vec<AtomicU64>,
+    barrier: SpinBarrier,
+    nt: usize,
+}
+
+impl Shared {
+    fn put(&self, t: usize, slot: usize, v: f64) {
+        self.partial[3 * t + slot].store(v.to_bits(), Ordering::Relaxed);
+    }
+    /// Sum of every thread's partial in `slot` (after a barrier), in thread order.
+    fn sum(&self, slot: usize) -> f64 {
+        (0..self.nt)
+            .map(|t| f64::from_bits(self.partial[3 * t + slot].load(Ordering::Relaxed)))
+            .sum()
+    }
+}
+
+/// Sense-reversing barrier that spins briefly, then yields (the machine may
+/// be shared, so it never spins for long).
+struct SpinBarrier {
+    n: usize,
+    count: AtomicUsize,
+    generation: AtomicUsize,
+}
+
+impl SpinBarrier {
+    fn new(n: usize) -> Self {
+        SpinBarrier {
+            n,
+            count: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+        }
+    }
+    fn wait(&self) {
+        if self.n == 1 {
+            return;
+        }
+        let g = self.generation.load(Ordering::Acquire);
+        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
+            self.count.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::AcqRel);
+            return;
+        }
+        let mut spins = 0u32;
+        while self.generation.load(Ordering::Acquire) == g {
+            if spins < 4000 {
+                std::hint::spin_loop();
+                spins += 1;
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
+/// One thread's part of the filtered PCG (rows `lo..hi` of thread `t`).
+fn pcg_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
+    let n = a.n;
+    let lo = t * n / sh.nt;
+    let hi = (t + 1) * n / sh.nt;
+    let len = hi - lo;
+    // SAFETY: thread t writes only rows lo..hi of r, q, s, pinv, dv and c;
+    // the whole of c is read only between the barrier after its update and
+    // the barrier before the next one.
+    let own = |p: Ptr<Vector3<f64>>| unsafe { std::slice::from_raw_parts_mut(p.0.add(lo), len) };
+    let r = own(sh.r);
+    let q = own(sh.q);
+    let s = own(sh.s);
+    let dv = own(sh.dv);
+    let c_own = own(sh.c);
+    let pinv = unsafe { std::slice::from_raw_parts_mut(sh.pinv.0.add(lo), len) };
+    let c_all = sh.c.0 as *const Vector3<f64>;
+    let dv_all = sh.dv.0 as *const Vector3<f64>;
+    let (f, bb, zz) = (&filter[lo..hi], &b[lo..hi], &z[lo..hi]);
+    let mut delta0 = 0.0;
+    for k in 0..len {
+        let d = a.val[a.diag[lo + k]];
+        pinv[k] = d
+            .try_inverse()
+            .unwrap_or_else(|| Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300))));
         // start from the caller's guess in dv (the last step's Δv: at small
         // steps Δv changes little from step to step), made to obey the filter
-        for i in 0..n {
-            let g = if dv[i].iter().all(|c| c.is_finite()) {
-                filter[i].apply(&dv[i])
-            } else {
-                Vector3::zeros()
-            };
-            dv[i] = g + z[i];
-        }
+        let g = if dv[k].iter().all(|c| c.is_finite()) {
+            f[k].apply(&dv[k])
+        } else {
+            Vector3::zeros()
+        };
+        dv[k] = g + zz[k];
         // δ0 = filter(b)ᵀ P⁻¹ filter(b)
-        let mut delta0 = 0.0;
-        for i in 0..n {
-            let fb = filter[i].apply(&b[i]);
-            delta0 += fb.dot(&(self.pinv[i] * fb));
-        }
-        a.mul(dv, &mut self.q);
-        let mut dnew = 0.0;
-        for i in 0..n {
-            self.r[i] = filter[i].apply(&(b[i] - self.q[i]));
-            self.c[i] = filter[i].apply(&(self.pinv[i] * self.r[i]));
-            dnew += self.r[i].dot(&self.c[i]);
-        }
-        if delta0 <= 0.0 {
-            return Ok(0);
-        }
-        let eps2 = tol * tol * delta0;
-        let mut it = 0;
-        while dnew > eps2 {
-            if it >= max_iter {
-                return Err(anyhow!(
-                    "PCG did not converge in {max_iter} iterations (residual ratio {:.2e})",
-                    (dnew / delta0).sqrt()
-                ));
-            }
-            a.mul(&self.c, &mut self.q);
-            let mut cq = 0.0;
-            for i in 0..n {
-                self.q[i] = filter[i].apply(&self.q[i]);
-                cq += self.c[i].dot(&self.q[i]);
-            }
-            if cq <= 0.0 || !cq.is_finite() {
-                return Err(anyhow!(
-                    "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
-                ));
-            }
-            let alpha = dnew / cq;
-            let dold = dnew;
-            dnew = 0.0;
-            for i in 0..n {
-                dv[i] += self.c[i] * alpha;
-                self.r[i] -= self.q[i] * alpha;
-                self.s[i] = self.pinv[i] * self.r[i];
-                dnew += self.r[i].dot(&self.s[i]);
-            }
-            let beta = dnew / dold;
-            for i in 0..n {
-                self.c[i] = filter[i].apply(&(self.s[i] + self.c[i] * beta));
-            }
-            it += 1;
-        }
-        Ok(it)
+        let fb = f[k].apply(&bb[k]);
+        delta0 += fb.dot(&(pinv[k] * fb));
     }
+    sh.put(t, 0, delta0);
+    sh.barrier.wait();
+    let mut dnew = 0.0;
+    {
+        let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
+        for k in 0..len {
+            let ax = row_mul(a, lo + k, x);
+            r[k] = f[k].apply(&(bb[k] - ax));
+            c_own[k] = f[k].apply(&(pinv[k] * r[k]));
+            dnew += r[k].dot(&c_own[k]);
+        }
+    }
+    sh.put(t, 1, dnew);
+    let delta0 = sh.sum(0);
+    sh.barrier.wait();
+    let mut dnew = sh.sum(1);
+    if delta0 <= 0.0 {
+        return Ok(0);
+    }
+    let eps2 = args.tol * args.tol * delta0;
+    let mut it = 0;
+    while dnew > eps2 {
+        if it >= args.max_iter {
+            return Err(anyhow!(
+                "PCG did not converge in {} iterations (residual ratio {:.2e})",
+                args.max_iter,
+                (dnew / delta0).sqrt()
+            ));
+        }
+        // q = S A c, cᵀq (c is complete here)
+        let mut cq = 0.0;
+        {
+            let c = unsafe { std::slice::from_raw_parts(c_all, n) };
+            for k in 0..len {
+                let v = f[k].apply(&row_mul(a, lo + k, c));
+                q[k] = v;
+                cq += c[lo + k].dot(&v);
+            }
+        }
+        sh.put(t, 2, cq);
+        sh.barrier.wait();
+        let cq = sh.sum(2);
+        if cq <= 0.0 || !cq.is_finite() {
+            return Err(anyhow!(
+                "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
+            ));
+        }
+        let alpha = dnew / cq;
+        let dold = dnew;
+        let mut dn = 0.0;
+        for k in 0..len {
+            dv[k] += c_own[k] * alpha;
+            r[k] -= q[k] * alpha;
+            s[k] = pinv[k] * r[k];
+            dn += r[k].dot(&s[k]);
+        }
+        // slot 1 was last read before the previous barrier
+        sh.put(t, 1, dn);
+        // everyone has finished reading c for the product (barrier above), so
+        // c may be updated after the sum is known
+        sh.barrier.wait();
+        dnew = sh.sum(1);
+        let beta = dnew / dold;
+        for k in 0..len {
+            c_own[k] = f[k].apply(&(s[k] + c_own[k] * beta));
+        }
+        // c complete before the next product; slot 1 read by all before reuse
+        sh.barrier.wait();
+        it += 1;
+    }
+    Ok(it)
+}
+
+#[inline]
+fn row_mul(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
+    let mut s = Vector3::zeros();
+    for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+        s += a.val[k] * x[a.col[k]];
+    }
+    s
 }
 
 /// Direct solver: Cholesky of `S A S + (I − S) m` (SPD), symbolic analysis once.
