@@ -437,15 +437,15 @@ impl Direct {
 
     /// PCG iterations that cost as much as one factorisation and solve, by
     /// operation counts: the factorisation ≈ nnz(L)²/n flops, a PCG iteration
-    /// ≈ 2 nnz(A) + 30 n, with κ = 0.46 for the dense supernodal kernels'
+    /// ≈ 2 nnz(A) + 30 n, with κ = 0.55 for the dense supernodal kernels'
     /// speed relative to the sparse products (fitted to this machine's
-    /// benchmark: break-even at 63, 150 and 385 iterations on the 2, 1 and
-    /// 0.5 cm table drapes; the formula gives 58, 150, 417).
+    /// benchmark: break-even at 77, 168 and 445 iterations on the 2, 1 and
+    /// 0.5 cm table drapes; the formula gives 70, 179, 499).
     pub fn break_even_iterations(&self, a: &BlockMatrix) -> usize {
         let n = self.csc.dim as f64;
         let l = self.nnz_l() as f64;
         let per_iter = 2.0 * 9.0 * a.col.len() as f64 + 30.0 * n;
-        (0.46 * l * l / n / per_iter).round().max(10.0) as usize
+        (0.55 * l * l / n / per_iter).round().max(10.0) as usize
     }
 
     pub fn solve(
