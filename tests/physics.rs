@@ -294,7 +294,7 @@ fn pins_follow_their_path_exactly() {
 
 /// The default solver decides on iteration counts, not on measured time: two
 /// runs of a drape where it uses both the PCG and the Cholesky (1 cm, dt =
-/// 4 ms: the PCG needs about its break-even count of 150 iterations) end bit
+/// 4 ms: the PCG needs about its break-even count, ~180 iterations) end bit
 /// for bit the same.
 #[test]
 fn auto_solver_runs_are_reproducible() {
