@@ -302,7 +302,7 @@ fn real_main(cli: Cli) -> Result<()> {
                     rec.rate_hz = bag.bag_rate;
                     rec.options.compression = bag.bag_compression;
                     rec.options.chunk_size = bag.bag_chunk_size;
-                    let stop = gb::stop_flag()?;
+                    let stop = garment_sim::run::stop_flag()?;
                     let r = gb::drape_recorded(&sc, &ov, &out, &mut pr, &rec, &stop)?;
                     (r.summary.clone(), Some(r))
                 }

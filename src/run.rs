@@ -7,6 +7,8 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use std::io::Write;
 use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// One row of `energy.csv`.
@@ -282,4 +284,24 @@ pub fn write_energy_csv(rows: &[EnergyRow], path: &Path) -> Result<()> {
     }
     w.flush()?;
     Ok(())
+}
+
+static STOP: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);
+
+/// The process-wide stop flag, set by SIGINT or SIGTERM (handlers installed
+/// on the first call). A second SIGINT/SIGTERM while the flag is set exits
+/// the process at once (status 1), so a stuck run can still be interrupted.
+pub fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let mut g = STOP.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(f) = g.as_ref() {
+        return Ok(f.clone());
+    }
+    let f = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // order matters: the shutdown check sees the flag before this signal sets it
+        signal_hook::flag::register_conditional_shutdown(sig, 1, f.clone())?;
+        signal_hook::flag::register(sig, f.clone())?;
+    }
+    *g = Some(f.clone());
+    Ok(f)
 }

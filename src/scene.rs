@@ -216,8 +216,8 @@ pub struct Scene {
     pub fabric: Fabric,
 }
 
-/// Command-line overrides.
-#[derive(Debug, Clone, Default)]
+/// Command-line overrides (SI: m, s).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Overrides {
     pub spacing: Option<f64>,
     pub dt: Option<f64>,
@@ -236,9 +236,21 @@ impl Scene {
         Scene::from_file(file, path)
     }
 
+    /// The fabric file a scene file names (relative to the scene file's folder).
+    pub fn fabric_path_of(file: &SceneFile, path: &Path) -> PathBuf {
+        path.parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
+            .join(&file.cloth.fabric)
+    }
+
+    /// This scene's fabric file.
+    pub fn fabric_path(&self) -> PathBuf {
+        Scene::fabric_path_of(&self.file, &self.path)
+    }
+
     pub fn from_file(file: SceneFile, path: &Path) -> Result<Scene> {
-        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let fpath = base.join(&file.cloth.fabric);
+        let fpath = Scene::fabric_path_of(&file, path);
         let fabric = Fabric::load(&fpath)
             .with_context(|| format!("scene file {}: cloth.fabric", path.display()))?;
         let s = Scene {

@@ -243,25 +243,31 @@ def test_bag_info_and_export():
     assert r.returncode != 0 and "already exists" in r.stderr, r.stderr
 
 
+def wait_for_messages(p, bag, at_least, timeout=120):
+    """Waits until the running process `p` has flushed at least `at_least`
+    messages into `bag` (as metadata.yaml, rewritten per chunk, says);
+    returns that count."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        try:
+            count = metadata(bag)["message_count"]
+        except (FileNotFoundError, TypeError, KeyError, yaml.YAMLError):
+            count = 0
+        if count >= at_least:
+            return count
+        assert p.poll() is None, p.communicate()
+        time.sleep(0.05)
+    p.kill()
+    raise AssertionError(f"{bag} never held {at_least} messages")
+
+
 def start_long_drape(bag):
     """A long drape recording every step in small chunks, signalled once it
     has flushed chunks: returns the process and the metadata count then."""
     cmd = [BIN, "drape", SCENE, *RUN, "--duration", "60", "--out", str(bag.parent / (bag.name + "_out")),
            "--bag", str(bag), "--bag-rate", "1000", "--bag-chunk-size", "65536"]
     p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.time() + 120
-    count = 0
-    while time.time() < deadline:
-        try:
-            count = metadata(bag)["message_count"]
-        except (FileNotFoundError, TypeError, KeyError, yaml.YAMLError):
-            count = 0
-        if count >= 60:
-            return p, count
-        assert p.poll() is None, p.communicate()
-        time.sleep(0.05)
-    p.kill()
-    raise AssertionError("the bag never filled a chunk")
+    return p, wait_for_messages(p, bag, 60)
 
 
 def clouds_mcap_stream(path):
@@ -385,15 +391,7 @@ def test_node_records_the_same_trajectory_as_a_headless_run():
 def test_node_stopped_by_sigterm_leaves_a_complete_bag():
     nb = TMP / "node_sigterm"
     p = node(nb)  # runs until stopped
-    deadline = time.time() + 60
-    while time.time() < deadline:
-        try:
-            if metadata(nb)["topics_with_message_count"][0]["message_count"] >= 3:
-                break
-        except (FileNotFoundError, TypeError, KeyError, IndexError, yaml.YAMLError):
-            pass
-        assert p.poll() is None, p.communicate()
-        time.sleep(0.05)
+    wait_for_messages(p, nb, 16, timeout=60)  # at least 3 frames of 5 messages and the description
     # metadata.yaml is rewritten per chunk; give the node a moment of simulated time
     time.sleep(0.5)
     p.send_signal(signal.SIGTERM)
@@ -412,18 +410,7 @@ def test_node_stopped_by_sigterm_leaves_a_complete_bag():
 def test_node_in_a_namespace_killed_leaves_a_repairable_bag():
     nb = TMP / "node_killed"
     p = node(nb, "-r", "__ns:=/lab")  # runs until stopped
-    deadline = time.time() + 60
-    before = 0
-    while time.time() < deadline:
-        try:
-            before = metadata(nb)["message_count"]
-        except (FileNotFoundError, TypeError, KeyError, yaml.YAMLError):
-            before = 0
-        if before >= 30:
-            break
-        assert p.poll() is None, p.communicate()
-        time.sleep(0.05)
-    assert before >= 30
+    before = wait_for_messages(p, nb, 30, timeout=60)
     p.kill()
     p.communicate(timeout=60)
     md = metadata(nb)

@@ -10,7 +10,7 @@
 
 mod common;
 
-use garment_sim::bag::FrameClock;
+use garment_sim::ros::publish::FrameClock;
 use garment_sim::scene::{Overrides, Scene};
 use std::path::Path;
 
@@ -32,7 +32,7 @@ fn write_expected(path: &Path) {
         ..Default::default()
     };
     let mut sim = sc.build(&ov).unwrap();
-    let mut clock = FrameClock::new(RATE, sim.time).unwrap();
+    let mut clock = FrameClock::new(sim.time);
     let mut times = Vec::new();
     let mut frames: Vec<Vec<f64>> = Vec::new();
     let mut sample = |sim: &garment_sim::solver::Simulation, times: &mut Vec<f64>| {
@@ -40,12 +40,12 @@ fn write_expected(path: &Path) {
         frames.push(sim.cloth.x.iter().flat_map(|p| [p.x, p.y, p.z]).collect());
     };
     let steps = (DURATION / DT).round() as usize;
-    if clock.due(sim.time) {
+    if clock.due(sim.time, RATE) {
         sample(&sim, &mut times);
     }
     for k in 1..=steps {
         sim.step().unwrap();
-        if clock.due(sim.time) || k == steps && times.last() != Some(&sim.time) {
+        if clock.due(sim.time, RATE) || k == steps && times.last() != Some(&sim.time) {
             sample(&sim, &mut times);
         }
     }

@@ -32,74 +32,19 @@ pub mod writer;
 
 pub use metadata::{BagInformation, Qos};
 pub use reader::{Ending, Reader};
-pub use recorder::{scene_description, Frame, SimRecorder, TopicNames, TopicQos};
+pub use recorder::{scene_description, Frame, SimRecorder, TopicNames};
 pub use tools::{
     info, repair, shape_at, write_shape, BagInfo, ExportTime, RepairReport, Shape, ShapeFormat,
 };
 pub use writer::{BagOptions, BagSummary, Compression, Writer};
 
-use crate::ros::publish::DiagnosticFigures;
+use crate::ros::publish::{DiagnosticFigures, FrameClock};
 use crate::run::{self, Control, Progress};
 use crate::scene::{Overrides, Scene};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-static STOP: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);
-
-/// The process-wide stop flag, set by SIGINT or SIGTERM (handlers installed
-/// on the first call). A second SIGINT/SIGTERM while the flag is set exits
-/// the process at once (status 1), so a stuck run can still be interrupted.
-pub fn stop_flag() -> Result<Arc<AtomicBool>> {
-    let mut g = STOP.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(f) = g.as_ref() {
-        return Ok(f.clone());
-    }
-    let f = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        // order matters: the shutdown check sees the flag before this signal sets it
-        signal_hook::flag::register_conditional_shutdown(sig, 1, f.clone())?;
-        signal_hook::flag::register(sig, f.clone())?;
-    }
-    *g = Some(f.clone());
-    Ok(f)
-}
-
-/// When frames are due, as the node publishes: the first step at or after
-/// each multiple of the period (1/rate) of simulated time, so that a bag
-/// written headless and one recorded by the node hold the same stamps.
-#[derive(Debug, Clone)]
-pub struct FrameClock {
-    period: f64,
-    next: f64,
-}
-
-impl FrameClock {
-    /// Frames at `rate_hz` from simulated time `t0`.
-    pub fn new(rate_hz: f64, t0: f64) -> Result<FrameClock> {
-        if !(rate_hz.is_finite() && rate_hz > 0.0) {
-            bail!("bag rate {rate_hz} Hz: must be a finite number > 0");
-        }
-        Ok(FrameClock {
-            period: 1.0 / rate_hz,
-            next: t0,
-        })
-    }
-
-    /// Whether a frame is due at simulated time `t` (and if so, schedules the next).
-    pub fn due(&mut self, t: f64) -> bool {
-        if t + 1e-12 < self.next {
-            return false;
-        }
-        self.next += self.period;
-        if self.next < t {
-            self.next = t + self.period;
-        }
-        true
-    }
-}
 
 /// How `drape --bag` records.
 #[derive(Debug, Clone)]
@@ -151,7 +96,10 @@ pub fn drape_recorded(
     stop: &AtomicBool,
 ) -> Result<DrapeRecorded> {
     let sim = scene.build(ov)?;
-    let mut clock = FrameClock::new(bag.rate_hz, sim.time)?;
+    if !(bag.rate_hz.is_finite() && bag.rate_hz > 0.0) {
+        bail!("bag rate {} Hz: must be a finite number > 0", bag.rate_hz);
+    }
+    let mut clock = FrameClock::new(sim.time);
     let description = scene_description(scene, ov, &sim)?;
     let mut rec = SimRecorder::create(&bag.dir, &bag.options, &bag.topics, &description)?;
     let mut last = (Instant::now(), sim.steps, sim.time);
@@ -159,7 +107,7 @@ pub fn drape_recorded(
     let mut stopped = false;
     let mut record_s = 0.0;
     let mut observer = |s: &crate::solver::Simulation| -> Result<Control> {
-        if clock.due(s.time) {
+        if clock.due(s.time, bag.rate_hz) {
             let now = Instant::now();
             let (n, t) = (s.steps - last.1, s.time - last.2);
             let wall = now.duration_since(last.0).as_secs_f64();

@@ -363,13 +363,27 @@ impl Reader {
         Ok(())
     }
 
-    /// Every message of one topic: (log time ns, CDR bytes).
-    pub fn topic_messages(&self, topic: &str) -> Result<Vec<(u64, Vec<u8>)>> {
+    /// Log times (ns) of every message of one topic, in file order.
+    pub fn log_times(&self, topic: &str) -> Result<Vec<u64>> {
         let id = self.channel(topic)?.id;
         let mut out = Vec::new();
         self.for_each_message(|m| {
             if m.channel.id == id {
-                out.push((m.log_time, m.data.to_vec()));
+                out.push(m.log_time);
+            }
+            Ok(ControlFlow::Continue(()))
+        })?;
+        Ok(out)
+    }
+
+    /// The CDR bytes of the first message of `topic` logged at `log_time`.
+    pub fn message_at(&self, topic: &str, log_time: u64) -> Result<Option<Vec<u8>>> {
+        let id = self.channel(topic)?.id;
+        let mut out = None;
+        self.for_each_message(|m| {
+            if m.channel.id == id && m.log_time == log_time {
+                out = Some(m.data.to_vec());
+                return Ok(ControlFlow::Break(()));
             }
             Ok(ControlFlow::Continue(()))
         })?;

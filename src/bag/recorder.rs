@@ -47,31 +47,6 @@ impl Default for TopicNames {
     }
 }
 
-/// The QoS profiles the node offers on each topic, written into the bag as
-/// `ros2 bag record` would have recorded them.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TopicQos {
-    pub points: Qos,
-    pub mesh: Qos,
-    pub obstacles: Qos,
-    pub diagnostics: Qos,
-    pub clock: Qos,
-    pub scene_description: Qos,
-}
-
-impl Default for TopicQos {
-    fn default() -> Self {
-        TopicQos {
-            points: Qos::default_publisher(),
-            mesh: Qos::default_publisher(),
-            obstacles: Qos::default_publisher(),
-            diagnostics: Qos::default_publisher(),
-            clock: Qos::clock(),
-            scene_description: Qos::latched(),
-        }
-    }
-}
-
 /// The recorder of a simulation's bag.
 pub struct SimRecorder {
     writer: Writer,
@@ -102,40 +77,19 @@ impl SimRecorder {
         topics: &TopicNames,
         scene_description: &str,
     ) -> Result<SimRecorder> {
-        SimRecorder::create_with_qos(dir, opts, topics, &TopicQos::default(), scene_description)
-    }
-
-    /// As [`SimRecorder::create`], with the QoS profiles the node really offers.
-    pub fn create_with_qos(
-        dir: &Path,
-        opts: &BagOptions,
-        topics: &TopicNames,
-        qos: &TopicQos,
-        scene_description: &str,
-    ) -> Result<SimRecorder> {
         let mut writer = Writer::create(dir, opts)?;
-        writer.add_topic(
-            &topics.points,
-            PointCloud2::NAME,
-            std::slice::from_ref(&qos.points),
-        )?;
-        writer.add_topic(&topics.mesh, Marker::NAME, std::slice::from_ref(&qos.mesh))?;
-        writer.add_topic(
-            &topics.obstacles,
-            MarkerArray::NAME,
-            std::slice::from_ref(&qos.obstacles),
-        )?;
-        writer.add_topic(
-            &topics.diagnostics,
-            DiagnosticArray::NAME,
-            std::slice::from_ref(&qos.diagnostics),
-        )?;
-        writer.add_topic(&topics.clock, Clock::NAME, std::slice::from_ref(&qos.clock))?;
-        writer.add_topic(
-            &topics.scene_description,
-            StringMsg::NAME,
-            std::slice::from_ref(&qos.scene_description),
-        )?;
+        // the QoS the node offers on each (node.rs), as `ros2 bag record` would record them
+        let (reliable, clock, latched) = (Qos::default_publisher(), Qos::clock(), Qos::latched());
+        for (name, type_name, qos) in [
+            (&topics.points, PointCloud2::NAME, &reliable),
+            (&topics.mesh, Marker::NAME, &reliable),
+            (&topics.obstacles, MarkerArray::NAME, &reliable),
+            (&topics.diagnostics, DiagnosticArray::NAME, &reliable),
+            (&topics.clock, Clock::NAME, &clock),
+            (&topics.scene_description, StringMsg::NAME, &latched),
+        ] {
+            writer.add_topic(name, type_name, std::slice::from_ref(qos))?;
+        }
         Ok(SimRecorder {
             writer,
             topics: topics.clone(),
@@ -202,11 +156,6 @@ impl SimRecorder {
         self.frames
     }
 
-    /// The underlying writer, to add and write other topics.
-    pub fn writer(&mut self) -> &mut Writer {
-        &mut self.writer
-    }
-
     /// Finishes the bag: last chunk, summary, indexes, `metadata.yaml`.
     pub fn finish(self) -> Result<BagSummary> {
         self.writer.finish()
@@ -224,20 +173,11 @@ pub struct SceneDescription {
     pub scene_yaml: String,
     pub fabric_file: String,
     pub fabric_yaml: String,
-    pub overrides: DescribedOverrides,
+    /// The overrides given on the command line or as node parameters.
+    pub overrides: Overrides,
     /// Vertices along warp and weft; vertex index `j * nx + i`.
     pub grid: [usize; 2],
     pub dt_s: f64,
-}
-
-/// The overrides given on the command line or as node parameters.
-#[derive(Debug, Clone, Serialize, serde::Deserialize, PartialEq, Default)]
-pub struct DescribedOverrides {
-    pub spacing_m: Option<f64>,
-    pub dt_s: Option<f64>,
-    pub duration_s: Option<f64>,
-    pub solver: Option<String>,
-    pub hysteresis: Option<bool>,
 }
 
 /// Builds the scene description of `scene` with overrides `ov` for the
@@ -245,11 +185,7 @@ pub struct DescribedOverrides {
 pub fn scene_description(scene: &Scene, ov: &Overrides, sim: &Simulation) -> Result<String> {
     let scene_yaml = std::fs::read_to_string(&scene.path)
         .with_context(|| format!("cannot read scene file {}", scene.path.display()))?;
-    let fabric_path = scene
-        .path
-        .parent()
-        .unwrap_or(Path::new(""))
-        .join(&scene.file.cloth.fabric);
+    let fabric_path = scene.fabric_path();
     let fabric_yaml = std::fs::read_to_string(&fabric_path)
         .with_context(|| format!("cannot read fabric file {}", fabric_path.display()))?;
     let d = SceneDescription {
@@ -258,13 +194,7 @@ pub fn scene_description(scene: &Scene, ov: &Overrides, sim: &Simulation) -> Res
         scene_yaml,
         fabric_file: fabric_path.display().to_string(),
         fabric_yaml,
-        overrides: DescribedOverrides {
-            spacing_m: ov.spacing,
-            dt_s: ov.dt,
-            duration_s: ov.duration,
-            solver: ov.solver.map(|s| format!("{s:?}").to_lowercase()),
-            hysteresis: ov.hysteresis,
-        },
+        overrides: ov.clone(),
         grid: [sim.cloth.nx, sim.cloth.ny],
         dt_s: sim.params.dt,
     };

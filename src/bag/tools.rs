@@ -241,14 +241,15 @@ pub fn shape_at(
     let points_topic = points_topic.as_str();
     let mesh_topic = resolve(mesh_topic, Marker::NAME);
     let mesh_topic = mesh_topic.as_str();
-    let clouds = r.topic_messages(points_topic)?;
-    let (first, last) = match (clouds.first(), clouds.last()) {
-        (Some(a), Some(b)) => (a.0, b.0),
+    // frame times first; only the chosen frame's messages are copied
+    let times = r.log_times(points_topic)?;
+    let (first, last) = match (times.first(), times.last()) {
+        (Some(&a), Some(&b)) => (a, b),
         _ => bail!("{}: no message on {points_topic}", r.path.display()),
     };
     const TOL_NS: i128 = 1000;
     let k = match when {
-        ExportTime::Last => clouds.len() - 1,
+        ExportTime::Last => times.len() - 1,
         ExportTime::At(t) => {
             let tn = (t * 1e9).round() as i128;
             if !t.is_finite() || tn < first as i128 - TOL_NS || tn > last as i128 + TOL_NS {
@@ -259,14 +260,17 @@ pub fn shape_at(
                     last as f64 * 1e-9
                 );
             }
-            clouds
+            times
                 .iter()
-                .rposition(|(s, _)| (*s as i128) <= tn + TOL_NS)
+                .rposition(|&s| (s as i128) <= tn + TOL_NS)
                 .expect("t is within the bag")
         }
     };
-    let (stamp, bytes) = &clouds[k];
-    let cloud: PointCloud2 = from_cdr(bytes)
+    let stamp = &times[k];
+    let bytes = r
+        .message_at(points_topic, *stamp)?
+        .expect("the frame was just listed");
+    let cloud: PointCloud2 = from_cdr(&bytes)
         .with_context(|| format!("{points_topic} at {} ns: not a PointCloud2", stamp))?;
     let pts =
         publish::cloud_points(&cloud).with_context(|| format!("{points_topic} at {} ns", stamp))?;
@@ -276,22 +280,13 @@ pub fn shape_at(
         .collect();
     let mut faces = Vec::new();
     if r.channels.values().any(|c| c.topic == mesh_topic) {
-        let mesh_id = r.channel(mesh_topic)?.id;
-        let mut marker: Option<Marker> = None;
-        let mut err = None;
-        r.for_each_message(|m| {
-            if m.channel.id == mesh_id && m.log_time == *stamp {
-                match from_cdr::<Marker>(m.data) {
-                    Ok(mk) => marker = Some(mk),
-                    Err(e) => err = Some(e),
-                }
-                return Ok(ControlFlow::Break(()));
-            }
-            Ok(ControlFlow::Continue(()))
-        })?;
-        if let Some(e) = err {
-            return Err(e.context(format!("{mesh_topic} at {stamp} ns: not a Marker")));
-        }
+        let marker: Option<Marker> = match r.message_at(mesh_topic, *stamp)? {
+            None => None,
+            Some(b) => Some(
+                from_cdr(&b)
+                    .with_context(|| format!("{mesh_topic} at {stamp} ns: not a Marker"))?,
+            ),
+        };
         if let Some(mk) = marker.filter(|m| m.type_ == Marker::TRIANGLE_LIST) {
             // each marker point is a vertex's float64 position; the cloud holds
             // the same values rounded to float32, which identifies the vertex

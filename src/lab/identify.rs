@@ -41,6 +41,20 @@ pub struct MarkerGrid {
     pub spacing: [f64; 2],
 }
 
+impl MarkerGrid {
+    /// The model's grid on the markers (every marker a mass), flat, in its own frame.
+    pub fn spec(&self) -> GridSpec {
+        GridSpec {
+            size: [
+                (self.nx - 1) as f64 * self.spacing[0],
+                (self.ny - 1) as f64 * self.spacing[1],
+            ],
+            spacing: self.spacing,
+            pose: Isometry3::identity(),
+        }
+    }
+}
+
 impl Default for MarkerGrid {
     fn default() -> Self {
         MarkerGrid {
@@ -280,15 +294,7 @@ pub fn identify(
         }
     }
     let dt = 1.0 / rate_hz;
-    let spec = GridSpec {
-        size: [
-            (g.nx - 1) as f64 * g.spacing[0],
-            (g.ny - 1) as f64 * g.spacing[1],
-        ],
-        spacing: g.spacing,
-        pose: Isometry3::identity(),
-    };
-    let cloth = Cloth::grid(&spec, fabric.areal_mass)?;
+    let cloth = Cloth::grid(&g.spec(), fabric.areal_mass)?;
     let mut sim = Simulation::new(
         cloth,
         fabric.clone(),
@@ -533,8 +539,7 @@ pub fn identify(
             .unwrap_or(slowest.max(1));
         let first = release + 2;
         let last = (window.1 + 1).min(frames.len() - 1);
-        let start = [measured[0], 0.0, 0.0, 0.0];
-        let t = trajectory_fit(frames, rate_hz, fabric, opts, (first, last), start)?;
+        let t = trajectory_fit(frames, rate_hz, fabric, opts, (first, last), measured[0])?;
         for p in 1..4 {
             if !resolved[p] && t.resolved[p] {
                 measured[p] = t.theta[p];
@@ -576,46 +581,18 @@ type Markers = Vec<Vector3<f64>>;
 /// Smallest finite-difference steps of (α, β_f, β_c, β_t).
 const FD_FLOOR: [f64; 4] = [0.05, 1e-4, 1e-5, 1e-7];
 
-/// Simulates the fall from capture frame `first` (positions, velocity
+/// The model on the markers at capture frame `first`: positions, velocity
 /// `(x[first] − x[first−1])/h`, hysteresis memory replayed along the capture
-/// up to it) to `last` with damping `theta`; the differences to the captured
-/// markers, or `None` if the simulation fails.
-fn simulate_window(
+/// up to it (done once; every simulation of the fit starts from a copy).
+fn start_state(
     frames: &[Vec<Vector3<f64>>],
-    rate_hz: f64,
     fabric: &Fabric,
-    opts: &IdentifyOptions,
-    (first, last): (usize, usize),
-    theta: &[f64; 4],
-) -> Option<Vec<Vector3<f64>>> {
-    let g = opts.grid;
-    let dt = 1.0 / rate_hz;
-    let spec = GridSpec {
-        size: [
-            (g.nx - 1) as f64 * g.spacing[0],
-            (g.ny - 1) as f64 * g.spacing[1],
-        ],
-        spacing: g.spacing,
-        pose: Isometry3::identity(),
-    };
-    let mut fab = fabric.clone();
-    fab.damping.alpha = theta[0];
-    fab.damping.beta_bend = theta[1];
-    fab.damping.beta_shear = theta[2];
-    fab.damping.beta_tension = theta[3];
-    let cloth = Cloth::grid(&spec, fab.areal_mass).ok()?;
-    let mut sim = Simulation::new(
-        cloth,
-        fab,
-        Params {
-            dt,
-            gravity: opts.gravity,
-            linear_solver: crate::solver::LinearSolverKind::Cholesky,
-            threads: 1,
-            ..Params::default()
-        },
-    )
-    .ok()?;
+    params: &Params,
+    grid: &MarkerGrid,
+    first: usize,
+) -> Result<Cloth> {
+    let cloth = Cloth::grid(&grid.spec(), fabric.areal_mass)?;
+    let mut sim = Simulation::new(cloth, fabric.clone(), params.clone())?;
     for f in &frames[..=first] {
         sim.cloth.x.clone_from(f);
         sim.commit();
@@ -623,8 +600,28 @@ fn simulate_window(
     sim.cloth.v = frames[first]
         .iter()
         .zip(&frames[first - 1])
-        .map(|(a, b)| (a - b) / dt)
+        .map(|(a, b)| (a - b) / params.dt)
         .collect();
+    Ok(sim.cloth)
+}
+
+/// Simulates the fall from `start` (see [`start_state`]) over the capture
+/// frames `first + 1..=last` with damping `theta`; the differences to the
+/// captured markers, or `None` if the simulation fails.
+fn simulate_window(
+    start: &Cloth,
+    frames: &[Vec<Vector3<f64>>],
+    fabric: &Fabric,
+    params: &Params,
+    (first, last): (usize, usize),
+    theta: &[f64; 4],
+) -> Option<Vec<Vector3<f64>>> {
+    let mut fab = fabric.clone();
+    fab.damping.alpha = theta[0];
+    fab.damping.beta_bend = theta[1];
+    fab.damping.beta_shear = theta[2];
+    fab.damping.beta_tension = theta[3];
+    let mut sim = Simulation::new(start.clone(), fab, params.clone()).ok()?;
     let mut r = Vec::with_capacity((last - first) * frames[0].len());
     for f in &frames[first + 1..=last] {
         sim.step().ok()?;
@@ -640,14 +637,14 @@ fn sum_sq(r: &[Vector3<f64>]) -> f64 {
 }
 
 /// The trajectory fit (see [`TrajectoryFit`]) over capture frames
-/// `first..=last`, starting from `start`.
+/// `first..=last`, starting from α = `alpha0` and no β.
 pub fn trajectory_fit(
     frames: &[Vec<Vector3<f64>>],
     rate_hz: f64,
     fabric: &Fabric,
     opts: &IdentifyOptions,
     (first, last): (usize, usize),
-    start: [f64; 4],
+    alpha0: f64,
 ) -> Result<TrajectoryFit> {
     if first < 1 || last <= first || last >= frames.len() {
         bail!(
@@ -655,15 +652,22 @@ pub fn trajectory_fit(
             frames.len()
         );
     }
+    let params = Params {
+        dt: 1.0 / rate_hz,
+        gravity: opts.gravity,
+        linear_solver: crate::solver::LinearSolverKind::Cholesky,
+        threads: 1,
+        ..Params::default()
+    };
+    let start_cloth = start_state(frames, fabric, &params, &opts.grid, first)?;
+    let simulate =
+        |th: &[f64; 4]| simulate_window(&start_cloth, frames, fabric, &params, (first, last), th);
     let sims = std::cell::Cell::new(0usize);
     let run = |th: &[f64; 4]| {
         sims.set(sims.get() + 1);
-        simulate_window(frames, rate_hz, fabric, opts, (first, last), th)
+        simulate(th)
     };
-    let mut theta = start;
-    for p in 1..4 {
-        theta[p] = 0.0;
-    }
+    let mut theta = [alpha0, 0.0, 0.0, 0.0];
     let r0 = run(&theta).ok_or_else(|| {
         anyhow::anyhow!(
             "trajectory fit: the simulation from frame {first} fails at α = {}",
@@ -688,12 +692,7 @@ pub fn trajectory_fit(
                         let mut th = theta;
                         th[p] += h[p];
                         let go = free[p];
-                        sc.spawn(move || {
-                            go.then(|| {
-                                simulate_window(frames, rate_hz, fabric, opts, (first, last), &th)
-                            })
-                            .flatten()
-                        })
+                        sc.spawn(move || go.then(|| simulate(&th)).flatten())
                     })
                     .collect();
                 hs.into_iter().map(|t| t.join().ok().flatten()).collect()

@@ -32,8 +32,7 @@ use ros2_client::{
     QosProfile, ServiceMapping, ServiceTypeName,
 };
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 macro_rules! message {
@@ -320,16 +319,6 @@ fn type_name(ros: &str) -> MessageTypeName {
     MessageTypeName::new(pkg, ty)
 }
 
-/// Sets the flag on SIGINT and SIGTERM (the loop then stops cleanly).
-pub fn stop_flag() -> Result<Arc<AtomicBool>> {
-    let flag = Arc::new(AtomicBool::new(false));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(&flag))
-            .context("cannot install the signal handler")?;
-    }
-    Ok(flag)
-}
-
 /// Reads `--ros-args`, params files and `-p` into settings (defaults, then
 /// files in order, then `-p`).
 pub fn settings_from_args(ra: &RosArgs, fq_name: &str) -> Result<Settings> {
@@ -493,7 +482,6 @@ pub fn run(ros_args: &[String]) -> Result<()> {
         .with_context(|| format!("parameter record_bag = {:?}", settings.record_bag))?;
         Some(rec)
     };
-    let mut bag_error = false;
     let mut last_recorded: Option<f64> = None;
     let sub_obstacles = subscription!(msgs::Obstacle, &names.obstacles);
     let sub_pins = subscription!(msgs::Pin, &names.pins);
@@ -527,7 +515,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             let _ = futures::executor::block_on(spinner.spin());
         })?;
 
-    let stop = stop_flag()?;
+    let stop = crate::run::stop_flag()?;
     let log = node.logging_handle();
     macro_rules! info {
         ($($a:tt)+) => {{
@@ -564,7 +552,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let steps_start = loaded.sim.steps;
     let mut last_error = String::new();
     let mut pending_steps: u64 = 0;
-    let mut next_publish = loaded.sim.time;
+    let mut frames = publish::FrameClock::new(loaded.sim.time);
     let mut clock_every: u64;
     let mut pace_origin = (Instant::now(), loaded.sim.time);
     let mut last_rtf = (Instant::now(), loaded.sim.time);
@@ -662,7 +650,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                     let _ = pub_scene.publish(msgs::StringMsg {
                         data: loaded.description.clone(),
                     });
-                    next_publish = loaded.sim.time;
+                    frames = publish::FrameClock::new(loaded.sim.time);
                     pace_origin = (Instant::now(), loaded.sim.time);
                     pending_steps = 0;
                     if let Some(rec) = recorder.as_mut() {
@@ -768,7 +756,8 @@ pub fn run(ros_args: &[String]) -> Result<()> {
         // while paused the state is still published, at publish_rate in wall time
         let paused_due =
             !running && last_rtf.0.elapsed().as_secs_f64() >= 1.0 / settings.publish_rate;
-        if loaded.sim.time + 1e-12 >= next_publish || publish_now || paused_due {
+        let due = frames.due(loaded.sim.time, settings.publish_rate);
+        if due || publish_now || paused_due {
             let now = Instant::now();
             let wall = now.duration_since(last_rtf.0).as_secs_f64();
             if wall > 0.0 && running {
@@ -798,7 +787,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             // the bag gets what is published, once per simulated state (not
             // the repeats published while paused) unless an obstacle changed
             let new_state = last_recorded != Some(loaded.sim.time) || publish_now;
-            if let (Some(rec), true) = (recorder.as_mut(), new_state) {
+            let failed = recorder.as_mut().filter(|_| new_state).and_then(|rec| {
                 let frame = crate::bag::Frame {
                     cloud: &cloud,
                     mesh: &mesh,
@@ -807,21 +796,19 @@ pub fn run(ros_args: &[String]) -> Result<()> {
                     clock: &clock,
                 };
                 match rec.record_frame(&frame) {
-                    Ok(()) => last_recorded = Some(loaded.sim.time),
-                    Err(e) => {
-                        last_error = format!("bag {}: {e:#}", settings.record_bag);
-                        warn!("{last_error}; recording stopped, the bag is closed");
-                        bag_error = true;
+                    Ok(()) => {
+                        last_recorded = Some(loaded.sim.time);
+                        None
                     }
+                    Err(e) => Some(e),
                 }
-            }
-            if bag_error {
-                if let Some(rec) = recorder.take() {
-                    if let Err(e) = rec.finish() {
-                        warn!("bag {}: {e:#}", settings.record_bag);
-                    }
+            });
+            if let Some(e) = failed {
+                last_error = format!("bag {}: {e:#}", settings.record_bag);
+                warn!("{last_error}; recording stopped, the bag is closed");
+                if let Some(Err(e)) = recorder.take().map(|r| r.finish()) {
+                    warn!("bag {}: {e:#}", settings.record_bag);
                 }
-                bag_error = false;
             }
             let _ = pub_points.publish(cloud);
             let _ = pub_mesh.publish(mesh);
@@ -832,12 +819,6 @@ pub fn run(ros_args: &[String]) -> Result<()> {
             publishes += 1;
             step_ms_sum = 0.0;
             step_count = 0;
-            if loaded.sim.time + 1e-12 >= next_publish {
-                next_publish += 1.0 / settings.publish_rate;
-                if next_publish < loaded.sim.time {
-                    next_publish = loaded.sim.time + 1.0 / settings.publish_rate;
-                }
-            }
             publish_now = false;
         }
         initial = false;
@@ -865,19 +846,8 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     if let Some(mut rec) = recorder.take() {
         if last_recorded != Some(loaded.sim.time) {
             // the state the node stopped in (as `drape --bag` records it)
-            let h = publish::header(&loaded.sim, &settings.frame_id);
-            let frame = crate::bag::Frame {
-                cloud: &publish::cloud(&loaded.sim, h.clone()),
-                mesh: &publish::cloth_marker(&loaded.sim, h.clone()),
-                obstacles: &publish::obstacle_markers(&loaded.sim, h.clone()),
-                diagnostics: &publish::diagnostics(
-                    &loaded.sim,
-                    h.clone(),
-                    &publish::DiagnosticFigures::default(),
-                ),
-                clock: &msgs::Clock { clock: h.stamp },
-            };
-            if let Err(e) = rec.record_frame(&frame) {
+            let fig = publish::DiagnosticFigures::default();
+            if let Err(e) = rec.record(&loaded.sim, &settings.frame_id, &fig) {
                 warn!("bag {}: {e:#}", settings.record_bag);
             }
         }

@@ -255,3 +255,32 @@ pub fn header(sim: &Simulation, frame_id: &str) -> Header {
         frame_id: frame_id.to_string(),
     }
 }
+
+/// When the node publishes (and a bag records) a frame: the first step at or
+/// after each multiple of the period 1/rate of simulated time. The node and
+/// `drape --bag` share it, so their bags hold the same stamps.
+#[derive(Debug, Clone)]
+pub struct FrameClock {
+    next: f64,
+}
+
+impl FrameClock {
+    /// The first frame is due at simulated time `t0`.
+    pub fn new(t0: f64) -> FrameClock {
+        FrameClock { next: t0 }
+    }
+
+    /// Whether a frame is due at simulated time `t`; if so, the next one is
+    /// scheduled one period (at `rate_hz`, which may change between calls)
+    /// later, or one period after `t` if the run fell behind.
+    pub fn due(&mut self, t: f64, rate_hz: f64) -> bool {
+        if t + 1e-12 < self.next {
+            return false;
+        }
+        self.next += 1.0 / rate_hz;
+        if self.next < t {
+            self.next = t + 1.0 / rate_hz;
+        }
+        true
+    }
+}

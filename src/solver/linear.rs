@@ -441,10 +441,11 @@ impl Direct {
     /// speed relative to the sparse products (fitted to this machine's
     /// benchmark: break-even at 77, 168 and 445 iterations on the 2, 1 and
     /// 0.5 cm table drapes; the formula gives 70, 179, 499).
-    pub fn break_even_iterations(&self, a: &BlockMatrix) -> usize {
+    /// `blocks`: the 3 × 3 blocks of A (both triangles).
+    pub fn break_even_iterations(&self, blocks: usize) -> usize {
         let n = self.csc.dim as f64;
         let l = self.nnz_l() as f64;
-        let per_iter = 2.0 * 9.0 * a.col.len() as f64 + 30.0 * n;
+        let per_iter = 2.0 * 9.0 * blocks as f64 + 30.0 * n;
         (0.55 * l * l / n / per_iter).round().max(10.0) as usize
     }
 

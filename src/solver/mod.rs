@@ -289,13 +289,21 @@ impl Simulation {
     /// Switches the linear solver (builds the Cholesky analysis if needed).
     pub fn set_linear_solver(&mut self, kind: LinearSolverKind) -> Result<()> {
         self.params.linear_solver = kind;
-        if kind == LinearSolverKind::Cholesky && self.direct.is_none() {
+        if kind == LinearSolverKind::Cholesky {
+            self.direct()?;
+        }
+        Ok(())
+    }
+
+    /// The direct solver, built (symbolic analysis) on first use.
+    fn direct(&mut self) -> Result<&mut linear::Direct> {
+        if self.direct.is_none() {
             self.direct = Some(linear::Direct::new(
                 &self.a,
                 self.part.bounds.len().saturating_sub(1),
             )?);
         }
-        Ok(())
+        Ok(self.direct.as_mut().expect("direct solver built"))
     }
 
     /// Advances one fixed step.
@@ -488,12 +496,7 @@ impl Simulation {
     }
 
     fn solve_direct(&mut self) -> Result<usize> {
-        if self.direct.is_none() {
-            self.direct = Some(linear::Direct::new(
-                &self.a,
-                self.part.bounds.len().saturating_sub(1),
-            )?);
-        }
+        self.direct()?;
         let d = self.direct.as_mut().expect("direct solver built");
         d.solve(
             &self.a,
@@ -514,18 +517,10 @@ impl Simulation {
     /// iteration counts only, never on measured time, so a run gives the
     /// same trajectory every time.
     fn solve_auto(&mut self) -> Result<usize> {
-        if self.direct.is_none() {
-            // the one-off symbolic analysis is not part of a step's cost
-            self.direct = Some(linear::Direct::new(
-                &self.a,
-                self.part.bounds.len().saturating_sub(1),
-            )?);
-        }
+        let blocks = self.a.col.len();
         let cap = self
-            .direct
-            .as_ref()
-            .expect("direct solver built")
-            .break_even_iterations(&self.a)
+            .direct()?
+            .break_even_iterations(blocks)
             .min(self.params.cg_max_iterations);
         let probe = self.steps.is_multiple_of(AUTO_PROBE);
         if !self.auto_on_direct || probe {
