@@ -107,12 +107,13 @@ pub fn tensile_curve(s: &TensileSummary, fm_gf_cm: f64) -> KesCurve {
 
 /// Shear curve from summary values: elastic `G·θ`, loop half-width
 /// `h(θ) = h0 + h1|θ|` through `2HG/2` at 0.5° and `2HG5/2` at 5°
-/// (h0 ≥ 0); loading branch `Gθ + h`, recovery `Gθ − h`, over ±8°.
-pub fn shear_curve(s: &ShearSummary) -> KesCurve {
+/// (h0 ≥ 0); loading branch `Gθ + h`, recovery `Gθ − h`, over ±8°, turning
+/// over as described at [`symmetric_loop`] (memory length `memory`, rad).
+pub fn shear_curve(s: &ShearSummary, memory: f64) -> KesCurve {
     let g = s.g * GF_PER_CM / DEG;
     let (h0, h1) = shear_half_width(s);
     let th = SHEAR_MAX_DEG * DEG;
-    symmetric_loop(th, |t| g * t, |t| h0 + h1 * t.abs())
+    symmetric_loop(th, |t| g * t, |t| h0 + h1 * t.abs(), memory)
 }
 
 /// `(h0, h1)` of the shear loop half-width in SI (N/m, N/m per rad).
@@ -132,21 +133,59 @@ pub fn shear_half_width(s: &ShearSummary) -> (f64, f64) {
     (h0, h1)
 }
 
-/// Bending curve from summary values: `Bκ ± 2HB/2` over ±2.5 cm⁻¹.
-pub fn bending_curve(s: &BendingSummary) -> KesCurve {
+/// Bending curve from summary values: elastic `Bκ`, loop half-width `2HB/2`,
+/// over ±2.5 cm⁻¹, turning over as described at [`symmetric_loop`].
+pub fn bending_curve(s: &BendingSummary, memory: f64) -> KesCurve {
     let b = s.b * GF_CM2_PER_CM;
     let h = s.hb * GF_CM_PER_CM / 2.0;
-    symmetric_loop(BENDING_MAX_PER_CM * PER_CM, |k| b * k, |_| h)
+    symmetric_loop(BENDING_MAX_PER_CM * PER_CM, |k| b * k, |_| h, memory)
 }
 
-fn symmetric_loop(xmax: f64, el: impl Fn(f64) -> f64, h: impl Fn(f64) -> f64) -> KesCurve {
-    let xs: Vec<f64> = (0..SAMPLES)
-        .map(|k| -xmax + 2.0 * xmax * k as f64 / (SAMPLES - 1) as f64)
+/// Samples of the symmetric (shear, bending) loops: fine enough that linear
+/// interpolation follows a turn-over of one memory length (≥ 12 samples each).
+const LOOP_SAMPLES: usize = 641;
+
+/// The KES loop of elastic part `el` and half-width `h` over ±`xmax`.
+///
+/// Summary values fix the branches where they are read (2HG at ±0.5°, G and
+/// 2HG5 up to ±5°, B and 2HB within ±1.5 cm⁻¹), not how the force turns over
+/// at the ends of the range; a KES instrument reverses its clamp there and the
+/// force falls from one branch to the other over a small, finite travel, as
+/// KES plots show. The construction's branches are `el ± h` and its turn-overs
+/// those of the law's rate-independent memory ([`crate::fabric::Hysteresis`],
+/// memory length `memory`) taken in one stretch from the reversal at `xr`:
+/// `σp = s h(x) + (s h(xr) + s h(x))·(−1)·exp(−|x − xr|/memory)` along a path of
+/// direction `s`, i.e. the jump `h(xr) + h(x)` between the branches decays over
+/// a few memory lengths. [`SATURATED_MEMORY_LENGTHS`] memory lengths past a
+/// reversal the branches are `el ± h` to within 0.03 % of the jump, and the
+/// summary values are the fabric's (2HG5 and G, read 3° = 12 memory lengths
+/// from a turn-over, to 6·10⁻⁶ of the jump; the others to rounding).
+fn symmetric_loop(
+    xmax: f64,
+    el: impl Fn(f64) -> f64,
+    h: impl Fn(f64) -> f64,
+    memory: f64,
+) -> KesCurve {
+    assert!(memory > 0.0, "memory length {memory}");
+    let xs: Vec<f64> = (0..LOOP_SAMPLES)
+        .map(|k| -xmax + 2.0 * xmax * k as f64 / (LOOP_SAMPLES - 1) as f64)
         .collect();
-    let load = xs.iter().map(|&x| (x, el(x) + h(x))).collect();
-    let recover = xs.iter().rev().map(|&x| (x, el(x) - h(x))).collect();
+    let branch = |s: f64, x: f64| {
+        let xr = -s * xmax;
+        let jump = h(xr) + h(x);
+        (
+            x,
+            el(x) + s * (h(x) - jump * (-(x - xr).abs() / memory).exp()),
+        )
+    };
+    let load = xs.iter().map(|&x| branch(1.0, x)).collect();
+    let recover = xs.iter().rev().map(|&x| branch(-1.0, x)).collect();
     KesCurve { load, recover }
 }
+
+/// Travel after a reversal, in memory lengths, beyond which a loop built by
+/// [`symmetric_loop`] is on its saturated branch (e⁻⁸ = 0.03 % of the jump).
+pub const SATURATED_MEMORY_LENGTHS: f64 = 8.0;
 
 /// Linear interpolation of a branch (sorted or reverse-sorted in x) at `x`;
 /// `None` outside its range.
