@@ -433,21 +433,8 @@ fn real_main(cli: Cli) -> Result<()> {
                             for _ in 0..repeat.max(1) {
                                 let t = std::time::Instant::now();
                                 let mut iters = 0;
-                                let mut ph = [0.0; 3];
                                 for _ in 0..steps {
-                                    let st = sim.step()?;
-                                    iters += st.iterations;
-                                    ph[0] += st.assemble_s;
-                                    ph[1] += st.solve_s;
-                                    ph[2] += st.collide_s;
-                                }
-                                if std::env::var("GS_PHASES").is_ok() {
-                                    eprintln!(
-                                        "assemble {:.3} solve {:.3} collide {:.3} ms",
-                                        ph[0] * 1e3 / steps as f64,
-                                        ph[1] * 1e3 / steps as f64,
-                                        ph[2] * 1e3 / steps as f64
-                                    );
+                                    iters += sim.step()?.iterations;
                                 }
                                 ms.push(1e3 * t.elapsed().as_secs_f64() / steps as f64);
                                 it = iters as f64 / steps as f64;
@@ -464,7 +451,6 @@ fn real_main(cli: Cli) -> Result<()> {
                             );
                             continue;
                         }
-                        garment_sim::solver::linear::report_timers();
                         ms.sort_by(|a, b| a.total_cmp(b));
                         let med = ms[ms.len() / 2];
                         println!(

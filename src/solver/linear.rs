@@ -472,6 +472,10 @@ pub struct Direct {
     rhs32: Vec<f32>,
     /// Which factor is held, if any.
     held: Option<Precision>,
+    /// Vertices with a constraint this step (scratch of `fill`).
+    constrained: Vec<bool>,
+    /// Filtered blocks of the lower triangle (scratch of `fill`).
+    filtered: Vec<Matrix3<f64>>,
     mem: MemBuffer,
     rhs: Vec<f64>,
     tmp: Vec<Vector3<f64>>,
@@ -514,9 +518,6 @@ impl Direct {
         let perm = super::sparse::amd_vertex_order(a);
         let csc = LowerCsc::new_permuted(a, &perm);
         let symbolic = analyse(&csc, SymmetricOrdering::Identity)?;
-        if std::env::var("GS_LOG").is_ok() {
-            eprintln!("nnz(L) {}", symbolic.len_val());
-        }
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
@@ -531,6 +532,8 @@ impl Direct {
             l32: Vec::new(),
             rhs32: vec![0.0; csc.dim],
             held: None,
+            constrained: Vec::new(),
+            filtered: Vec::new(),
             csc,
             symbolic,
             l_values,
@@ -563,22 +566,44 @@ impl Direct {
     }
 
     /// Fills the values of `S A S + (I − S) m` (lower triangle).
-    fn fill(&mut self, a: &BlockMatrix, filter: &[Filter], mass: &[f64]) {
-        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
-            let i = self.block_row[blk];
-            let j = a.col[blk];
-            let m = &a.val[blk];
-            let v = match (filter[i], filter[j]) {
-                (Filter::Free, Filter::Free) => m[(p as usize, q as usize)],
-                (fi, fj) => {
-                    let mut s = fi.matrix() * m * fj.matrix();
-                    if i == j {
-                        s += (Matrix3::identity() - fi.matrix()) * mass[i];
-                    }
-                    s[(p as usize, q as usize)]
+    fn fill<T: Copy>(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        mass: &[f64],
+        out: &mut [T],
+        conv: impl Fn(f64) -> T,
+    ) {
+        self.constrained.clear();
+        self.constrained
+            .extend(filter.iter().map(|f| *f != Filter::Free));
+        // S_i M S_j (+ (I − S_i) m on the diagonal) of the blocks that touch
+        // a constrained vertex, once per block (both triangles: the factor's
+        // ordering decides which of (i, j) and (j, i) it reads)
+        self.filtered.resize(a.val.len(), Matrix3::zeros());
+        for i in 0..a.n {
+            for blk in a.row_ptr[i]..a.row_ptr[i + 1] {
+                let j = a.col[blk];
+                if !(self.constrained[i] || self.constrained[j]) {
+                    continue;
                 }
+                let si = filter[i].matrix();
+                let mut f = si * a.val[blk] * filter[j].matrix();
+                if i == j {
+                    f += (Matrix3::identity() - si) * mass[i];
+                }
+                self.filtered[blk] = f;
+            }
+        }
+        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
+            let (i, j) = (self.block_row[blk], a.col[blk]);
+            let m = if self.constrained[i] || self.constrained[j] {
+                &self.filtered[blk]
+            } else {
+                &a.val[blk]
             };
-            self.csc.values[k] = v;
+            let v = m[(p as usize, q as usize)];
+            out[k] = conv(v);
         }
     }
 
@@ -592,8 +617,15 @@ impl Direct {
         precision: Precision,
     ) -> Result<()> {
         self.held = None;
-        let _t = Tm(&T_FACT, std::time::Instant::now());
-        self.fill(a, filter, mass);
+        let (mut v64, mut v32) = (
+            std::mem::take(&mut self.csc.values),
+            std::mem::take(&mut self.values32),
+        );
+        match precision {
+            Precision::F64 => self.fill(a, filter, mass, &mut v64, |v| v),
+            Precision::F32 => self.fill(a, filter, mass, &mut v32, |v| v as f32),
+        }
+        (self.csc.values, self.values32) = (v64, v32);
         let sym = SymbolicSparseColMatRef::new_checked(
             self.csc.dim,
             self.csc.dim,
@@ -619,9 +651,6 @@ impl Direct {
                     .map_err(err)?;
             }
             Precision::F32 => {
-                for (o, v) in self.values32.iter_mut().zip(&self.csc.values) {
-                    *o = *v as f32;
-                }
                 self.l32.resize(self.symbolic.len_val(), 0.0);
                 let mat = SparseColMatRef::new(sym, &self.values32);
                 self.symbolic
@@ -646,14 +675,8 @@ impl Direct {
         self.held
     }
 
-    /// Forgets the factor held.
-    pub fn drop_factor(&mut self) {
-        self.held = None;
-    }
-
     /// `out = P⁻¹ r` with the factor held (`P = L Lᵀ`).
     pub fn apply(&mut self, r: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
-        let _t = Tm(&T_APPLY, std::time::Instant::now());
         let dim = self.csc.dim;
         match self.held.expect("a factor is held") {
             Precision::F64 => {
@@ -712,22 +735,5 @@ impl Direct {
         }
         self.tmp = r;
         Ok(())
-    }
-}
-
-pub static T_APPLY: [AtomicU64; 2] = [AtomicU64::new(0), AtomicU64::new(0)];
-pub static T_FACT: [AtomicU64; 2] = [AtomicU64::new(0), AtomicU64::new(0)];
-struct Tm(&'static [AtomicU64; 2], std::time::Instant);
-impl Drop for Tm {
-    fn drop(&mut self) {
-        self.0[0].fetch_add(self.1.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        self.0[1].fetch_add(1, Ordering::Relaxed);
-    }
-}
-pub fn report_timers() {
-    for (n, t) in [("apply", &T_APPLY), ("factor", &T_FACT)] {
-        let ns = t[0].load(Ordering::Relaxed) as f64;
-        let c = t[1].load(Ordering::Relaxed).max(1) as f64;
-        eprintln!("{n}: {} calls, {:.3} ms each", c, ns / c / 1e6);
     }
 }
