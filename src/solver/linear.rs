@@ -202,7 +202,10 @@ impl Pcg {
             dnew += self.r[i].dot(&self.c[i]);
         }
         let delta0 = dnew;
-        if !(delta0 > 0.0) {
+        if !delta0.is_finite() {
+            return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
+        }
+        if delta0 <= 0.0 {
             return Ok(0);
         }
         let eps2 = tol * tol * delta0;
@@ -237,6 +240,9 @@ impl Pcg {
             for i in 0..n {
                 self.s[i] = filter[i].apply(&self.s[i]);
                 dnew += self.r[i].dot(&self.s[i]);
+            }
+            if !dnew.is_finite() {
+                return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
             }
             let beta = dnew / dold;
             for i in 0..n {
