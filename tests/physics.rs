@@ -317,7 +317,12 @@ fn auto_solver_runs_are_reproducible() {
     let (b, ib) = run();
     assert_eq!(ia, ib);
     assert!(a.iter().zip(&b).all(|(p, q)| p == q), "two runs differ");
-    // it did use both solvers: 1 iteration is a direct solve
-    assert!(ia.contains(&1) && ia.iter().any(|&k| k > 1), "{ia:?}");
+    // it did use both solvers: a step on the Cholesky reports the few PCG
+    // iterations that refine its single-precision factor (1–3), one on the
+    // block-Jacobi PCG dozens
+    assert!(
+        ia.iter().any(|&k| k <= 3) && ia.iter().any(|&k| k > 20),
+        "{ia:?}"
+    );
     println!("iterations {ia:?}");
 }

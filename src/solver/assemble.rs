@@ -208,8 +208,40 @@ fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
 
 /// Assembles the given element ranges into `o`; with `init`, `o`'s rows
 /// are started (see [`init_rows`]) just ahead of the tiles that add to them,
-/// so the matrix is walked once.
+/// so the matrix is walked once. The same code compiled for AVX2 where the
+/// CPU has it (no FMA: the same roundings, the same results).
 fn elements(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    o: &mut Out,
+    init: bool,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        unsafe { elements_avx2(ctx, tr, sr, hr, o, init) };
+        return;
+    }
+    elements_impl(ctx, tr, sr, hr, o, init)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn elements_avx2(
+    ctx: &Ctx,
+    tr: Range<usize>,
+    sr: Range<usize>,
+    hr: Range<usize>,
+    o: &mut Out,
+    init: bool,
+) {
+    elements_impl(ctx, tr, sr, hr, o, init)
+}
+
+#[inline(always)]
+fn elements_impl(
     ctx: &Ctx,
     tr: Range<usize>,
     sr: Range<usize>,
@@ -251,6 +283,7 @@ fn elements(
 const TILE: usize = 256;
 
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn elements_range(
     ctx: &Ctx,
     tr: Range<usize>,

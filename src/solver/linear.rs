@@ -11,7 +11,9 @@ use super::sparse::{BlockMatrix, LowerCsc};
 use anyhow::{anyhow, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, SymbolicCholesky};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::{Matrix3, Vector3};
@@ -166,6 +168,92 @@ impl Pcg {
     }
 }
 
+impl Pcg {
+    /// The filtered PCG preconditioned by a Cholesky factor `P = L Lᵀ` held
+    /// by `direct` (possibly of an older step's matrix and constraint set:
+    /// any SPD `P` gives the valid filtered preconditioner `S P⁻¹ S`). It
+    /// starts from the prescribed part `z` (the first residual `S (b − A z)`
+    /// then also gives the reference of the stopping test, with no extra
+    /// triangular solves) and stops as [`Pcg::solve`] does. One thread.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_factor(
+        &mut self,
+        a: &BlockMatrix,
+        b: &[Vector3<f64>],
+        filter: &[Filter],
+        z: &[Vector3<f64>],
+        dv: &mut [Vector3<f64>],
+        tol: f64,
+        max_iter: usize,
+        direct: &mut Direct,
+    ) -> Result<usize> {
+        let n = a.n;
+        for v in [&mut self.r, &mut self.c, &mut self.q, &mut self.s] {
+            v.resize(n, Vector3::zeros());
+        }
+        dv.copy_from_slice(z);
+        for i in 0..n {
+            self.r[i] = filter[i].apply(&(b[i] - row_mul(a, i, dv)));
+        }
+        direct.apply(&self.r, &mut self.s);
+        let mut dnew = 0.0;
+        for i in 0..n {
+            self.c[i] = filter[i].apply(&self.s[i]);
+            dnew += self.r[i].dot(&self.c[i]);
+        }
+        let delta0 = dnew;
+        if !delta0.is_finite() {
+            return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
+        }
+        if delta0 <= 0.0 {
+            return Ok(0);
+        }
+        let eps2 = tol * tol * delta0;
+        let mut it = 0;
+        while dnew > eps2 {
+            if it >= max_iter {
+                return Err(anyhow!(
+                    "PCG did not converge in {} iterations (residual ratio {:.2e})",
+                    max_iter,
+                    (dnew / delta0).sqrt()
+                ));
+            }
+            let mut cq = 0.0;
+            for i in 0..n {
+                let v = filter[i].apply(&row_mul(a, i, &self.c));
+                self.q[i] = v;
+                cq += self.c[i].dot(&v);
+            }
+            if cq <= 0.0 || !cq.is_finite() {
+                return Err(anyhow!(
+                    "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
+                ));
+            }
+            let alpha = dnew / cq;
+            for i in 0..n {
+                dv[i] += self.c[i] * alpha;
+                self.r[i] -= self.q[i] * alpha;
+            }
+            direct.apply(&self.r, &mut self.s);
+            let dold = dnew;
+            dnew = 0.0;
+            for i in 0..n {
+                self.s[i] = filter[i].apply(&self.s[i]);
+                dnew += self.r[i].dot(&self.s[i]);
+            }
+            if !dnew.is_finite() {
+                return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
+            }
+            let beta = dnew / dold;
+            for i in 0..n {
+                self.c[i] = self.s[i] + self.c[i] * beta;
+            }
+            it += 1;
+        }
+        Ok(it)
+    }
+}
+
 /// Vertices from which the PCG runs on several threads.
 pub const PCG_THREADS_FROM: usize = 40_000;
 
@@ -249,8 +337,27 @@ impl SpinBarrier {
     }
 }
 
-/// One thread's part of the filtered PCG (rows `lo..hi` of thread `t`).
+/// One thread's part of the filtered PCG (rows `lo..hi` of thread `t`):
+/// the same code compiled for AVX2 where the CPU has it (wider loads and
+/// products for the 3 × 3 blocks; no FMA, so the same roundings and the same
+/// results as the baseline x86-64 build).
 fn pcg_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (checked just above).
+        return unsafe { pcg_rows_avx2(args, sh, t) };
+    }
+    pcg_rows_impl(args, sh, t)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn pcg_rows_avx2(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    pcg_rows_impl(args, sh, t)
+}
+
+#[inline(always)]
+fn pcg_rows_impl(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
     let n = a.n;
     let lo = t * n / sh.nt;
@@ -360,7 +467,7 @@ fn pcg_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     Ok(it)
 }
 
-#[inline]
+#[inline(always)]
 fn row_mul(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
     let mut s = Vector3::zeros();
     for k in a.row_ptr[i]..a.row_ptr[i + 1] {
@@ -369,11 +476,31 @@ fn row_mul(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
     s
 }
 
+/// Precision of a Cholesky factor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Precision {
+    F64,
+    /// Single precision: half the memory traffic, for a preconditioner.
+    F32,
+}
+
 /// Direct solver: Cholesky of `S A S + (I − S) m` (SPD), symbolic analysis once.
 pub struct Direct {
+    /// Vertex ordering of the factor (new → old).
+    perm: Vec<usize>,
     csc: LowerCsc,
     symbolic: SymbolicCholesky<usize>,
     l_values: Vec<f64>,
+    /// Single-precision copy of the matrix values and factor (preconditioner).
+    values32: Vec<f32>,
+    l32: Vec<f32>,
+    rhs32: Vec<f32>,
+    /// Which factor is held, if any.
+    held: Option<Precision>,
+    /// Vertices with a constraint this step (scratch of `fill`).
+    constrained: Vec<bool>,
+    /// Filtered blocks of the lower triangle (scratch of `fill`).
+    filtered: Vec<Matrix3<f64>>,
     mem: MemBuffer,
     rhs: Vec<f64>,
     tmp: Vec<Vector3<f64>>,
@@ -394,30 +521,44 @@ impl std::fmt::Debug for Direct {
 impl Direct {
     /// `threads` > 1 factorises on that many threads (faer's rayon
     /// parallelism over the elimination tree and inside the supernodes).
+    ///
+    /// The fill-reducing ordering is faer's AMD on the vertex graph
+    /// ([`super::sparse::amd_vertex_order`]), and the matrix is stored in
+    /// that order, so that faer does not permute it at every factorisation.
     pub fn new(a: &BlockMatrix, threads: usize) -> Result<Direct> {
         let par = if threads > 1 {
             Par::rayon(threads)
         } else {
             Par::Seq
         };
-        let csc = LowerCsc::new(a);
-        let sym = SymbolicSparseColMatRef::new_checked(
-            csc.dim,
-            csc.dim,
-            &csc.col_ptr,
-            None,
-            &csc.row_idx,
-        );
-        let symbolic =
-            factorize_symbolic_cholesky(sym, Side::Lower, Default::default(), Default::default())
-                .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
+        let analyse = |csc: &LowerCsc, ordering: SymmetricOrdering<usize>| {
+            // without a permutation faer's analysis reads the upper triangle:
+            // the transpose of the lower one
+            let (col_ptr, row_idx) = csc.transposed_pattern();
+            let sym =
+                SymbolicSparseColMatRef::new_checked(csc.dim, csc.dim, &col_ptr, None, &row_idx);
+            factorize_symbolic_cholesky(sym, Side::Upper, ordering, Default::default())
+                .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))
+        };
+        let perm = super::sparse::amd_vertex_order(a);
+        let csc = LowerCsc::new_permuted(a, &perm);
+        let symbolic = analyse(&csc, SymmetricOrdering::Identity)?;
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, par),
+            symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()),
+            symbolic.solve_in_place_scratch::<f32>(1, par),
         ]);
         Ok(Direct {
+            perm,
             rhs: vec![0.0; csc.dim],
+            values32: vec![0.0; csc.row_idx.len()],
+            l32: Vec::new(),
+            rhs32: vec![0.0; csc.dim],
+            held: None,
+            constrained: Vec::new(),
+            filtered: Vec::new(),
             csc,
             symbolic,
             l_values,
@@ -449,6 +590,153 @@ impl Direct {
         (0.55 * l * l / n / per_iter).round().max(10.0) as usize
     }
 
+    /// Fills the values of `S A S + (I − S) m` (lower triangle).
+    fn fill<T: Copy>(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        mass: &[f64],
+        out: &mut [T],
+        conv: impl Fn(f64) -> T,
+    ) {
+        self.constrained.clear();
+        self.constrained
+            .extend(filter.iter().map(|f| *f != Filter::Free));
+        // S_i M S_j (+ (I − S_i) m on the diagonal) of the blocks that touch
+        // a constrained vertex, once per block (both triangles: the factor's
+        // ordering decides which of (i, j) and (j, i) it reads)
+        self.filtered.resize(a.val.len(), Matrix3::zeros());
+        for i in 0..a.n {
+            for blk in a.row_ptr[i]..a.row_ptr[i + 1] {
+                let j = a.col[blk];
+                if !(self.constrained[i] || self.constrained[j]) {
+                    continue;
+                }
+                let si = filter[i].matrix();
+                let mut f = si * a.val[blk] * filter[j].matrix();
+                if i == j {
+                    f += (Matrix3::identity() - si) * mass[i];
+                }
+                self.filtered[blk] = f;
+            }
+        }
+        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
+            let (i, j) = (self.block_row[blk], a.col[blk]);
+            let m = if self.constrained[i] || self.constrained[j] {
+                &self.filtered[blk]
+            } else {
+                &a.val[blk]
+            };
+            let v = m[(p as usize, q as usize)];
+            out[k] = conv(v);
+        }
+    }
+
+    /// Factorises `S A S + (I − S) m` in the given precision and keeps the
+    /// factor (for [`Direct::apply`]).
+    pub fn factorize(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        mass: &[f64],
+        precision: Precision,
+    ) -> Result<()> {
+        self.held = None;
+        let (mut v64, mut v32) = (
+            std::mem::take(&mut self.csc.values),
+            std::mem::take(&mut self.values32),
+        );
+        match precision {
+            Precision::F64 => self.fill(a, filter, mass, &mut v64, |v| v),
+            Precision::F32 => self.fill(a, filter, mass, &mut v32, |v| v as f32),
+        }
+        (self.csc.values, self.values32) = (v64, v32);
+        let sym = SymbolicSparseColMatRef::new_checked(
+            self.csc.dim,
+            self.csc.dim,
+            &self.csc.col_ptr,
+            None,
+            &self.csc.row_idx,
+        );
+        let stack = MemStack::new(&mut self.mem);
+        let err = |e| anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}");
+        match precision {
+            Precision::F64 => {
+                let mat = SparseColMatRef::new(sym, &self.csc.values);
+                self.symbolic
+                    .factorize_numeric_llt::<f64>(
+                        &mut self.l_values,
+                        mat,
+                        Side::Lower,
+                        LltRegularization::default(),
+                        self.par,
+                        stack,
+                        Default::default(),
+                    )
+                    .map_err(err)?;
+            }
+            Precision::F32 => {
+                self.l32.resize(self.symbolic.len_val(), 0.0);
+                let mat = SparseColMatRef::new(sym, &self.values32);
+                self.symbolic
+                    .factorize_numeric_llt::<f32>(
+                        &mut self.l32,
+                        mat,
+                        Side::Lower,
+                        LltRegularization::default(),
+                        self.par,
+                        stack,
+                        Default::default(),
+                    )
+                    .map_err(err)?;
+            }
+        }
+        self.held = Some(precision);
+        Ok(())
+    }
+
+    /// The precision of the factor held, if any.
+    pub fn held(&self) -> Option<Precision> {
+        self.held
+    }
+
+    /// `out = P⁻¹ r` with the factor held (`P = L Lᵀ`).
+    pub fn apply(&mut self, r: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
+        let dim = self.csc.dim;
+        match self.held.expect("a factor is held") {
+            Precision::F64 => {
+                for (i, &o) in self.perm.iter().enumerate() {
+                    self.rhs[3 * i..3 * i + 3].copy_from_slice(r[o].as_slice());
+                }
+                let llt = LltRef::new(&self.symbolic, &self.l_values);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
+                for (i, &o) in self.perm.iter().enumerate() {
+                    out[o] =
+                        Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
+                }
+            }
+            Precision::F32 => {
+                for (i, &o) in self.perm.iter().enumerate() {
+                    for k in 0..3 {
+                        self.rhs32[3 * i + k] = r[o][k] as f32;
+                    }
+                }
+                let llt = LltRef::new(&self.symbolic, &self.l32);
+                let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
+                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
+                for (i, &o) in self.perm.iter().enumerate() {
+                    out[o] = Vector3::new(
+                        self.rhs32[3 * i] as f64,
+                        self.rhs32[3 * i + 1] as f64,
+                        self.rhs32[3 * i + 2] as f64,
+                    );
+                }
+            }
+        }
+    }
+
+    /// Direct solve: factorises (f64, kept) and solves exactly.
     pub fn solve(
         &mut self,
         a: &BlockMatrix,
@@ -459,59 +747,18 @@ impl Direct {
         dv: &mut [Vector3<f64>],
     ) -> Result<()> {
         let n = a.n;
-        // values of S A S + (I − S) m, lower triangle
-        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
-            let i = self.block_row[blk];
-            let j = a.col[blk];
-            let m = &a.val[blk];
-            let v = match (filter[i], filter[j]) {
-                (Filter::Free, Filter::Free) => m[(p as usize, q as usize)],
-                (fi, fj) => {
-                    let mut s = fi.matrix() * m * fj.matrix();
-                    if i == j {
-                        s += (Matrix3::identity() - fi.matrix()) * mass[i];
-                    }
-                    s[(p as usize, q as usize)]
-                }
-            };
-            self.csc.values[k] = v;
-        }
+        self.factorize(a, filter, mass, Precision::F64)?;
         // rhs = S (b − A z)
         a.mul(z, &mut self.tmp);
+        let mut r = std::mem::take(&mut self.tmp);
         for i in 0..n {
-            let r = filter[i].apply(&(b[i] - self.tmp[i]));
-            self.rhs[3 * i] = r.x;
-            self.rhs[3 * i + 1] = r.y;
-            self.rhs[3 * i + 2] = r.z;
+            r[i] = filter[i].apply(&(b[i] - r[i]));
         }
-        let sym = SymbolicSparseColMatRef::new_checked(
-            self.csc.dim,
-            self.csc.dim,
-            &self.csc.col_ptr,
-            None,
-            &self.csc.row_idx,
-        );
-        let mat = SparseColMatRef::new(sym, &self.csc.values);
-        let stack = MemStack::new(&mut self.mem);
-        let llt = self
-            .symbolic
-            .factorize_numeric_llt::<f64>(
-                &mut self.l_values,
-                mat,
-                Side::Lower,
-                LltRegularization::default(),
-                self.par,
-                stack,
-                Default::default(),
-            )
-            .map_err(|e| {
-                anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}")
-            })?;
-        let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, self.csc.dim, 1);
-        llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
+        self.apply(&r, dv);
         for i in 0..n {
-            dv[i] = Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]) + z[i];
+            dv[i] += z[i];
         }
+        self.tmp = r;
         Ok(())
     }
 }

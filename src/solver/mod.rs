@@ -202,6 +202,10 @@ pub struct Simulation {
     direct: Option<linear::Direct>,
     /// `auto` mode is on the Cholesky (the PCG needed too many iterations).
     auto_on_direct: bool,
+    /// Step of the next try of the PCG while on the Cholesky, and the gap
+    /// to the one after if it fails (doubled at each failure).
+    auto_next_probe: u64,
+    auto_probe_gap: u64,
 }
 
 impl Simulation {
@@ -259,6 +263,8 @@ impl Simulation {
             pcg: linear::Pcg::default(),
             direct,
             auto_on_direct: false,
+            auto_next_probe: 0,
+            auto_probe_gap: AUTO_PROBE,
         })
     }
 
@@ -511,9 +517,12 @@ impl Simulation {
 
     /// Uses the PCG while it converges within the iterations that cost as
     /// much as the Cholesky ([`linear::Direct::break_even_iterations`], from
-    /// operation counts), else the Cholesky; on the Cholesky, the PCG is
-    /// tried again every [`AUTO_PROBE`] steps (capped at the same count, so a
-    /// failed try costs at most one direct solve). The choice depends on
+    /// operation counts), else the Cholesky (a single-precision factor
+    /// refined by the PCG, see [`Simulation::solve_factored`]); on the
+    /// Cholesky, the PCG is tried again after [`AUTO_PROBE`] steps, then
+    /// after gaps doubled at each failed try up to [`AUTO_PROBE_MAX`]
+    /// (capped at the same count, so a failed try costs at most about one
+    /// direct solve). The choice depends on
     /// iteration counts only, never on measured time, so a run gives the
     /// same trajectory every time.
     fn solve_auto(&mut self) -> Result<usize> {
@@ -522,18 +531,54 @@ impl Simulation {
             .direct()?
             .break_even_iterations(blocks)
             .min(self.params.cg_max_iterations);
-        let probe = self.steps.is_multiple_of(AUTO_PROBE);
+        let probe = self.steps >= self.auto_next_probe;
         if !self.auto_on_direct || probe {
             match self.solve_pcg(cap) {
                 Ok(it) => {
                     self.auto_on_direct = false;
+                    self.auto_probe_gap = AUTO_PROBE;
                     return Ok(it);
                 }
                 Err(_) => {
                     self.auto_on_direct = true;
-                    let it = self.solve_direct()?;
+                    self.auto_next_probe = self.steps + self.auto_probe_gap;
+                    self.auto_probe_gap = (2 * self.auto_probe_gap).min(AUTO_PROBE_MAX);
+                    let it = self.solve_factored()?;
                     return Ok(it + cap);
                 }
+            }
+        }
+        self.solve_factored()
+    }
+
+    /// The Cholesky factor of this step's `S A S + (I − S) m` in single
+    /// precision (faster to compute, half the memory traffic) as the
+    /// preconditioner of the filtered PCG, which then converges in one or
+    /// two iterations to the PCG tolerance; the double-precision factor and
+    /// its exact solve if single precision fails (not positive definite in
+    /// f32) or the PCG does not converge in [`F32_REFINE_CAP`] iterations.
+    fn solve_factored(&mut self) -> Result<usize> {
+        self.direct()?;
+        let d = self.direct.as_mut().expect("direct solver built");
+        if d.factorize(
+            &self.a,
+            &self.filter,
+            &self.cloth.mass,
+            linear::Precision::F32,
+        )
+        .is_ok()
+        {
+            if let Ok(it) = self.pcg.solve_factor(
+                &self.a,
+                &self.b,
+                &self.filter,
+                &self.z,
+                &mut self.dv,
+                self.params.cg_tolerance,
+                F32_REFINE_CAP,
+                d,
+            ) {
+                return Ok(it);
             }
         }
         self.solve_direct()
@@ -715,8 +760,17 @@ struct FrictionState {
     impulse: f64,
 }
 
-/// Steps between two tries of the PCG while `auto` mode is on the Cholesky.
+/// PCG iterations allowed with the single-precision factor before the
+/// double-precision one is used.
+pub const F32_REFINE_CAP: usize = 20;
+
+/// Steps between two tries of the PCG while `auto` mode is on the Cholesky,
+/// at first: each failed try doubles the gap, up to [`AUTO_PROBE_MAX`].
 pub const AUTO_PROBE: u64 = 25;
+
+/// Largest gap between two tries of the PCG (a failed try costs the
+/// break-even count of iterations: at most a few per cent of the time).
+pub const AUTO_PROBE_MAX: u64 = 200;
 
 #[inline]
 fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {

@@ -111,23 +111,38 @@ pub struct LowerCsc {
 
 impl LowerCsc {
     pub fn new(a: &BlockMatrix) -> LowerCsc {
+        let ident: Vec<usize> = (0..a.n).collect();
+        LowerCsc::new_permuted(a, &ident)
+    }
+
+    /// The lower triangle of `Pᵀ A P` for the vertex ordering `perm` (new
+    /// vertex → old vertex), each vertex's three unknowns kept together.
+    pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> LowerCsc {
         let dim = 3 * a.n;
+        let mut inv = vec![0; a.n];
+        for (new, &old) in perm.iter().enumerate() {
+            inv[old] = new;
+        }
         let mut col_ptr = Vec::with_capacity(dim + 1);
         let mut row_idx = Vec::new();
         let mut src = Vec::new();
         col_ptr.push(0);
+        let mut below: Vec<(usize, usize)> = Vec::new();
         // A is symmetric: column j of the lower triangle = row j entries with i ≥ j.
-        for j in 0..a.n {
+        for (nj, &j) in perm.iter().enumerate() {
+            below.clear();
+            for k in a.row_ptr[j]..a.row_ptr[j + 1] {
+                let i = a.col[k];
+                if inv[i] >= nj {
+                    below.push((inv[i], a.index(i, j)));
+                }
+            }
+            below.sort_unstable();
             for q in 0..3 {
-                for k in a.row_ptr[j]..a.row_ptr[j + 1] {
-                    let i = a.col[k];
-                    if i < j {
-                        continue;
-                    }
-                    let blk = a.index(i, j);
+                for &(ni, blk) in &below {
                     for p in 0..3 {
-                        let r = 3 * i + p;
-                        if r >= 3 * j + q {
+                        let r = 3 * ni + p;
+                        if r >= 3 * nj + q {
                             row_idx.push(r);
                             src.push((blk, p as u8, q as u8));
                         }
@@ -144,6 +159,54 @@ impl LowerCsc {
             values: vec![0.0; nnz],
             src,
         }
+    }
+}
+
+impl LowerCsc {
+    /// Column pointers and row indices of the transpose (the upper triangle).
+    pub fn transposed_pattern(&self) -> (Vec<usize>, Vec<usize>) {
+        let mut count = vec![0usize; self.dim + 1];
+        for &r in &self.row_idx {
+            count[r + 1] += 1;
+        }
+        for k in 0..self.dim {
+            count[k + 1] += count[k];
+        }
+        let col_ptr = count.clone();
+        let mut row_idx = vec![0; self.row_idx.len()];
+        for j in 0..self.dim {
+            for k in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let r = self.row_idx[k];
+                row_idx[count[r]] = j;
+                count[r] += 1;
+            }
+        }
+        (col_ptr, row_idx)
+    }
+}
+
+/// Approximate-minimum-degree ordering of the vertices (new → old), from
+/// the block pattern: each vertex's three unknowns stay together, so the
+/// factor can be built directly in that order (no permutation of the matrix
+/// at every factorisation).
+pub fn amd_vertex_order(a: &BlockMatrix) -> Vec<usize> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::linalg::amd;
+    use faer::sparse::SymbolicSparseColMatRef;
+    let nnz = a.col.len();
+    let mut perm = vec![0usize; a.n];
+    let mut inv = vec![0usize; a.n];
+    let mut mem = MemBuffer::new(amd::order_scratch::<usize>(a.n, nnz));
+    let pattern = SymbolicSparseColMatRef::new_checked(a.n, a.n, &a.row_ptr, None, &a.col);
+    match amd::order(
+        &mut perm,
+        &mut inv,
+        pattern,
+        Default::default(),
+        MemStack::new(&mut mem),
+    ) {
+        Ok(_) => perm,
+        Err(_) => (0..a.n).collect(),
     }
 }
 
