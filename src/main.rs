@@ -47,7 +47,9 @@ enum Cmd {
         /// Simulated duration, s.
         #[arg(long)]
         duration: Option<f64>,
-        /// Linear solver: auto (default: the faster of the two, timed), pcg or cholesky.
+        /// Linear solver: auto (default: PCG while it converges in fewer iterations than the
+        /// break-even count, else a single-precision Cholesky factor as its preconditioner),
+        /// pcg (block-Jacobi) or cholesky (exact, double precision).
         #[arg(long)]
         solver: Option<LinearSolverKind>,
         /// Turn the hysteretic parts of the laws off.
