@@ -115,7 +115,7 @@ fn drape_coefficient_falls_with_weight() {
 /// 1 cm the grid holds one pattern (12 nodes). It was 55.9 % at 1 cm and
 /// 49.1 % at 0.5 cm (6.8 points) with the grid's single skewed hinge, whose
 /// fold along one cell diagonal costs no bending
-/// ([`garment_sim::lab::drapemeter::mirror_symmetric_hinges`]).
+/// ([`garment_sim::cloth::Cloth::mirror_symmetric_hinges`]).
 ///
 /// What remains is the net of two discretisation errors of opposite sign,
 /// measured on seed 1:
@@ -174,7 +174,6 @@ fn drape_coefficient_is_steady_under_grid_refinement() {
 /// the weft. The grid's single skewed hinge fails both (the control below).
 #[test]
 fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
-    use garment_sim::lab::drapemeter::mirror_symmetric_hinges;
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
     let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml"))
@@ -195,7 +194,7 @@ fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
         )
         .unwrap();
         if symmetric {
-            mirror_symmetric_hinges(&mut c);
+            c.mirror_symmetric_hinges();
         }
         (0..8)
             .map(|k| {
@@ -449,7 +448,6 @@ fn drapemeter_command_writes_report_and_top_view() {
 #[test]
 fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
     use garment_sim::cloth::GridSpec;
-    use garment_sim::lab::drapemeter::mirror_symmetric_hinges;
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
     let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml"))
@@ -462,7 +460,7 @@ fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
     };
     let single = Cloth::grid(&spec, wool.areal_mass).unwrap();
     let mut pair = single.clone();
-    mirror_symmetric_hinges(&mut pair);
+    pair.mirror_symmetric_hinges();
     // two half hinges where the grid had one
     assert_eq!(pair.hinges.len(), 2 * single.hinges.len());
     let radius = 0.04;

@@ -26,7 +26,7 @@
 //! annulus at 1–0.5 cm; with the staircase border of [`Cloth::clipped`] it
 //! covers only 91–94 % and the coefficient drifts down as the grid is refined.
 //! The bending hinges are rebuilt as mirror-symmetric pairs
-//! ([`mirror_symmetric_hinges`]), without which the coefficient moved with the
+//! ([`Cloth::mirror_symmetric_hinges`]), without which the coefficient moved with the
 //! grid (wool tropical 55.9 % at 1 cm, 49.1 % at 0.5 cm; with the pairs 58.7 %
 //! and 56.1–59.0 %, the seed of the perturbation picking the fold pattern at
 //! the finer grids). The coefficient normalised by the discrete flat
@@ -37,10 +37,9 @@
 //! `(D_specimen − D_disk)/2` from the lowest point on either side; their
 //! angles are measured from the warp (+x) counter-clockwise.
 
-use crate::cloth::{Cloth, Hinge, Outline};
+use crate::cloth::{Cloth, Outline};
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
-use crate::fabric::LawState;
 use crate::plot::{Image, Rgb, BLACK, WHITE};
 use crate::solver::{Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
@@ -69,7 +68,7 @@ pub struct DrapeOptions {
     /// Border nodes moved onto the circle ([`Cloth::clipped_to_outline`]);
     /// false: the staircase of whole grid nodes ([`Cloth::clipped`]).
     pub border_on_outline: bool,
-    /// Mirror-symmetric hinge pairs ([`mirror_symmetric_hinges`]); false:
+    /// Mirror-symmetric hinge pairs ([`Cloth::mirror_symmetric_hinges`]); false:
     /// the grid's single skewed hinge per edge.
     pub symmetric_hinges: bool,
     /// Clamp the vertices out to the radius whose convex hull has the disks'
@@ -191,95 +190,6 @@ impl StartPerturbation {
         let sum: f64 = self.modes.iter().map(|&(k, p)| (k * phi + p).cos()).sum();
         self.amplitude * s * s * sum / self.norm
     }
-}
-
-/// Edge length and mean wing height over the edge line of hinge `v`, from
-/// the material positions `m`.
-fn hinge_rest(m: &[[f64; 2]], v: [usize; 4]) -> (f64, f64) {
-    let (p, q) = (m[v[0]], m[v[1]]);
-    let e = [q[0] - p[0], q[1] - p[1]];
-    let el = (e[0] * e[0] + e[1] * e[1]).sqrt();
-    let height = |w: [f64; 2]| ((w[0] - p[0]) * e[1] - (w[1] - p[1]) * e[0]).abs() / el;
-    (el, 0.5 * (height(m[v[2]]) + height(m[v[3]])))
-}
-
-/// Rebuilds the bending hinges of a grid (full or clipped) as mirror-symmetric pairs.
-///
-/// [`Cloth::grid`] and [`Cloth::clipped`] give each grid edge one hinge whose
-/// wings sit on a skewed diagonal, e.g. `(i−1, j)` and `(i+1, j+1)` about the
-/// edge `(i, j)–(i, j+1)`. Such a hinge is right for a fold along the warp or
-/// the weft (the KES bending test), but it breaks the woven fabric's mirror
-/// symmetry about its threads: a fold whose generators run along one cell
-/// diagonal leaves its four masses coplanar and costs no bending at all, one
-/// along the other diagonal costs twice the continuum energy (an isometric
-/// cylinder of radius 3 cm at 0.25 cm spacing, linear law, energy over
-/// `B κ²/2 × area`: 0.99, 1.69, 1.97, 1.69, 0.99, 0.29, 0, 0.29 for
-/// generators at 0°, 22.5°, … 157.5° from the weft). A drape folds in every
-/// direction, so with the single hinge an isotropic fabric's folds gather
-/// where bending is free, the node pattern follows the grid and the drape
-/// coefficient moves with the spacing (wool tropical: 55.9 % at 1 cm, 49.1 %
-/// at 0.5 cm).
-///
-/// Here each edge gets both skewed stencils, `(i−1, j), (i+1, j+1)` and
-/// `(i−1, j+1), (i+1, j)` (and likewise for weft bending), each standing for
-/// half the edge's width of material; where the border leaves only one of
-/// the two, that one carries the whole width, as the single hinge did. The
-/// pair costs the same energy as the single hinge for folds along the
-/// threads, and 0.99 of the continuum energy in every direction on the same
-/// cylinder. Rest lengths and heights come from the material positions (as
-/// [`Cloth::clipped_to_outline`] does for the nodes it moved onto the
-/// outline). The memories of the hinges start at zero (the flat specimen).
-pub fn mirror_symmetric_hinges(cloth: &mut Cloth) {
-    let (nx, ny) = (cloth.nx as i64, cloth.ny as i64);
-    let gv = |i: i64, j: i64| -> Option<usize> {
-        if i < 0 || j < 0 || i >= nx || j >= ny {
-            return None;
-        }
-        let node = (j * nx + i) as usize;
-        // a full grid ([`Cloth::grid`]) has no map: node k is vertex k
-        let v = cloth.grid_vertex.get(node).copied().unwrap_or(node);
-        (v != crate::cloth::REMOVED).then_some(v)
-    };
-    let m = &cloth.material;
-    let rest = |v: [usize; 4]| hinge_rest(m, v);
-    let mut hinges = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            for weft in [false, true] {
-                // shared edge and the two wing pairs
-                let stencils = if weft {
-                    [
-                        [(i, j), (i + 1, j), (i, j - 1), (i + 1, j + 1)],
-                        [(i, j), (i + 1, j), (i + 1, j - 1), (i, j + 1)],
-                    ]
-                } else {
-                    [
-                        [(i, j), (i, j + 1), (i - 1, j), (i + 1, j + 1)],
-                        [(i, j), (i, j + 1), (i - 1, j + 1), (i + 1, j)],
-                    ]
-                };
-                let kept: Vec<[usize; 4]> = stencils
-                    .iter()
-                    .filter_map(|st| {
-                        let v: Vec<usize> = st.iter().filter_map(|&(p, q)| gv(p, q)).collect();
-                        (v.len() == 4).then(|| [v[0], v[1], v[2], v[3]])
-                    })
-                    .collect();
-                let share = 1.0 / kept.len().max(1) as f64;
-                for v in kept {
-                    let (len, h) = rest(v);
-                    hinges.push(Hinge {
-                        v,
-                        weft,
-                        len: len * share,
-                        h,
-                    });
-                }
-            }
-        }
-    }
-    cloth.hinge_state = vec![LawState::at(0.0); hinges.len()];
-    cloth.hinges = hinges;
 }
 
 /// Area of the convex hull of points in the plane (Andrew's monotone chain).
@@ -419,7 +329,7 @@ pub fn run(
         fabric.areal_mass,
     )?;
     if opt.symmetric_hinges {
-        mirror_symmetric_hinges(&mut cloth);
+        cloth.mirror_symmetric_hinges();
     }
     let flat: Vec<Vector3<f64>> = cloth.x.clone();
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();

@@ -166,9 +166,7 @@ impl Pcg {
             r0
         })
     }
-}
 
-impl Pcg {
     /// The filtered PCG preconditioned by a Cholesky factor `P = L Lᵀ` held
     /// by `direct` (possibly of an older step's matrix and constraint set:
     /// any SPD `P` gives the valid filtered preconditioner `S P⁻¹ S`). It
@@ -531,18 +529,20 @@ impl Direct {
         } else {
             Par::Seq
         };
-        let analyse = |csc: &LowerCsc, ordering: SymmetricOrdering<usize>| {
-            // without a permutation faer's analysis reads the upper triangle:
-            // the transpose of the lower one
-            let (col_ptr, row_idx) = csc.transposed_pattern();
-            let sym =
-                SymbolicSparseColMatRef::new_checked(csc.dim, csc.dim, &col_ptr, None, &row_idx);
-            factorize_symbolic_cholesky(sym, Side::Upper, ordering, Default::default())
-                .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))
-        };
         let perm = super::sparse::amd_vertex_order(a);
         let csc = LowerCsc::new_permuted(a, &perm);
-        let symbolic = analyse(&csc, SymmetricOrdering::Identity)?;
+        // the matrix is stored in the factor's ordering; without a
+        // permutation faer's analysis reads the upper triangle: the transpose
+        // of the lower one
+        let (col_ptr, row_idx) = csc.transposed_pattern();
+        let sym = SymbolicSparseColMatRef::new_checked(csc.dim, csc.dim, &col_ptr, None, &row_idx);
+        let symbolic = factorize_symbolic_cholesky(
+            sym,
+            Side::Upper,
+            SymmetricOrdering::Identity,
+            Default::default(),
+        )
+        .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),

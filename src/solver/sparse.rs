@@ -110,11 +110,6 @@ pub struct LowerCsc {
 }
 
 impl LowerCsc {
-    pub fn new(a: &BlockMatrix) -> LowerCsc {
-        let ident: Vec<usize> = (0..a.n).collect();
-        LowerCsc::new_permuted(a, &ident)
-    }
-
     /// The lower triangle of `Pᵀ A P` for the vertex ordering `perm` (new
     /// vertex → old vertex), each vertex's three unknowns kept together.
     pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> LowerCsc {
@@ -160,9 +155,7 @@ impl LowerCsc {
             src,
         }
     }
-}
 
-impl LowerCsc {
     /// Column pointers and row indices of the transpose (the upper triangle).
     pub fn transposed_pattern(&self) -> (Vec<usize>, Vec<usize>) {
         let mut count = vec![0usize; self.dim + 1];
@@ -232,7 +225,7 @@ mod tests {
         a.mul(&x, &mut y);
         assert_eq!(y[0], Vector3::new(2.0, 2.0, 2.0));
         assert_eq!(y[2], Vector3::new(0.0, 0.0, 5.0));
-        let csc = LowerCsc::new(&a);
+        let csc = LowerCsc::new_permuted(&a, &[0, 1, 2]);
         // lower triangle of a 9×9 with 7 blocks: 3 diag blocks (6 each) + 2 off (9 each)
         assert_eq!(csc.row_idx.len(), 3 * 6 + 2 * 9);
     }
