@@ -189,9 +189,10 @@ impl Pcg {
         for v in [&mut self.r, &mut self.c, &mut self.q, &mut self.s] {
             v.resize(n, Vector3::zeros());
         }
+        let fma = has_fma();
         dv.copy_from_slice(z);
         for i in 0..n {
-            self.r[i] = filter[i].apply(&(b[i] - row_mul(a, i, dv)));
+            self.r[i] = filter[i].apply(&(b[i] - row_mul_best(fma, a, i, dv)));
         }
         direct.apply(&self.r, &mut self.s);
         let mut dnew = 0.0;
@@ -218,7 +219,7 @@ impl Pcg {
             }
             let mut cq = 0.0;
             for i in 0..n {
-                let v = filter[i].apply(&row_mul(a, i, &self.c));
+                let v = filter[i].apply(&row_mul_best(fma, a, i, &self.c));
                 self.q[i] = v;
                 cq += self.c[i].dot(&v);
             }
@@ -336,26 +337,40 @@ impl SpinBarrier {
 }
 
 /// One thread's part of the filtered PCG (rows `lo..hi` of thread `t`):
-/// the same code compiled for AVX2 where the CPU has it (wider loads and
-/// products for the 3 × 3 blocks; no FMA, so the same roundings and the same
-/// results as the baseline x86-64 build).
+/// where the CPU has AVX2 and FMA, the block products use them (four-wide
+/// fused multiply-adds on the 3 × 3 blocks, [`row_mul_fma`]); the portable
+/// build otherwise. Which one runs depends on the CPU only, so a run on one
+/// machine is reproducible bit for bit.
 fn pcg_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (checked just above).
-        return unsafe { pcg_rows_avx2(args, sh, t) };
+    if has_fma() {
+        // SAFETY: the CPU has AVX2 and FMA (checked just above).
+        return unsafe { pcg_rows_fma(args, sh, t) };
     }
-    pcg_rows_impl(args, sh, t)
+    pcg_rows_impl::<false>(args, sh, t)
+}
+
+/// The CPU has AVX2 and FMA (x86-64).
+#[inline]
+pub fn has_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn pcg_rows_avx2(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
-    pcg_rows_impl(args, sh, t)
+#[target_feature(enable = "avx2,fma")]
+fn pcg_rows_fma(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    pcg_rows_impl::<true>(args, sh, t)
 }
 
 #[inline(always)]
-fn pcg_rows_impl(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
     let n = a.n;
     let lo = t * n / sh.nt;
@@ -398,7 +413,7 @@ fn pcg_rows_impl(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     {
         let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
         for k in 0..len {
-            let ax = row_mul(a, lo + k, x);
+            let ax = row_mul_k::<FMA>(a, lo + k, x);
             r[k] = f[k].apply(&(bb[k] - ax));
             c_own[k] = f[k].apply(&(pinv[k] * r[k]));
             dnew += r[k].dot(&c_own[k]);
@@ -426,7 +441,7 @@ fn pcg_rows_impl(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
         {
             let c = unsafe { std::slice::from_raw_parts(c_all, n) };
             for k in 0..len {
-                let v = f[k].apply(&row_mul(a, lo + k, c));
+                let v = f[k].apply(&row_mul_k::<FMA>(a, lo + k, c));
                 q[k] = v;
                 cq += c[lo + k].dot(&v);
             }
@@ -465,6 +480,90 @@ fn pcg_rows_impl(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     Ok(it)
 }
 
+/// Row i of `A x`: with `FMA`, [`row_mul_fma`] (the caller must run with
+/// AVX2 and FMA enabled), else the portable product.
+#[inline(always)]
+fn row_mul_k<const FMA: bool>(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set by callers compiled with AVX2 and FMA on a
+        // CPU that has them (see `pcg_rows`)
+        return unsafe { row_mul_fma(a, i, x) };
+    }
+    row_mul(a, i, x)
+}
+
+/// Row i of `A x` with AVX2 and FMA: each 3 × 3 block (nalgebra stores it
+/// column-major, nine contiguous f64) is read as three overlapping
+/// four-wide columns (the fourth lane is the next column's first entry and
+/// is dropped), multiplied by the broadcast entries of `x_j`; two
+/// accumulators alternate so consecutive blocks do not wait on each other.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
+    use std::arch::x86_64::*;
+    let (lo, hi) = (a.row_ptr[i], a.row_ptr[i + 1]);
+    assert!(hi <= a.val.len() && hi <= a.col.len());
+    let vp = a.val.as_ptr() as *const f64;
+    let xp = x.as_ptr() as *const f64;
+    let nx = x.len();
+    // the last block of the matrix: its third column is read masked (a
+    // four-wide load would run one f64 past the end)
+    let last = a.val.len() - 1;
+    macro_rules! block {
+        ($k:expr) => {{
+            let k = $k;
+            let j = *a.col.get_unchecked(k);
+            assert!(j < nx);
+            let m = vp.add(9 * k);
+            let xj = xp.add(3 * j);
+            let c2 = if k < last {
+                _mm256_loadu_pd(m.add(6))
+            } else {
+                _mm256_maskload_pd(m.add(6), _mm256_setr_epi64x(-1, -1, -1, 0))
+            };
+            let t = _mm256_mul_pd(_mm256_loadu_pd(m), _mm256_broadcast_sd(&*xj));
+            let t = _mm256_fmadd_pd(
+                _mm256_loadu_pd(m.add(3)),
+                _mm256_broadcast_sd(&*xj.add(1)),
+                t,
+            );
+            _mm256_fmadd_pd(c2, _mm256_broadcast_sd(&*xj.add(2)), t)
+        }};
+    }
+    let mut acc0 = _mm256_setzero_pd();
+    let mut acc1 = _mm256_setzero_pd();
+    let mut k = lo;
+    while k + 1 < hi {
+        acc0 = _mm256_add_pd(acc0, block!(k));
+        acc1 = _mm256_add_pd(acc1, block!(k + 1));
+        k += 2;
+    }
+    if k < hi {
+        acc0 = _mm256_add_pd(acc0, block!(k));
+    }
+    let mut out = [0.0; 4];
+    _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(acc0, acc1));
+    Vector3::new(out[0], out[1], out[2])
+}
+
+/// Row i of `A x`, with [`row_mul_fma`] when `fma` (the CPU has AVX2 and
+/// FMA, [`has_fma`]).
+#[inline]
+fn row_mul_best(fma: bool, a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: `fma` says the CPU has AVX2 and FMA
+        return unsafe { row_mul_fma(a, i, x) };
+    }
+    let _ = fma;
+    row_mul(a, i, x)
+}
+
 #[inline(always)]
 fn row_mul(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
     let mut s = Vector3::zeros();
@@ -495,15 +594,11 @@ pub struct Direct {
     rhs32: Vec<f32>,
     /// Which factor is held, if any.
     held: Option<Precision>,
-    /// Vertices with a constraint this step (scratch of `fill`).
-    constrained: Vec<bool>,
-    /// Filtered blocks of the lower triangle (scratch of `fill`).
-    filtered: Vec<Matrix3<f64>>,
     mem: MemBuffer,
     rhs: Vec<f64>,
     tmp: Vec<Vector3<f64>>,
-    /// Row of each block of the pattern.
-    block_row: Vec<usize>,
+    /// Position of the transposed block (j, i) of each block (i, j).
+    transpose: Vec<usize>,
     /// Threads of the numeric factorisation and solve.
     par: Par,
 }
@@ -530,7 +625,10 @@ impl Direct {
             Par::Seq
         };
         let perm = super::sparse::amd_vertex_order(a);
-        let csc = LowerCsc::new_permuted(a, &perm);
+        let csc = LowerCsc::new_permuted(a, &perm)?;
+        // checked once here (panics on a malformed pattern, a bug), trusted
+        // at every factorisation
+        SymbolicSparseColMatRef::new_checked(csc.dim, csc.dim, &csc.col_ptr, None, &csc.row_idx);
         // the matrix is stored in the factor's ordering; without a
         // permutation faer's analysis reads the upper triangle: the transpose
         // of the lower one
@@ -557,15 +655,14 @@ impl Direct {
             l32: Vec::new(),
             rhs32: vec![0.0; csc.dim],
             held: None,
-            constrained: Vec::new(),
-            filtered: Vec::new(),
             csc,
             symbolic,
             l_values,
             mem: MemBuffer::new(req),
             tmp: vec![Vector3::zeros(); a.n],
-            block_row: (0..a.n)
-                .flat_map(|i| std::iter::repeat_n(i, a.row_ptr[i + 1] - a.row_ptr[i]))
+            transpose: (0..a.n)
+                .flat_map(|i| (a.row_ptr[i]..a.row_ptr[i + 1]).map(move |k| (i, k)))
+                .map(|(i, k)| a.index(a.col[k], i))
                 .collect(),
             par,
         })
@@ -590,7 +687,11 @@ impl Direct {
         (0.55 * l * l / n / per_iter).round().max(10.0) as usize
     }
 
-    /// Fills the values of `S A S + (I − S) m` (lower triangle).
+    /// Fills the values of `S A S + (I − S) m` (lower triangle): every
+    /// value copied from the matrix, then the blocks that touch a
+    /// constrained vertex overwritten with their filtered values (once per
+    /// block and its transpose; the factor's ordering decides which of the
+    /// two it stores).
     fn fill<T: Copy>(
         &mut self,
         a: &BlockMatrix,
@@ -599,36 +700,39 @@ impl Direct {
         out: &mut [T],
         conv: impl Fn(f64) -> T,
     ) {
-        self.constrained.clear();
-        self.constrained
-            .extend(filter.iter().map(|f| *f != Filter::Free));
-        // S_i M S_j (+ (I − S_i) m on the diagonal) of the blocks that touch
-        // a constrained vertex, once per block (both triangles: the factor's
-        // ordering decides which of (i, j) and (j, i) it reads)
-        self.filtered.resize(a.val.len(), Matrix3::zeros());
+        // walk the blocks in storage order (the reads stream; the writes land
+        // in the factor's much smaller value array)
+        let entries = &self.csc.entries;
+        for (m, e) in a.flat().chunks_exact(9).zip(entries) {
+            for (v, &k) in m.iter().zip(e) {
+                if k != u32::MAX {
+                    out[k as usize] = conv(*v);
+                }
+            }
+        }
+        let mut put = |blk: usize, m: &Matrix3<f64>| {
+            for (e, v) in entries[blk].iter().zip(m.as_slice()) {
+                if *e != u32::MAX {
+                    out[*e as usize] = conv(*v);
+                }
+            }
+        };
         for i in 0..a.n {
+            if filter[i] == Filter::Free {
+                continue;
+            }
+            let si = filter[i].matrix();
             for blk in a.row_ptr[i]..a.row_ptr[i + 1] {
                 let j = a.col[blk];
-                if !(self.constrained[i] || self.constrained[j]) {
-                    continue;
-                }
-                let si = filter[i].matrix();
                 let mut f = si * a.val[blk] * filter[j].matrix();
                 if i == j {
                     f += (Matrix3::identity() - si) * mass[i];
+                    put(blk, &f);
+                } else {
+                    put(blk, &f);
+                    put(self.transpose[blk], &f.transpose());
                 }
-                self.filtered[blk] = f;
             }
-        }
-        for (k, &(blk, p, q)) in self.csc.src.iter().enumerate() {
-            let (i, j) = (self.block_row[blk], a.col[blk]);
-            let m = if self.constrained[i] || self.constrained[j] {
-                &self.filtered[blk]
-            } else {
-                &a.val[blk]
-            };
-            let v = m[(p as usize, q as usize)];
-            out[k] = conv(v);
         }
     }
 
@@ -651,13 +755,16 @@ impl Direct {
             Precision::F32 => self.fill(a, filter, mass, &mut v32, |v| v as f32),
         }
         (self.csc.values, self.values32) = (v64, v32);
-        let sym = SymbolicSparseColMatRef::new_checked(
-            self.csc.dim,
-            self.csc.dim,
-            &self.csc.col_ptr,
-            None,
-            &self.csc.row_idx,
-        );
+        // SAFETY: the pattern `new` checked; it is never changed after
+        let sym = unsafe {
+            SymbolicSparseColMatRef::new_unchecked(
+                self.csc.dim,
+                self.csc.dim,
+                &self.csc.col_ptr,
+                None,
+                &self.csc.row_idx,
+            )
+        };
         let stack = MemStack::new(&mut self.mem);
         let err = |e| anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}");
         match precision {
@@ -760,5 +867,146 @@ impl Direct {
         }
         self.tmp = r;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 6 × 5 grid of vertices with random PSD springs to their right,
+    /// upper and diagonal neighbours plus a mass on the diagonal: SPD, and
+    /// symmetric bit for bit as the assembly makes it.
+    fn spd_grid(seed: u64) -> (BlockMatrix, Vec<f64>) {
+        let (nx, ny) = (6, 5);
+        let id = |i: usize, j: usize| j * nx + i;
+        let mut edges = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                for (di, dj) in [(1, 0), (0, 1), (1, 1)] {
+                    if i + di < nx && j + dj < ny {
+                        edges.push([id(i, j), id(i + di, j + dj)]);
+                    }
+                }
+            }
+        }
+        let n = nx * ny;
+        let mut a = BlockMatrix::from_cliques(n, edges.iter().map(|e| e.as_slice()));
+        let mut state = seed;
+        let mut rnd = || {
+            // xorshift, in [-1, 1)
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let mass: Vec<f64> = (0..n).map(|_| 1.0 + 0.5 * rnd()).collect();
+        for i in 0..n {
+            let d = a.diag[i];
+            a.val[d] = Matrix3::identity() * mass[i];
+        }
+        for e in &edges {
+            let b = Matrix3::from_fn(|_, _| rnd());
+            let k = b * b.transpose() * 30.0;
+            let k = (k + k.transpose()) * 0.5;
+            let (ii, jj, ij, ji) = (
+                a.diag[e[0]],
+                a.diag[e[1]],
+                a.index(e[0], e[1]),
+                a.index(e[1], e[0]),
+            );
+            a.val[ii] += k;
+            a.val[jj] += k;
+            a.val[ij] -= k;
+            a.val[ji] -= k.transpose();
+        }
+        (a, mass)
+    }
+
+    #[test]
+    fn fma_row_product_matches_the_portable_one() {
+        if !has_fma() {
+            return;
+        }
+        let (a, _) = spd_grid(7);
+        let x: Vec<Vector3<f64>> = (0..a.n)
+            .map(|i| Vector3::new(i as f64 * 0.1 - 1.0, 2.0 - i as f64 * 0.03, 0.5))
+            .collect();
+        // every row, the last (with its masked final block) included
+        for i in 0..a.n {
+            let p = row_mul(&a, i, &x);
+            let f = row_mul_best(true, &a, i, &x);
+            let scale = a.val[a.row_ptr[i]..a.row_ptr[i + 1]]
+                .iter()
+                .map(|m| m.abs().max())
+                .fold(0.0, f64::max);
+            assert!(
+                (p - f).amax() <= 1e-13 * scale * 10.0,
+                "row {i}: {p:?} vs {f:?}"
+            );
+        }
+    }
+
+    /// The direct solve (f64 and f32-preconditioned) and the filtered PCG
+    /// give the same constrained solution: a free, a contact and a pinned
+    /// kind of vertex, with prescribed parts z.
+    #[test]
+    fn direct_and_pcg_agree_under_the_constraint_filter() {
+        let (a, mass) = spd_grid(11);
+        let n = a.n;
+        let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
+        let filter: Vec<Filter> = (0..n)
+            .map(|i| match i % 5 {
+                1 => Filter::Normal(nrm),
+                3 => Filter::Fixed,
+                _ => Filter::Free,
+            })
+            .collect();
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
+            .collect();
+        // z only in the constrained directions
+        let z: Vec<Vector3<f64>> = (0..n)
+            .map(|i| match filter[i] {
+                Filter::Normal(m) => m * 0.05,
+                Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
+                Filter::Free => Vector3::zeros(),
+            })
+            .collect();
+        let mut direct = Direct::new(&a, 1).unwrap();
+        let mut x_direct = vec![Vector3::zeros(); n];
+        direct
+            .solve(&a, &b, &filter, &z, &mass, &mut x_direct)
+            .unwrap();
+        let mut pcg = Pcg::default();
+        let mut x_pcg = vec![Vector3::zeros(); n];
+        pcg.solve(&a, &b, &filter, &z, &mut x_pcg, 1e-13, 10_000)
+            .unwrap();
+        direct
+            .factorize(&a, &filter, &mass, Precision::F32)
+            .unwrap();
+        let mut x_f32 = vec![Vector3::zeros(); n];
+        let it = pcg
+            .solve_factor(&a, &b, &filter, &z, &mut x_f32, 1e-13, 50, &mut direct)
+            .unwrap();
+        assert!(it <= 10, "f32 factor as preconditioner: {it} iterations");
+        let scale = x_direct.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        for i in 0..n {
+            for (name, x) in [("pcg", &x_pcg), ("f32-preconditioned", &x_f32)] {
+                assert!(
+                    (x[i] - x_direct[i]).amax() <= 1e-9 * scale,
+                    "{name} vertex {i}: {:?} vs {:?}",
+                    x[i],
+                    x_direct[i]
+                );
+            }
+            // the constraint holds exactly: S Δv has no part along the
+            // constrained directions beyond z
+            let free_part = x_direct[i] - z[i];
+            assert!((filter[i].apply(&free_part) - free_part).amax() <= 1e-12 * scale);
+            // the residual vanishes in the free directions
+            let r = b[i] - row_mul(&a, i, &x_direct);
+            assert!(filter[i].apply(&r).amax() <= 1e-9 * scale.max(1.0) * 30.0);
+        }
     }
 }

@@ -91,36 +91,55 @@ impl BlockMatrix {
         }
     }
 
+    /// The blocks' values as one flat array (each block column-major).
+    pub fn flat(&self) -> &[f64] {
+        // SAFETY: Matrix3<f64> is nine contiguous f64 (nalgebra's
+        // column-major ArrayStorage, repr(C)), so the Vec is 9·len of them
+        unsafe { std::slice::from_raw_parts(self.val.as_ptr() as *const f64, 9 * self.val.len()) }
+    }
+
     pub fn nnz_blocks(&self) -> usize {
         self.col.len()
     }
 }
 
 /// Scalar lower-triangular CSC structure of a [`BlockMatrix`], with the map
-/// from each CSC entry to (block, row-in-block, col-in-block): filled every step
-/// without reallocation.
+/// from each block entry to its CSC position: filled every step without
+/// reallocation.
 #[derive(Debug, Clone)]
 pub struct LowerCsc {
     pub dim: usize,
     pub col_ptr: Vec<usize>,
     pub row_idx: Vec<usize>,
     pub values: Vec<f64>,
-    /// (block index, p, q) for each value.
-    pub src: Vec<(usize, u8, u8)>,
+    /// For each block of the matrix, the positions of its nine entries
+    /// (column-major) among the values, `u32::MAX` for those not in the
+    /// lower triangle.
+    pub entries: Vec<[u32; 9]>,
 }
 
 impl LowerCsc {
     /// The lower triangle of `Pᵀ A P` for the vertex ordering `perm` (new
     /// vertex → old vertex), each vertex's three unknowns kept together.
-    pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> LowerCsc {
+    ///
+    /// Fails when the matrix has more entries than 32-bit positions address
+    /// (about 4.7e8 blocks).
+    pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> anyhow::Result<LowerCsc> {
         let dim = 3 * a.n;
+        if 9 * a.val.len() >= u32::MAX as usize {
+            anyhow::bail!(
+                "the system matrix has {} blocks: too many for the direct solver (at most {})",
+                a.val.len(),
+                u32::MAX / 9
+            );
+        }
         let mut inv = vec![0; a.n];
         for (new, &old) in perm.iter().enumerate() {
             inv[old] = new;
         }
         let mut col_ptr = Vec::with_capacity(dim + 1);
         let mut row_idx = Vec::new();
-        let mut src = Vec::new();
+        let mut entries = vec![[u32::MAX; 9]; a.val.len()];
         col_ptr.push(0);
         let mut below: Vec<(usize, usize)> = Vec::new();
         // A is symmetric: column j of the lower triangle = row j entries with i ≥ j.
@@ -138,8 +157,8 @@ impl LowerCsc {
                     for p in 0..3 {
                         let r = 3 * ni + p;
                         if r >= 3 * nj + q {
+                            entries[blk][3 * q + p] = row_idx.len() as u32;
                             row_idx.push(r);
-                            src.push((blk, p as u8, q as u8));
                         }
                     }
                 }
@@ -147,13 +166,13 @@ impl LowerCsc {
             }
         }
         let nnz = row_idx.len();
-        LowerCsc {
+        Ok(LowerCsc {
             dim,
             col_ptr,
             row_idx,
             values: vec![0.0; nnz],
-            src,
-        }
+            entries,
+        })
     }
 
     /// Column pointers and row indices of the transpose (the upper triangle).
@@ -225,7 +244,7 @@ mod tests {
         a.mul(&x, &mut y);
         assert_eq!(y[0], Vector3::new(2.0, 2.0, 2.0));
         assert_eq!(y[2], Vector3::new(0.0, 0.0, 5.0));
-        let csc = LowerCsc::new_permuted(&a, &[0, 1, 2]);
+        let csc = LowerCsc::new_permuted(&a, &[0, 1, 2]).unwrap();
         // lower triangle of a 9×9 with 7 blocks: 3 diag blocks (6 each) + 2 off (9 each)
         assert_eq!(csc.row_idx.len(), 3 * 6 + 2 * 9);
     }
