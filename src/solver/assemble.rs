@@ -191,6 +191,7 @@ struct Out<'a> {
 
 /// Starts rows `rows` of the step: mass and Rayleigh-α terms on the
 /// diagonal, zero elsewhere; gravity and α damping in the force.
+#[inline(always)]
 fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
     let (h, al) = (ctx.h, ctx.d.alpha);
     for i in rows {
@@ -388,7 +389,7 @@ struct AxialStep {
 
 /// Adds an axial spring (tension or shear) to the step: stiffness with the step
 /// tangent, damping with the branch tangent.
-#[inline]
+#[inline(always)]
 fn axial_element(ctx: &Ctx, o: &mut Out, slots: &[usize; 4], e: &AxialStep) {
     let (h, y, v) = (ctx.h, ctx.y, ctx.c.v);
     let (bo, vo) = (o.boff, o.voff);

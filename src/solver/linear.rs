@@ -651,7 +651,7 @@ impl Direct {
         Ok(Direct {
             perm,
             rhs: vec![0.0; csc.dim],
-            values32: vec![0.0; csc.row_idx.len()],
+            values32: vec![0.0; csc.row_idx.len() + 1],
             l32: Vec::new(),
             rhs32: vec![0.0; csc.dim],
             held: None,
@@ -700,21 +700,20 @@ impl Direct {
         out: &mut [T],
         conv: impl Fn(f64) -> T,
     ) {
-        // walk the blocks in storage order (the reads stream; the writes land
-        // in the factor's much smaller value array)
-        let entries = &self.csc.entries;
-        for (m, e) in a.flat().chunks_exact(9).zip(entries) {
-            for (v, &k) in m.iter().zip(e) {
-                if k != u32::MAX {
-                    out[k as usize] = conv(*v);
-                }
+        // walk the stored blocks in storage order (the reads stream; the
+        // writes land in the factor's much smaller value array)
+        let (entries, flat) = (&self.csc.entries, a.flat());
+        for &blk in &self.csc.stored {
+            let blk = blk as usize;
+            for (&k, v) in entries[blk].iter().zip(&flat[9 * blk..9 * blk + 9]) {
+                out[k as usize] = conv(*v);
             }
         }
+        // blocks of constrained vertices, overwritten (entries outside the
+        // lower triangle write the spare value)
         let mut put = |blk: usize, m: &Matrix3<f64>| {
-            for (e, v) in entries[blk].iter().zip(m.as_slice()) {
-                if *e != u32::MAX {
-                    out[*e as usize] = conv(*v);
-                }
+            for (&k, v) in entries[blk].iter().zip(m.as_slice()) {
+                out[k as usize] = conv(*v);
             }
         };
         for i in 0..a.n {
@@ -769,7 +768,7 @@ impl Direct {
         let err = |e| anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}");
         match precision {
             Precision::F64 => {
-                let mat = SparseColMatRef::new(sym, &self.csc.values);
+                let mat = SparseColMatRef::new(sym, &self.csc.values[..self.csc.row_idx.len()]);
                 self.symbolic
                     .factorize_numeric_llt::<f64>(
                         &mut self.l_values,
@@ -784,7 +783,7 @@ impl Direct {
             }
             Precision::F32 => {
                 self.l32.resize(self.symbolic.len_val(), 0.0);
-                let mat = SparseColMatRef::new(sym, &self.values32);
+                let mat = SparseColMatRef::new(sym, &self.values32[..self.csc.row_idx.len()]);
                 self.symbolic
                     .factorize_numeric_llt::<f32>(
                         &mut self.l32,

@@ -112,9 +112,12 @@ pub struct LowerCsc {
     pub col_ptr: Vec<usize>,
     pub row_idx: Vec<usize>,
     pub values: Vec<f64>,
-    /// For each block of the matrix, the positions of its nine entries
-    /// (column-major) among the values, `u32::MAX` for those not in the
-    /// lower triangle.
+    /// The blocks with entries in the lower triangle (storage order), and
+    /// for each the positions of its nine entries (column-major) among the
+    /// values; an entry not in the lower triangle points at the spare value
+    /// after the last (`values` has one more than the pattern), so the fill
+    /// writes all nine without a test.
+    pub stored: Vec<u32>,
     pub entries: Vec<[u32; 9]>,
 }
 
@@ -126,7 +129,7 @@ impl LowerCsc {
     /// (about 4.7e8 blocks).
     pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> anyhow::Result<LowerCsc> {
         let dim = 3 * a.n;
-        if 9 * a.val.len() >= u32::MAX as usize {
+        if 9 * a.val.len() + 1 >= u32::MAX as usize {
             anyhow::bail!(
                 "the system matrix has {} blocks: too many for the direct solver (at most {})",
                 a.val.len(),
@@ -140,6 +143,7 @@ impl LowerCsc {
         let mut col_ptr = Vec::with_capacity(dim + 1);
         let mut row_idx = Vec::new();
         let mut entries = vec![[u32::MAX; 9]; a.val.len()];
+        let mut stored = Vec::new();
         col_ptr.push(0);
         let mut below: Vec<(usize, usize)> = Vec::new();
         // A is symmetric: column j of the lower triangle = row j entries with i ≥ j.
@@ -166,11 +170,20 @@ impl LowerCsc {
             }
         }
         let nnz = row_idx.len();
+        for (blk, e) in entries.iter_mut().enumerate() {
+            if e.iter().any(|&k| k != u32::MAX) {
+                stored.push(blk as u32);
+            }
+            for k in e.iter_mut().filter(|k| **k == u32::MAX) {
+                *k = nnz as u32;
+            }
+        }
         Ok(LowerCsc {
             dim,
             col_ptr,
             row_idx,
-            values: vec![0.0; nnz],
+            values: vec![0.0; nnz + 1],
+            stored,
             entries,
         })
     }
