@@ -412,8 +412,18 @@ fn real_main(cli: Cli) -> Result<()> {
                 warmup
             );
             println!(
-                "{:>8} {:>9} {:>9} {:>8} {:>12} {:>10} {:>8} {:>11}",
-                "spacing", "grid", "dt", "solver", "ms/step", "RTF", "iters", "peak RSS MB"
+                "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11}",
+                "spacing",
+                "grid",
+                "dt",
+                "solver",
+                "ms/step",
+                "assembly",
+                "solve",
+                "contacts",
+                "RTF",
+                "iters",
+                "peak RSS MB"
             );
             for &sp in &spacing {
                 for &h in &dt {
@@ -426,7 +436,9 @@ fn real_main(cli: Cli) -> Result<()> {
                         };
                         let mut sim = sc.build(&ov)?;
                         let wsteps = (warmup / h).round() as u64;
-                        let mut ms = Vec::new();
+                        // per run: ms per step in all, then in assembly, solve
+                        // and contacts (the step's own timers)
+                        let mut ms: Vec<[f64; 4]> = Vec::new();
                         let mut it = 0.0;
                         let measured = (|| -> Result<()> {
                             for _ in 0..wsteps.min(steps * 3) {
@@ -435,34 +447,49 @@ fn real_main(cli: Cli) -> Result<()> {
                             for _ in 0..repeat.max(1) {
                                 let t = std::time::Instant::now();
                                 let mut iters = 0;
+                                let mut phase = [0.0; 3];
                                 for _ in 0..steps {
-                                    iters += sim.step()?.iterations;
+                                    let st = sim.step()?;
+                                    iters += st.iterations;
+                                    phase[0] += st.assemble_s;
+                                    phase[1] += st.solve_s;
+                                    phase[2] += st.collide_s;
                                 }
-                                ms.push(1e3 * t.elapsed().as_secs_f64() / steps as f64);
+                                let per = |x: f64| 1e3 * x / steps as f64;
+                                ms.push([
+                                    per(t.elapsed().as_secs_f64()),
+                                    per(phase[0]),
+                                    per(phase[1]),
+                                    per(phase[2]),
+                                ]);
                                 it = iters as f64 / steps as f64;
                             }
                             Ok(())
                         })();
                         if let Err(e) = measured {
                             println!(
-                                "{:>8} {:>9} {:>9} {:>8}   failed: {e:#}",
+                                "{:>8} {:>9} {:>10} {:>8}   failed: {e:#}",
                                 sp,
                                 format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
-                                h,
+                                format!("{h:.4e}"),
                                 format!("{so:?}").to_lowercase()
                             );
                             continue;
                         }
-                        ms.sort_by(|a, b| a.total_cmp(b));
+                        // the median run, with its own phase split
+                        ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
                         let med = ms[ms.len() / 2];
                         println!(
-                            "{:>8} {:>9} {:>9} {:>8} {:>12.3} {:>10.3} {:>8.1} {:>11.1}",
+                            "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1}",
                             sp,
                             format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
-                            h,
+                            format!("{h:.4e}"),
                             format!("{so:?}").to_lowercase(),
-                            med,
-                            h * 1e3 / med,
+                            med[0],
+                            med[1],
+                            med[2],
+                            med[3],
+                            h * 1e3 / med[0],
                             it,
                             peak_rss_mb()
                         );

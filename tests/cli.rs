@@ -138,3 +138,64 @@ fn node_start_up_errors_name_what_is_wrong() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `bench` prints one row per case with the time per step, its split into
+/// assembly, solve and contacts (which add up to at most the whole), the
+/// real-time factor (dt / time per step) and the peak memory.
+#[test]
+fn bench_reports_time_per_step_and_its_phases() {
+    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        .args([
+            "bench",
+            "--spacing",
+            "0.05",
+            "--dt",
+            "0.001,0.0001",
+            "--solver",
+            "pcg,cholesky",
+            "--steps",
+            "20",
+            "--repeat",
+            "3",
+            "--warmup",
+            "0.01",
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}");
+    let header = stdout
+        .lines()
+        .find(|l| l.contains("ms/step"))
+        .expect("header");
+    for col in [
+        "assembly",
+        "solve",
+        "contacts",
+        "RTF",
+        "iters",
+        "peak RSS MB",
+    ] {
+        assert!(header.contains(col), "header lacks {col}: {header}");
+    }
+    let rows: Vec<Vec<&str>> = stdout
+        .lines()
+        .filter(|l| l.trim_start().starts_with("0.05"))
+        .map(|l| l.split_whitespace().collect())
+        .collect();
+    assert_eq!(rows.len(), 4, "{stdout}");
+    for r in &rows {
+        let num = |k: usize| -> f64 { r[k].parse().unwrap_or_else(|_| panic!("{r:?}")) };
+        assert_eq!(r[1], "11x11");
+        let (dt, ms, asm, solve, contacts, rtf) = (num(2), num(4), num(5), num(6), num(7), num(8));
+        assert!(asm > 0.0 && solve > 0.0 && contacts >= 0.0, "{r:?}");
+        // the phases are parts of the step (each printed to 0.001 ms)
+        assert!(asm + solve + contacts <= ms * 1.01 + 0.003, "{r:?}");
+        // ms/step is printed to 0.001 ms
+        assert!(
+            (rtf - dt * 1e3 / ms).abs() <= rtf * (0.0005 / ms + 0.002) + 0.002,
+            "{r:?}"
+        );
+        assert!(num(9) >= 1.0 && num(10) > 1.0, "{r:?}");
+    }
+}
