@@ -513,7 +513,7 @@ unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<
     let nx = x.len();
     // the last block of the matrix: its third column is read masked (a
     // four-wide load would run one f64 past the end)
-    let last = a.val.len() - 1;
+    let last = a.val.len().saturating_sub(1);
     macro_rules! block {
         ($k:expr) => {{
             let k = $k;

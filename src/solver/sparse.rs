@@ -93,6 +93,7 @@ impl BlockMatrix {
 
     /// The blocks' values as one flat array (each block column-major).
     pub fn flat(&self) -> &[f64] {
+        const _: () = assert!(std::mem::size_of::<Matrix3<f64>>() == 9 * 8);
         // SAFETY: Matrix3<f64> is nine contiguous f64 (nalgebra's
         // column-major ArrayStorage, repr(C)), so the Vec is 9·len of them
         unsafe { std::slice::from_raw_parts(self.val.as_ptr() as *const f64, 9 * self.val.len()) }
