@@ -167,9 +167,9 @@ impl Pcg {
         })
     }
 
-    /// The filtered PCG preconditioned by a Cholesky factor `P = L Lᵀ` held
-    /// by `direct` (possibly of an older step's matrix and constraint set:
-    /// any SPD `P` gives the valid filtered preconditioner `S P⁻¹ S`). It
+    /// The filtered PCG preconditioned by the Cholesky factor `P = L Lᵀ` held
+    /// by `direct` (`S P⁻¹ S`; in `auto`, this step's single-precision
+    /// factor of `S A S + (I − S) m`). It
     /// starts from the prescribed part `z` (the first residual `S (b − A z)`
     /// then also gives the reference of the stopping test, with no extra
     /// triangular solves) and stops as [`Pcg::solve`] does. One thread.
@@ -480,14 +480,15 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     Ok(it)
 }
 
-/// Row i of `A x`: with `FMA`, [`row_mul_fma`] (the caller must run with
-/// AVX2 and FMA enabled), else the portable product.
+/// Row i of `A x`: with `FMA`, [`row_mul_fma`] (only where the CPU has AVX2
+/// and FMA; inlined into callers compiled with them), else the portable
+/// product.
 #[inline(always)]
 fn row_mul_k<const FMA: bool>(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
     #[cfg(target_arch = "x86_64")]
     if FMA {
-        // SAFETY: FMA is only set by callers compiled with AVX2 and FMA on a
-        // CPU that has them (see `pcg_rows`)
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA (see
+        // `pcg_rows` and `row_mul_best`)
         return unsafe { row_mul_fma(a, i, x) };
     }
     row_mul(a, i, x)
@@ -552,16 +553,15 @@ unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<
 }
 
 /// Row i of `A x`, with [`row_mul_fma`] when `fma` (the CPU has AVX2 and
-/// FMA, [`has_fma`]).
+/// FMA, [`has_fma`]): [`row_mul_k`] chosen at run time, for callers not
+/// compiled with those features.
 #[inline]
 fn row_mul_best(fma: bool, a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
-    #[cfg(target_arch = "x86_64")]
     if fma {
-        // SAFETY: `fma` says the CPU has AVX2 and FMA
-        return unsafe { row_mul_fma(a, i, x) };
+        row_mul_k::<true>(a, i, x)
+    } else {
+        row_mul_k::<false>(a, i, x)
     }
-    let _ = fma;
-    row_mul(a, i, x)
 }
 
 #[inline(always)]
