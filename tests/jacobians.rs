@@ -65,7 +65,7 @@ fn check(fam: Family, seed: u64, scale: f64) {
             sim.cloth.x[j][q] = x0;
             for i in 0..n {
                 let fd = (fp[i] - fm[i]) / (2.0 * h);
-                let an = match k.col[k.row_ptr[i]..k.row_ptr[i + 1]].binary_search(&j) {
+                let an = match k.col[k.row_ptr[i]..k.row_ptr[i + 1]].binary_search(&(j as u32)) {
                     Ok(pos) => k.val[k.row_ptr[i] + pos].column(q).into_owned(),
                     Err(_) => Vector3::zeros(),
                 };
@@ -148,7 +148,7 @@ fn velocity_jacobian_is_the_damping_matrix() {
             let fm = sim.total_force_at_velocity(&vm);
             for i in 0..n {
                 let fd = (fp[i] - fm[i]) / (2.0 * h);
-                let an = match c.col[c.row_ptr[i]..c.row_ptr[i + 1]].binary_search(&j) {
+                let an = match c.col[c.row_ptr[i]..c.row_ptr[i + 1]].binary_search(&(j as u32)) {
                     Ok(pos) => c.val[c.row_ptr[i] + pos].column(q).into_owned(),
                     Err(_) => Vector3::zeros(),
                 };

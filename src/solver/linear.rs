@@ -518,7 +518,7 @@ unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<
     macro_rules! block {
         ($k:expr) => {{
             let k = $k;
-            let j = *a.col.get_unchecked(k);
+            let j = *a.col.get_unchecked(k) as usize;
             assert!(j < nx);
             let m = vp.add(9 * k);
             let xj = xp.add(3 * j);
@@ -568,7 +568,7 @@ fn row_mul_best(fma: bool, a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vec
 fn row_mul(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
     let mut s = Vector3::zeros();
     for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-        s += a.val[k] * x[a.col[k]];
+        s += a.val[k] * x[a.col[k] as usize];
     }
     s
 }
@@ -662,7 +662,7 @@ impl Direct {
             tmp: vec![Vector3::zeros(); a.n],
             transpose: (0..a.n)
                 .flat_map(|i| (a.row_ptr[i]..a.row_ptr[i + 1]).map(move |k| (i, k)))
-                .map(|(i, k)| a.index(a.col[k], i))
+                .map(|(i, k)| a.index(a.col[k] as usize, i))
                 .collect(),
             par,
         })
@@ -722,7 +722,7 @@ impl Direct {
             }
             let si = filter[i].matrix();
             for blk in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let j = a.col[blk];
+                let j = a.col[blk] as usize;
                 let mut f = si * a.val[blk] * filter[j].matrix();
                 if i == j {
                     f += (Matrix3::identity() - si) * mass[i];

@@ -444,7 +444,7 @@ impl Simulation {
             if let Some((mu, vo)) = self.contact_of[i] {
                 let mut r = -self.b[i];
                 for k in self.a.row_ptr[i]..self.a.row_ptr[i + 1] {
-                    r += self.a.val[k] * self.dv[self.a.col[k]];
+                    r += self.a.val[k] * self.dv[self.a.col[k] as usize];
                 }
                 let nrm = match self.filter[i] {
                     Filter::Normal(nrm) => nrm,
