@@ -423,7 +423,7 @@ impl Simulation {
         // 3. solve
         let t_solve = Instant::now();
         let iterations = match self.params.linear_solver {
-            LinearSolverKind::Pcg => self.solve_pcg(self.params.cg_max_iterations)?,
+            LinearSolverKind::Pcg => self.solve_pcg(self.params.cg_max_iterations, false)?,
             LinearSolverKind::Cholesky => self.solve_direct()?,
             LinearSolverKind::Auto => self.solve_auto()?,
         };
@@ -489,8 +489,16 @@ impl Simulation {
         self.normals[i]
     }
 
-    fn solve_pcg(&mut self, max_iter: usize) -> Result<usize> {
-        self.pcg.solve(
+    /// The PCG; with `within` (`auto`'s tries), given up as soon as
+    /// `max_iter` is out of reach ([`linear::Pcg::solve_within`]).
+    fn solve_pcg(&mut self, max_iter: usize, within: bool) -> Result<usize> {
+        let solve = if within {
+            linear::Pcg::solve_within
+        } else {
+            linear::Pcg::solve
+        };
+        solve(
+            &mut self.pcg,
             &self.a,
             &self.b,
             &self.filter,
@@ -521,8 +529,9 @@ impl Simulation {
     /// refined by the PCG, see [`Simulation::solve_factored`]); on the
     /// Cholesky, the PCG is tried again after [`AUTO_PROBE`] steps, then
     /// after gaps doubled at each failed try up to [`AUTO_PROBE_MAX`]
-    /// (capped at the same count, so a failed try costs at most about one
-    /// direct solve). The choice depends on
+    /// (capped at the same count, and given up as soon as the convergence
+    /// so far shows the cap is out of reach, [`linear::Pcg::solve_within`]:
+    /// a failed try costs a few dozen iterations). The choice depends on
     /// iteration counts only, never on measured time, so a run gives the
     /// same trajectory every time.
     fn solve_auto(&mut self) -> Result<usize> {
@@ -533,7 +542,7 @@ impl Simulation {
             .min(self.params.cg_max_iterations);
         let probe = self.steps >= self.auto_next_probe;
         if !self.auto_on_direct || probe {
-            match self.solve_pcg(cap) {
+            match self.solve_pcg(cap, true) {
                 Ok(it) => {
                     self.auto_on_direct = false;
                     self.auto_probe_gap = AUTO_PROBE;
@@ -543,8 +552,9 @@ impl Simulation {
                     self.auto_on_direct = true;
                     self.auto_next_probe = self.steps + self.auto_probe_gap;
                     self.auto_probe_gap = (2 * self.auto_probe_gap).min(AUTO_PROBE_MAX);
+                    let spent = self.pcg.spent();
                     let it = self.solve_factored()?;
-                    return Ok(it + cap);
+                    return Ok(it + spent);
                 }
             }
         }
