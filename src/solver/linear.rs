@@ -1030,9 +1030,6 @@ mod tests {
         }
     }
 
-    /// The direct solve (f64 and f32-preconditioned) and the filtered PCG
-    /// give the same constrained solution: a free, a contact and a pinned
-    /// kind of vertex, with prescribed parts z.
     #[test]
     fn a_try_gives_up_once_its_cap_is_out_of_reach() {
         // the projection: too early to tell, no progress, fast and slow rates
@@ -1085,6 +1082,9 @@ mod tests {
         assert_eq!(spent, EARLY_FROM);
     }
 
+    /// The direct solve (f64 and f32-preconditioned) and the filtered PCG
+    /// give the same constrained solution: a free, a contact and a pinned
+    /// kind of vertex, with prescribed parts z.
     #[test]
     fn direct_and_pcg_agree_under_the_constraint_filter() {
         let (a, mass) = spd_grid(11);

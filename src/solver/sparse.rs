@@ -9,8 +9,8 @@ use nalgebra::{Matrix3, Vector3};
 pub struct BlockMatrix {
     pub n: usize,
     pub row_ptr: Vec<usize>,
-    /// Column of each block (32-bit: a fifth less memory traffic in the
-    /// products than `usize`).
+    /// Column of each block (32-bit: the products read 4 bytes less per
+    /// 72-byte block than with `usize`).
     pub col: Vec<u32>,
     pub val: Vec<Matrix3<f64>>,
     /// Index of the diagonal block of each row.
