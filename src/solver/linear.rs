@@ -81,6 +81,26 @@ impl Filter {
     }
 }
 
+/// When [`Pcg::solve`] stops without converging.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cap {
+    /// After this many iterations.
+    Hard(usize),
+    /// After this many, or as soon as the convergence so far shows they
+    /// will not do — for a caller with a cheaper alternative (`auto`'s tries
+    /// of the PCG): from [`EARLY_FROM`] iterations on, every 8, when the mean
+    /// rate of the residual's decrease so far would need more iterations
+    /// than the cap to reach the tolerance. On the cloth's systems the rate
+    /// mostly slows as the iterations go (the easy components go first): the
+    /// tries that converge stay below the cap, and one that would not stops
+    /// after a few dozen iterations instead of the cap. Where CG speeds up
+    /// instead (a clustered spectrum), a try that would have converged may be
+    /// given up; since `auto`'s cap is the break-even count, the Cholesky it
+    /// then takes costs about as much. Decided on residuals only:
+    /// reproducible.
+    Reachable(usize),
+}
+
 /// Workspace of the filtered PCG.
 #[derive(Debug, Clone, Default)]
 pub struct Pcg {
@@ -89,8 +109,7 @@ pub struct Pcg {
     q: Vec<Vector3<f64>>,
     s: Vec<Vector3<f64>>,
     pinv: Vec<Matrix3<f64>>,
-    /// Iterations of the last [`Pcg::solve`] or [`Pcg::solve_within`], also
-    /// when it failed.
+    /// Iterations of the last [`Pcg::solve`], also when it failed.
     spent: usize,
 }
 
@@ -103,7 +122,9 @@ impl Pcg {
     /// Solves with relative tolerance `tol` on the filtered, preconditioned
     /// residual (relative to the right-hand side's, so the start does not
     /// change when it stops); `dv` holds the first guess (its filtered part;
-    /// zeros for none) and then the solution. Returns the iteration count.
+    /// zeros for none) and then the solution. Returns the iteration count;
+    /// an error when `cap` stops it (see [`Cap`]) or the matrix is not
+    /// positive definite.
     ///
     /// The whole solve runs on [`super::assemble::threads_for`] threads
     /// started once per solve: each owns a contiguous range of rows and does
@@ -120,49 +141,12 @@ impl Pcg {
         z: &[Vector3<f64>],
         dv: &mut [Vector3<f64>],
         tol: f64,
-        max_iter: usize,
+        cap: Cap,
     ) -> Result<usize> {
-        self.solve_impl(a, b, filter, z, dv, tol, max_iter, false)
-    }
-
-    /// [`Pcg::solve`] for a caller with a cheaper alternative (`auto`'s
-    /// tries of the PCG): it also gives up as soon as the convergence so far
-    /// shows the cap will not be met — from [`EARLY_FROM`] iterations on,
-    /// every 8, when the mean rate of the residual's decrease so far would
-    /// need more than `max_iter` iterations to reach `tol`. On the cloth's
-    /// systems the rate mostly slows as the iterations go (the easy
-    /// components go first): the tries that converge stay below the cap, and
-    /// one that would not stops after a few dozen iterations instead of
-    /// `max_iter`. Where CG speeds up instead (a clustered spectrum), a try
-    /// that would have converged may be given up; since `auto`'s cap is the
-    /// break-even count, the Cholesky it then takes costs about as much.
-    /// Decided on residuals only: reproducible.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve_within(
-        &mut self,
-        a: &BlockMatrix,
-        b: &[Vector3<f64>],
-        filter: &[Filter],
-        z: &[Vector3<f64>],
-        dv: &mut [Vector3<f64>],
-        tol: f64,
-        max_iter: usize,
-    ) -> Result<usize> {
-        self.solve_impl(a, b, filter, z, dv, tol, max_iter, true)
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    fn solve_impl(
-        &mut self,
-        a: &BlockMatrix,
-        b: &[Vector3<f64>],
-        filter: &[Filter],
-        z: &[Vector3<f64>],
-        dv: &mut [Vector3<f64>],
-        tol: f64,
-        max_iter: usize,
-        early: bool,
-    ) -> Result<usize> {
+        let (max_iter, early) = match cap {
+            Cap::Hard(n) => (n, false),
+            Cap::Reachable(n) => (n, true),
+        };
         let n = a.n;
         self.r.resize(n, Vector3::zeros());
         self.c.resize(n, Vector3::zeros());
@@ -200,24 +184,23 @@ impl Pcg {
             tol,
             max_iter,
         };
-        if nt == 1 {
-            let r = pcg_rows(&args, &sh, 0);
-            self.spent = sh.iters.load(Ordering::Relaxed);
-            return r;
-        }
-        let r = std::thread::scope(|sc| {
-            let handles: Vec<_> = (1..nt)
-                .map(|t| {
-                    let (args, sh) = (&args, &sh);
-                    sc.spawn(move || pcg_rows(args, sh, t))
-                })
-                .collect();
-            let r0 = pcg_rows(&args, &sh, 0);
-            for h in handles {
-                let _ = h.join();
-            }
-            r0
-        });
+        let r = if nt == 1 {
+            pcg_rows(&args, &sh, 0)
+        } else {
+            std::thread::scope(|sc| {
+                let handles: Vec<_> = (1..nt)
+                    .map(|t| {
+                        let (args, sh) = (&args, &sh);
+                        sc.spawn(move || pcg_rows(args, sh, t))
+                    })
+                    .collect();
+                let r0 = pcg_rows(&args, &sh, 0);
+                for h in handles {
+                    let _ = h.join();
+                }
+                r0
+            })
+        };
         self.spent = sh.iters.load(Ordering::Relaxed);
         r
     }
@@ -308,7 +291,7 @@ impl Pcg {
     }
 }
 
-/// Iterations after which [`Pcg::solve_within`] may give up early.
+/// Iterations after which a [`Cap::Reachable`] solve may give up early.
 pub const EARLY_FROM: usize = 16;
 
 /// Whether, after `it` iterations that took the squared residual ratio to
@@ -328,7 +311,7 @@ pub const PCG_THREADS_FROM: usize = 40_000;
 
 /// Inputs of a PCG solve shared by its threads.
 struct PcgArgs<'a> {
-    /// Give up when the cap is out of reach (see [`Pcg::solve_within`]).
+    /// Give up when the cap is out of reach ([`Cap::Reachable`]).
     early: bool,
     a: &'a BlockMatrix,
     b: &'a [Vector3<f64>],
@@ -810,11 +793,10 @@ impl Direct {
                 let mut f = si * a.val[blk] * filter[j].matrix();
                 if i == j {
                     f += (Matrix3::identity() - si) * mass[i];
-                    put(blk, &f);
                 } else {
-                    put(blk, &f);
                     put(self.transpose[blk], &f.transpose());
                 }
+                put(blk, &f);
             }
         }
     }
@@ -1046,16 +1028,12 @@ mod tests {
             .collect();
         let z = vec![Vector3::zeros(); n];
         let mut pcg = Pcg::default();
-        let solve = |pcg: &mut Pcg, cap: usize, within: bool| {
+        let solve = |pcg: &mut Pcg, cap: Cap| {
             let mut x = vec![Vector3::zeros(); n];
-            let r = if within {
-                pcg.solve_within(&a, &b, &filter, &z, &mut x, 1e-13, cap)
-            } else {
-                pcg.solve(&a, &b, &filter, &z, &mut x, 1e-13, cap)
-            };
+            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-13, cap);
             (r, pcg.spent(), x)
         };
-        let (r, spent, exact) = solve(&mut pcg, 10_000, false);
+        let (r, spent, exact) = solve(&mut pcg, Cap::Hard(10_000));
         let needed = r.unwrap();
         assert_eq!(spent, needed);
         assert!(
@@ -1065,7 +1043,7 @@ mod tests {
         // within a cap it clearly meets, the try converges to the same
         // solution (this system's CG speeds up as it goes: with the cap at
         // `needed` itself the early rate would give up, see the doc)
-        let (r, spent, x) = solve(&mut pcg, 10_000, true);
+        let (r, spent, x) = solve(&mut pcg, Cap::Reachable(10_000));
         assert_eq!(r.unwrap(), needed);
         assert_eq!(spent, needed);
         for i in 0..n {
@@ -1074,10 +1052,10 @@ mod tests {
         // a cap well out of reach: the plain solve runs to it, the try gives up
         // at the first check
         let cap = needed / 2;
-        let (r, spent, _) = solve(&mut pcg, cap, false);
+        let (r, spent, _) = solve(&mut pcg, Cap::Hard(cap));
         assert!(r.is_err());
         assert_eq!(spent, cap);
-        let (r, spent, _) = solve(&mut pcg, cap, true);
+        let (r, spent, _) = solve(&mut pcg, Cap::Reachable(cap));
         assert!(r.unwrap_err().to_string().contains("would not converge"));
         assert_eq!(spent, EARLY_FROM);
     }
@@ -1115,7 +1093,7 @@ mod tests {
             .unwrap();
         let mut pcg = Pcg::default();
         let mut x_pcg = vec![Vector3::zeros(); n];
-        pcg.solve(&a, &b, &filter, &z, &mut x_pcg, 1e-13, 10_000)
+        pcg.solve(&a, &b, &filter, &z, &mut x_pcg, 1e-13, Cap::Hard(10_000))
             .unwrap();
         direct
             .factorize(&a, &filter, &mass, Precision::F32)

@@ -423,7 +423,9 @@ impl Simulation {
         // 3. solve
         let t_solve = Instant::now();
         let iterations = match self.params.linear_solver {
-            LinearSolverKind::Pcg => self.solve_pcg(self.params.cg_max_iterations, false)?,
+            LinearSolverKind::Pcg => {
+                self.solve_pcg(linear::Cap::Hard(self.params.cg_max_iterations))?
+            }
             LinearSolverKind::Cholesky => self.solve_direct()?,
             LinearSolverKind::Auto => self.solve_auto()?,
         };
@@ -489,23 +491,15 @@ impl Simulation {
         self.normals[i]
     }
 
-    /// The PCG; with `within` (`auto`'s tries), given up as soon as
-    /// `max_iter` is out of reach ([`linear::Pcg::solve_within`]).
-    fn solve_pcg(&mut self, max_iter: usize, within: bool) -> Result<usize> {
-        let solve = if within {
-            linear::Pcg::solve_within
-        } else {
-            linear::Pcg::solve
-        };
-        solve(
-            &mut self.pcg,
+    fn solve_pcg(&mut self, cap: linear::Cap) -> Result<usize> {
+        self.pcg.solve(
             &self.a,
             &self.b,
             &self.filter,
             &self.z,
             &mut self.dv,
             self.params.cg_tolerance,
-            max_iter,
+            cap,
         )
     }
 
@@ -530,7 +524,7 @@ impl Simulation {
     /// Cholesky, the PCG is tried again after [`AUTO_PROBE`] steps, then
     /// after gaps doubled at each failed try up to [`AUTO_PROBE_MAX`]
     /// (capped at the same count, and given up as soon as the convergence
-    /// so far shows the cap is out of reach, [`linear::Pcg::solve_within`]:
+    /// so far shows the cap is out of reach, [`linear::Cap::Reachable`]:
     /// a failed try costs a few dozen iterations). The choice depends on
     /// iteration counts only, never on measured time, so a run gives the
     /// same trajectory every time.
@@ -542,7 +536,7 @@ impl Simulation {
             .min(self.params.cg_max_iterations);
         let probe = self.steps >= self.auto_next_probe;
         if !self.auto_on_direct || probe {
-            match self.solve_pcg(cap, true) {
+            match self.solve_pcg(linear::Cap::Reachable(cap)) {
                 Ok(it) => {
                     self.auto_on_direct = false;
                     self.auto_probe_gap = AUTO_PROBE;
