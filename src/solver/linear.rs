@@ -899,7 +899,7 @@ impl Direct {
                     )
                     .map_err(err)?;
                 if let Some(sn) = &mut self.sn {
-                    sn.refresh(&self.l32);
+                    sn.refresh();
                 }
             }
         }

@@ -7,8 +7,8 @@
 //! walks each column twice (diagonal block, then the rows below) and divides
 //! on the dependency chain. Here each column is one contiguous update (or
 //! dot product) over all its rows, with the diagonal's reciprocals computed
-//! once per factorisation, and the sums are in double precision (the factor
-//! is read in single). On a 51 × 51 grid (0.6 M factor values) an
+//! once per factorisation (in its first forward pass), and the sums are in
+//! double precision (the factor is read in single). On a 51 × 51 grid (0.6 M factor values) an
 //! application takes 0.25 ms against faer's 0.33 (medians of 300); in the
 //! 1 cm drape the refinement converges as fast as with faer's solve (with
 //! single-precision sums here it needed 1.9 iterations per step instead of
@@ -37,8 +37,9 @@ pub struct Supernodal {
     nodes: Vec<Node>,
     rows: Vec<u32>,
     len_val: usize,
-    /// 1 / L_jj of the factor last given to [`Supernodal::refresh`].
+    /// 1 / L_jj of the current factor (once `stale` is false).
     inv_diag: Vec<f64>,
+    stale: bool,
     /// Scratch: one supernode's rows.
     tmp: Vec<f64>,
 }
@@ -74,27 +75,20 @@ impl Supernodal {
             rows,
             len_val: s.len_val(),
             inv_diag: vec![0.0; s.nrows()],
+            stale: true,
             tmp: vec![0.0; widest],
         })
     }
 
-    /// Takes in a new factor `l` (its diagonal's reciprocals).
-    pub fn refresh(&mut self, l: &[f32]) {
-        assert_eq!(l.len(), self.len_val, "factor of another structure");
-        for nd in &self.nodes {
-            let (c0, nc, ld) = (
-                nd.start as usize,
-                nd.ncols as usize,
-                (nd.ncols + nd.nrows) as usize,
-            );
-            for j in 0..nc {
-                self.inv_diag[c0 + j] = 1.0 / l[nd.val0 + j * ld + j] as f64;
-            }
-        }
+    /// Takes in a new factor: the next [`Supernodal::solve`] computes its
+    /// diagonal's reciprocals as it goes (reading them here, column by column
+    /// after the factorisation, would be a cache miss each).
+    pub fn refresh(&mut self) {
+        self.stale = true;
     }
 
-    /// `x ← (L Lᵀ)⁻¹ x` with the factor last given to [`Supernodal::refresh`]
-    /// (`l`: its values, in faer's layout).
+    /// `x ← (L Lᵀ)⁻¹ x` with the factor `l` (faer's layout; the one of the
+    /// last [`Supernodal::refresh`]).
     pub fn solve(&mut self, l: &[f32], x: &mut [f64]) {
         assert_eq!(l.len(), self.len_val, "factor of another structure");
         #[cfg(target_arch = "x86_64")]
@@ -120,8 +114,10 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
         rows,
         tmp: w,
         inv_diag,
+        stale,
         ..
     } = s;
+    let first = std::mem::replace(stale, false);
     // forward: L y = x, a column at a time over the whole column (the
     // diagonal block's rows below the diagonal, then the pattern's rows):
     // w = [x of the supernode's columns, updates of its pattern's rows]
@@ -134,7 +130,14 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
         w[..nc].copy_from_slice(&x[c0..c0 + nc]);
         w[nc..].fill(0.0);
         for j in 0..nc {
-            let xj = w[j] * inv_diag[c0 + j];
+            let r = if first {
+                let r = 1.0 / v[j * ld + j] as f64;
+                inv_diag[c0 + j] = r;
+                r
+            } else {
+                inv_diag[c0 + j]
+            };
+            let xj = w[j] * r;
             w[j] = xj;
             axpy::<FMA>(&mut w[j + 1..], &v[j * ld + j + 1..(j + 1) * ld], -xj);
         }
