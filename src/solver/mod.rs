@@ -564,7 +564,6 @@ impl Simulation {
     /// f32) or the PCG does not converge in [`F32_REFINE_CAP`] iterations.
     fn solve_factored(&mut self) -> Result<usize> {
         self.direct()?;
-        let floor = self.eigenvalue_floor();
         let d = self.direct.as_mut().expect("direct solver built");
         if d.factorize(
             &self.a,
@@ -583,40 +582,11 @@ impl Simulation {
                 self.params.cg_tolerance,
                 F32_REFINE_CAP,
                 d,
-                floor,
             ) {
                 return Ok(it);
             }
         }
         self.solve_direct()
-    }
-
-    /// A lower bound on the eigenvalues of `S A S + (I − S) M` (0 when none
-    /// is known). `A = (1 − hα) M + Σ (h² K̃ − hβ K̃_d)` over the spring
-    /// families, with every projected stiffness `K̃`, `K̃_d` positive
-    /// semi-definite ([`elements`]); with every `β ≤ 0` (the thesis' signs:
-    /// damping) the sum is too, so `A ⪰ (1 − hα) M`, and `S A S + (I − S) M ⪰
-    /// min(1, 1 − hα) M` (`S` is a projection per vertex).
-    fn eigenvalue_floor(&self) -> f64 {
-        let (d, h) = (&self.fabric.damping, self.params.dt);
-        if [d.beta_bend, d.beta_shear, d.beta_tension]
-            .iter()
-            .any(|&b| b.is_nan() || b > 0.0)
-        {
-            return 0.0;
-        }
-        let m = self
-            .cloth
-            .mass
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
-        let f = (m * (1.0 - h * d.alpha).min(1.0)).max(0.0);
-        if f.is_finite() {
-            f
-        } else {
-            0.0
-        }
     }
 
     /// Pushes every vertex that ended a step inside an obstacle's contact
@@ -810,62 +780,4 @@ pub const AUTO_PROBE_MAX: u64 = 200;
 #[inline]
 fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::{Overrides, Scene};
-    use nalgebra::{DMatrix, Matrix3};
-
-    /// The eigenvalue floor that lets the refinement skip its last
-    /// application of the factor is a lower bound on the spectrum of the
-    /// matrix it factorises, `S A S + (I − S) M`: checked on the table drape
-    /// (5 cm) with the cloth on the board (contacts) and swinging over its
-    /// edges (springs stretched, hysteresis branches turning).
-    #[test]
-    fn eigenvalue_floor_bounds_the_filtered_system() {
-        let sc = Scene::load(std::path::Path::new("config/scenes/table_drape.yaml")).unwrap();
-        let mut sim = sc
-            .build(&Overrides {
-                spacing: Some(0.05),
-                dt: Some(1.0 / 120.0),
-                ..Default::default()
-            })
-            .unwrap();
-        let mut checked = 0;
-        for step in 0..60 {
-            sim.step().unwrap();
-            if step % 12 != 11 {
-                continue;
-            }
-            let n = sim.cloth.len();
-            let mut dense = DMatrix::<f64>::zeros(3 * n, 3 * n);
-            for i in 0..n {
-                let si = sim.filter[i].matrix();
-                for blk in sim.a.row_ptr[i]..sim.a.row_ptr[i + 1] {
-                    let j = sim.a.col[blk] as usize;
-                    let mut f = si * sim.a.val[blk] * sim.filter[j].matrix();
-                    if i == j {
-                        f += (Matrix3::identity() - si) * sim.cloth.mass[i];
-                    }
-                    dense.fixed_view_mut::<3, 3>(3 * i, 3 * j).copy_from(&f);
-                }
-            }
-            let contacts = sim.filter.iter().filter(|f| **f != Filter::Free).count();
-            let lmin = dense.symmetric_eigenvalues().min();
-            let floor = sim.eigenvalue_floor();
-            assert!(
-                floor > 0.0 && floor <= lmin,
-                "step {step}: floor {floor} vs λ_min {lmin}"
-            );
-            if contacts > 0 {
-                checked += 1;
-            }
-        }
-        assert!(
-            checked >= 3,
-            "the cloth was on the board in {checked} of the checks"
-        );
-    }
 }
