@@ -9,6 +9,7 @@
 //! only) because the node starts DDS.
 
 mod common;
+mod scratch;
 
 use garment_sim::ros::publish::FrameClock;
 use garment_sim::scene::{Overrides, Scene};
@@ -64,9 +65,7 @@ fn write_expected(path: &Path) {
 
 #[test]
 fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
-    let dir = std::env::temp_dir().join(format!("garment_sim_bags_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch::Scratch::new("bags");
     let expected = dir.join("expected.json");
     write_expected(&expected);
     let bin = std::ffi::OsString::from(env!("CARGO_BIN_EXE_garment_sim"));

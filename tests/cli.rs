@@ -1,11 +1,10 @@
 //! The command line a newcomer runs: outputs exist and say what they should.
 
+mod scratch;
 use std::process::Command;
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("gs_cli_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn tmp(name: &str) -> scratch::Scratch {
+    scratch::Scratch::new(&format!("cli_{name}"))
 }
 
 #[test]

@@ -1,5 +1,6 @@
 //! Drapemeter (thesis §2.3.2, Chu/Cusick) on a clipped circular grid.
 
+mod scratch;
 use garment_sim::cloth::{Cloth, Outline, REMOVED};
 use garment_sim::fabric::Fabric;
 use garment_sim::lab::drapemeter::{run, DrapeOptions};
@@ -396,8 +397,7 @@ fn clipped_disc_for_the_drapemeter() {
 
 #[test]
 fn drapemeter_command_writes_report_and_top_view() {
-    let out = std::env::temp_dir().join(format!("gs_drape_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&out);
+    let out = scratch::Scratch::new("drapemeter");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
         .args([
             "drapemeter",

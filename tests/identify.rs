@@ -1,6 +1,7 @@
 //! Damping identification (thesis ch. 5) on a synthetic capture of
 //! `free_fall.yaml` (known α, β), sampled at 120 Hz on the 11 × 11 grid.
 
+mod scratch;
 use garment_sim::lab::identify::{identify, sample_capture, IdentifyOptions};
 use garment_sim::scene::{Overrides, Scene};
 use nalgebra::Vector3;
@@ -152,8 +153,7 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
             .map(|p| vec![p])
             .collect(),
     };
-    let dir = std::env::temp_dir().join(format!("gs_ident_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch::Scratch::new("identify");
     write_c3d(&dir.join("fall.c3d"), &cap).unwrap();
     write_c3d(&dir.join("ball.c3d"), &ball).unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
@@ -261,8 +261,7 @@ fn noise_free_files_give_back_alpha_and_betas() {
             .map(|f| f.iter().map(|p| Some(*p * scale)).collect())
             .collect(),
     };
-    let dir = std::env::temp_dir().join(format!("gs_ident_truth_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch::Scratch::new("identify_truth");
     let csv = dir.join("free_fall.csv");
     write_capture_csv(&csv, &cap("m", 1.0)).unwrap();
     let c3d = dir.join("free_fall.c3d");

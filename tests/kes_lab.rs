@@ -2,6 +2,7 @@
 //! summary values through the full solver, the answer does not depend on the
 //! grid, and fabric → virtual curves → fit-kes → fabric is a round trip.
 
+mod scratch;
 use garment_sim::fabric::kes::*;
 use garment_sim::fabric::{Fabric, Family};
 use garment_sim::lab::fit_kes::{curve_set, fit_fabric, FitMeta};
@@ -263,10 +264,8 @@ fn summary_values_of_constructed_curves_are_the_fabrics() {
     assert!((v[3] - 5.36).abs() < 1e-9, "EMT {}", v[3]);
 }
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("gs_kes_{name}_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn tmp(name: &str) -> scratch::Scratch {
+    scratch::Scratch::new(&format!("kes_{name}"))
 }
 
 #[test]

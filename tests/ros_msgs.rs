@@ -4,6 +4,7 @@
 //! garment_sim_msgs types from msg/.
 
 mod common;
+mod scratch;
 
 use garment_sim::ros::msgs::*;
 use garment_sim::ros::publish;
@@ -42,9 +43,7 @@ fn messages_match_rosbags_byte_for_byte() {
         sim.step().unwrap();
     }
     let h = publish::header(&sim, "world");
-    let dir = std::env::temp_dir().join(format!("garment_sim_msgs_{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch::Scratch::new("msgs");
 
     let cloud = publish::cloud(&sim, h.clone());
     assert_eq!(cloud.width as usize, sim.cloth.len());

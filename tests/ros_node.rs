@@ -5,11 +5,11 @@
 //! test (`unshare -rn`: only a loopback interface), so no packet leaves it.
 
 mod common;
+mod scratch;
 
 #[test]
 fn node_interoperates_with_cyclone_dds() {
-    let dir = std::env::temp_dir().join(format!("garment_sim_ros_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch::Scratch::new("ros_node");
     let cfg = dir.join("cyclonedds.xml");
     std::fs::write(
         &cfg,
