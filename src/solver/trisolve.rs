@@ -30,6 +30,27 @@ struct Node {
     val0: usize,
 }
 
+impl Node {
+    /// First column, columns, leading dimension, values and pattern rows.
+    #[inline(always)]
+    fn parts<'a>(
+        &self,
+        l: &'a [f32],
+        rows: &'a [u32],
+    ) -> (usize, usize, usize, &'a [f32], &'a [u32]) {
+        let (nc, nr) = (self.ncols as usize, self.nrows as usize);
+        let ld = nc + nr;
+        let row0 = self.row0 as usize;
+        (
+            self.start as usize,
+            nc,
+            ld,
+            &l[self.val0..self.val0 + ld * nc],
+            &rows[row0..row0 + nr],
+        )
+    }
+}
+
 /// The structure of a supernodal factor, read once from faer's symbolic
 /// analysis.
 #[derive(Debug, Default)]
@@ -122,10 +143,7 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
     // diagonal block's rows below the diagonal, then the pattern's rows):
     // w = [x of the supernode's columns, updates of its pattern's rows]
     for nd in nodes.iter() {
-        let (c0, nc, nr) = (nd.start as usize, nd.ncols as usize, nd.nrows as usize);
-        let ld = nc + nr;
-        let v = &l[nd.val0..nd.val0 + ld * nc];
-        let pat = &rows[nd.row0 as usize..nd.row0 as usize + nr];
+        let (c0, nc, ld, v, pat) = nd.parts(l, rows);
         let w = &mut w[..ld];
         w[..nc].copy_from_slice(&x[c0..c0 + nc]);
         w[nc..].fill(0.0);
@@ -149,10 +167,7 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
     // backward: Lᵀ x = y, the columns in reverse, each a dot product over
     // the whole column
     for nd in nodes.iter().rev() {
-        let (c0, nc, nr) = (nd.start as usize, nd.ncols as usize, nd.nrows as usize);
-        let ld = nc + nr;
-        let v = &l[nd.val0..nd.val0 + ld * nc];
-        let pat = &rows[nd.row0 as usize..nd.row0 as usize + nr];
+        let (c0, nc, ld, v, pat) = nd.parts(l, rows);
         let w = &mut w[..ld];
         w[..nc].copy_from_slice(&x[c0..c0 + nc]);
         for (d, &r) in w[nc..].iter_mut().zip(pat) {
