@@ -53,7 +53,7 @@ impl Node {
 
 /// The structure of a supernodal factor, read once from faer's symbolic
 /// analysis.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct Supernodal {
     nodes: Vec<Node>,
     rows: Vec<u32>,
@@ -66,7 +66,8 @@ pub struct Supernodal {
 }
 
 impl Supernodal {
-    /// `None` when faer chose its simplicial factorisation (tiny systems).
+    /// `None` when faer chose its simplicial factorisation (tiny systems) or
+    /// an index does not fit in 32 bits (then faer's solve is used).
     pub fn new(symbolic: &SymbolicCholesky<usize>) -> Option<Supernodal> {
         let SymbolicCholeskyRaw::Supernodal(s) = symbolic.raw() else {
             return None;
