@@ -80,5 +80,4 @@ fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
         ],
         "9 passed",
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

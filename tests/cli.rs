@@ -135,7 +135,6 @@ fn node_start_up_errors_name_what_is_wrong() {
         assert!(!o.status.success(), "{args:?} was accepted");
         assert!(err.contains(expect), "{args:?}: {err}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `bench` prints one row per case with the time per step, its split into

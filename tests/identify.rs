@@ -274,7 +274,6 @@ fn noise_free_files_give_back_alpha_and_betas() {
     let from_c3d = identify_file(&c3d, None, &fabric, &opts, false)
         .unwrap()
         .result;
-    let _ = std::fs::remove_dir_all(&dir);
     for (what, r) in [("CSV", &from_csv), ("C3D", &from_c3d)] {
         let m = r.measured;
         println!(

@@ -229,5 +229,4 @@ fn messages_match_rosbags_byte_for_byte() {
         &[("GARMENT_SIM_MSG_SAMPLES", dir.as_os_str())],
         "2 passed",
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -27,5 +27,4 @@ fn node_interoperates_with_cyclone_dds() {
         &[("GARMENT_SIM_BIN", &bin), ("CYCLONEDDS_URI", &uri)],
         "5 passed",
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

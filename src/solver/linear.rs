@@ -254,10 +254,7 @@ impl Pcg {
         // δ0 = (S b)ᵀ D⁻¹ (S b), and the first residual in the same norm
         let (mut delta0, mut rj) = (0.0, 0.0);
         for i in 0..n {
-            let d = a.val[a.diag[i]];
-            self.pinv[i] = d.try_inverse().unwrap_or_else(|| {
-                Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300)))
-            });
+            self.pinv[i] = block_jacobi(&a.val[a.diag[i]]);
             let fb = filter[i].apply(&b[i]);
             delta0 += fb.dot(&(self.pinv[i] * fb));
             self.r[i] = filter[i].apply(&(b[i] - row_mul_best(fma, a, i, dv)));
@@ -329,6 +326,14 @@ impl Pcg {
             }
         }
     }
+}
+
+/// The block-Jacobi preconditioner's block for the diagonal block `d`: its
+/// inverse, or the inverse of its diagonal if it is singular.
+#[inline]
+fn block_jacobi(d: &Matrix3<f64>) -> Matrix3<f64> {
+    d.try_inverse()
+        .unwrap_or_else(|| Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300))))
 }
 
 /// Iterations after which a [`Cap::Reachable`] solve may give up early.
@@ -488,10 +493,7 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let (f, bb, zz) = (&filter[lo..hi], &b[lo..hi], &z[lo..hi]);
     let mut delta0 = 0.0;
     for k in 0..len {
-        let d = a.val[a.diag[lo + k]];
-        pinv[k] = d
-            .try_inverse()
-            .unwrap_or_else(|| Matrix3::from_diagonal(&d.diagonal().map(|x| 1.0 / x.max(1e-300))));
+        pinv[k] = block_jacobi(&a.val[a.diag[lo + k]]);
         // start from the caller's guess in dv (the last step's Δv: at small
         // steps Δv changes little from step to step), made to obey the filter
         let g = if dv[k].iter().all(|c| c.is_finite()) {
@@ -930,47 +932,32 @@ impl Direct {
     pub fn apply(&mut self, r: &[Vector3<f64>], out: &mut [Vector3<f64>]) {
         let dim = self.csc.dim;
         self.applied += 1;
-        match self.held.expect("a factor is held") {
-            Precision::F64 => {
-                for (i, &o) in self.perm.iter().enumerate() {
-                    self.rhs[3 * i..3 * i + 3].copy_from_slice(r[o].as_slice());
-                }
+        for (i, &o) in self.perm.iter().enumerate() {
+            self.rhs[3 * i..3 * i + 3].copy_from_slice(r[o].as_slice());
+        }
+        let stack = MemStack::new(&mut self.mem);
+        match (self.held.expect("a factor is held"), &mut self.sn) {
+            (Precision::F64, _) => {
                 let llt = LltRef::new(&self.symbolic, &self.l_values);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
-                for (i, &o) in self.perm.iter().enumerate() {
-                    out[o] =
-                        Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
-                }
+                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, stack);
             }
-            Precision::F32 => {
-                if let Some(sn) = &mut self.sn {
-                    for (i, &o) in self.perm.iter().enumerate() {
-                        self.rhs[3 * i..3 * i + 3].copy_from_slice(r[o].as_slice());
-                    }
-                    sn.solve(&self.l32, &mut self.rhs);
-                    for (i, &o) in self.perm.iter().enumerate() {
-                        out[o] =
-                            Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
-                    }
-                    return;
-                }
-                for (i, &o) in self.perm.iter().enumerate() {
-                    for k in 0..3 {
-                        self.rhs32[3 * i + k] = r[o][k] as f32;
-                    }
+            (Precision::F32, Some(sn)) => sn.solve(&self.l32, &mut self.rhs),
+            // a simplicial factor: faer's solve, in single precision
+            (Precision::F32, None) => {
+                for (x32, &x) in self.rhs32.iter_mut().zip(&self.rhs) {
+                    *x32 = x as f32;
                 }
                 let llt = LltRef::new(&self.symbolic, &self.l32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, MemStack::new(&mut self.mem));
-                for (i, &o) in self.perm.iter().enumerate() {
-                    out[o] = Vector3::new(
-                        self.rhs32[3 * i] as f64,
-                        self.rhs32[3 * i + 1] as f64,
-                        self.rhs32[3 * i + 2] as f64,
-                    );
+                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, stack);
+                for (x, &x32) in self.rhs.iter_mut().zip(&self.rhs32) {
+                    *x = x32 as f64;
                 }
             }
+        }
+        for (i, &o) in self.perm.iter().enumerate() {
+            out[o] = Vector3::new(self.rhs[3 * i], self.rhs[3 * i + 1], self.rhs[3 * i + 2]);
         }
     }
 
