@@ -1,5 +1,5 @@
-//! Assembly of the implicit step's matrix and right-hand side, on several
-//! threads without locks: the vertices are cut into contiguous chunks, each
+//! Assembly of the implicit step's matrix and right-hand side, on the
+//! simulation's team of threads ([`super::team::Team`]) without locks: the vertices are cut into contiguous chunks, each
 //! spring or hinge whose vertices all lie in one chunk is assembled by that
 //! chunk's thread into its own rows, and the few that straddle two chunks are
 //! assembled afterwards on one thread. Elements are stored grouped that way
@@ -8,6 +8,7 @@
 
 use super::elements::*;
 use super::sparse::BlockMatrix;
+use super::team::Team;
 use crate::cloth::Cloth;
 use crate::fabric::{Damping, Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
@@ -447,6 +448,7 @@ pub fn assemble(
     a: &mut BlockMatrix,
     force: &mut [Vector3<f64>],
     rhs: &mut [Vector3<f64>],
+    team: &mut Team,
 ) -> f64 {
     let d = fabric.damping;
     let mut power = 0.0;
@@ -527,33 +529,26 @@ pub fn assemble(
         debug_assert!(val.is_empty() && fo.is_empty());
         let _ = (ts, ss, hs);
     }
-    if nt == 1 {
-        let o = &mut outs[0];
-        elements(
-            &ctx,
-            part.tension[0].clone(),
-            part.shear[0].clone(),
-            part.hinge[0].clone(),
-            o,
-            true,
-        );
-    } else {
-        std::thread::scope(|sc| {
-            for (t, o) in outs.iter_mut().enumerate() {
-                let ctx = &ctx;
-                sc.spawn(move || {
-                    elements(
-                        ctx,
-                        part.tension[t].clone(),
-                        part.shear[t].clone(),
-                        part.hinge[t].clone(),
-                        o,
-                        true,
-                    )
-                });
-            }
-        });
-    }
+    // chunk t on the team's thread t (the team has one thread per chunk)
+    debug_assert_eq!(team.size(), nt);
+    let outs: Vec<std::sync::Mutex<Out>> = outs.into_iter().map(std::sync::Mutex::new).collect();
+    team.run(|t| {
+        if let Some(o) = outs.get(t) {
+            let mut o = o.lock().unwrap_or_else(|e| e.into_inner());
+            elements(
+                &ctx,
+                part.tension[t].clone(),
+                part.shear[t].clone(),
+                part.hinge[t].clone(),
+                &mut o,
+                true,
+            );
+        }
+    });
+    let outs: Vec<Out> = outs
+        .into_iter()
+        .map(|o| o.into_inner().unwrap_or_else(|e| e.into_inner()))
+        .collect();
     power += outs.iter().map(|o| o.power).sum::<f64>();
     drop(outs);
     // the straddling elements, on this thread, with whole-matrix slices

@@ -8,6 +8,7 @@
 //! is the prescribed velocity change in the constrained directions.
 
 use super::sparse::{BlockMatrix, LowerCsc};
+use super::team::Team;
 use anyhow::{anyhow, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -144,12 +145,12 @@ impl Pcg {
     /// an error when `cap` stops it (see [`Cap`]) or the matrix is not
     /// positive definite.
     ///
-    /// The whole solve runs on [`super::assemble::threads_for`] threads
-    /// started once per solve: each owns a contiguous range of rows and does
-    /// the product, the vector updates and its part of the dot products on
-    /// it; three barriers per iteration, partial sums added in a fixed order
-    /// (so every thread takes the same branches and the result does not
-    /// depend on scheduling).
+    /// From [`PCG_THREADS_FROM`] vertices the solve runs on every thread of
+    /// `team` (the simulation's, started once): each owns a contiguous range
+    /// of rows and does the product, the vector updates and its part of the
+    /// dot products on it; three barriers per iteration, partial sums added
+    /// in a fixed order (so every thread takes the same branches and the
+    /// result depends on the number of threads, never on scheduling).
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -160,6 +161,7 @@ impl Pcg {
         dv: &mut [Vector3<f64>],
         tol: f64,
         cap: Cap,
+        team: &mut Team,
     ) -> Result<usize> {
         let (max_iter, early) = match cap {
             Cap::Hard(n) => (n, false),
@@ -171,13 +173,8 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
-        // an iteration on a 101 × 101 cloth takes 0.3 ms on one core: with
-        // three barriers per iteration, a second thread only pays when it is
-        // never descheduled; on the shared 2-core benchmark machine it made
-        // the solve slower (README), so the PCG runs on one thread below
-        // PCG_THREADS_FROM vertices
         let nt = if n >= PCG_THREADS_FROM {
-            super::assemble::threads_for(n).max(1).min(n)
+            team.size().min(n)
         } else {
             1
         };
@@ -205,19 +202,19 @@ impl Pcg {
         let r = if nt == 1 {
             pcg_rows(&args, &sh, 0)
         } else {
-            std::thread::scope(|sc| {
-                let handles: Vec<_> = (1..nt)
-                    .map(|t| {
-                        let (args, sh) = (&args, &sh);
-                        sc.spawn(move || pcg_rows(args, sh, t))
-                    })
-                    .collect();
-                let r0 = pcg_rows(&args, &sh, 0);
-                for h in handles {
-                    let _ = h.join();
+            let first = std::sync::Mutex::new(None);
+            team.run(|t| {
+                if t < nt {
+                    let r = pcg_rows(&args, &sh, t);
+                    if t == 0 {
+                        *first.lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+                    }
                 }
-                r0
-            })
+            });
+            first
+                .into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .unwrap_or_else(|| Err(anyhow!("PCG: no result from the first thread")))
         };
         self.spent = sh.iters.load(Ordering::Relaxed);
         r
@@ -351,8 +348,10 @@ fn out_of_reach(it: usize, ratio2: f64, tol: f64, max_iter: usize) -> bool {
     per_iter >= 0.0 || tol.ln() / per_iter > max_iter as f64
 }
 
-/// Vertices from which the PCG runs on several threads.
-pub const PCG_THREADS_FROM: usize = 40_000;
+/// Vertices from which the PCG runs on several threads (the team's): an
+/// iteration on 3 000 vertices takes about 60 µs on one core, its three
+/// barriers about 1 µs.
+pub const PCG_THREADS_FROM: usize = 3_000;
 
 /// Inputs of a PCG solve shared by its threads.
 struct PcgArgs<'a> {
@@ -1086,7 +1085,7 @@ mod tests {
         let mut pcg = Pcg::default();
         let solve = |pcg: &mut Pcg, cap: Cap| {
             let mut x = vec![Vector3::zeros(); n];
-            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-13, cap);
+            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-13, cap, &mut Team::new(1));
             (r, pcg.spent(), x)
         };
         let (r, spent, exact) = solve(&mut pcg, Cap::Hard(10_000));
@@ -1114,6 +1113,75 @@ mod tests {
         let (r, spent, _) = solve(&mut pcg, Cap::Reachable(cap));
         assert!(r.unwrap_err().to_string().contains("would not converge"));
         assert_eq!(spent, EARLY_FROM);
+    }
+
+    /// The PCG on a team of two or three threads (rows split between them,
+    /// partial sums added in thread order) gives the one-thread solution to
+    /// round-off, in about the same iterations, bit for bit the same on a
+    /// repeat; a try whose cap is out of reach gives up at the same
+    /// iteration on every thread count.
+    #[test]
+    fn pcg_on_a_team_matches_one_thread() {
+        let (a, _) = spd_grid_sized(60, 55, 5);
+        let n = a.n;
+        assert!(n >= PCG_THREADS_FROM);
+        let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
+        let filter: Vec<Filter> = (0..n)
+            .map(|i| match i % 7 {
+                1 => Filter::Normal(nrm),
+                4 => Filter::Fixed,
+                _ => Filter::Free,
+            })
+            .collect();
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
+            .collect();
+        let z: Vec<Vector3<f64>> = (0..n)
+            .map(|i| match filter[i] {
+                Filter::Normal(m) => m * 0.05,
+                Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
+                Filter::Free => Vector3::zeros(),
+            })
+            .collect();
+        let solve = |team: &mut Team, cap: Cap| {
+            let mut pcg = Pcg::default();
+            let mut x = vec![Vector3::zeros(); n];
+            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-10, cap, team);
+            (r, pcg.spent(), x)
+        };
+        let (r1, _, x1) = solve(&mut Team::new(1), Cap::Hard(10_000));
+        let it1 = r1.unwrap();
+        assert!(
+            it1 > 3 * EARLY_FROM,
+            "the test needs a slower system: {it1}"
+        );
+        let scale = x1.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        for size in [2, 3] {
+            let mut team = Team::new(size);
+            let (r, _, x) = solve(&mut team, Cap::Hard(10_000));
+            let it = r.unwrap();
+            assert!(it.abs_diff(it1) <= 1, "{size} threads: {it} against {it1}");
+            for i in 0..n {
+                assert!(
+                    (x[i] - x1[i]).amax() <= 1e-8 * scale,
+                    "{size} threads, vertex {i}: {:?} against {:?}",
+                    x[i],
+                    x1[i]
+                );
+                // the constraint (I − S) x = z holds
+                assert!((x[i] - filter[i].apply(&x[i]) - z[i]).amax() <= 1e-15);
+            }
+            let (r, _, again) = solve(&mut team, Cap::Hard(10_000));
+            assert_eq!(r.unwrap(), it);
+            assert!(
+                x.iter().zip(&again).all(|(p, q)| p == q),
+                "not reproducible"
+            );
+            // a cap far out of reach: given up at the first check, everywhere
+            let (r, spent, _) = solve(&mut team, Cap::Reachable(it / 2));
+            assert!(r.unwrap_err().to_string().contains("would not converge"));
+            assert_eq!(spent, EARLY_FROM);
+        }
     }
 
     /// The direct solve (f64 and f32-preconditioned) and the filtered PCG
@@ -1159,8 +1227,17 @@ mod tests {
             .unwrap();
         let mut pcg = Pcg::default();
         let mut x_pcg = vec![Vector3::zeros(); n];
-        pcg.solve(&a, &b, &filter, &z, &mut x_pcg, 1e-13, Cap::Hard(10_000))
-            .unwrap();
+        pcg.solve(
+            &a,
+            &b,
+            &filter,
+            &z,
+            &mut x_pcg,
+            1e-13,
+            Cap::Hard(10_000),
+            &mut Team::new(1),
+        )
+        .unwrap();
         direct
             .factorize(&a, &filter, &mass, Precision::F32)
             .unwrap();

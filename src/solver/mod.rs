@@ -20,6 +20,7 @@ pub mod elements;
 pub mod family;
 pub mod linear;
 pub mod sparse;
+pub mod team;
 pub mod trisolve;
 
 use crate::cloth::Cloth;
@@ -49,7 +50,8 @@ pub struct Params {
     pub cloth_thickness: f64,
     /// Include the hysteretic parts of the laws.
     pub hysteresis: bool,
-    /// Assembly threads (0: one per core for large cloths, see
+    /// Threads of the assembly and the PCG, started once per simulation
+    /// ([`team::Team`]; 0: one per core for large cloths, see
     /// [`assemble::threads_for`]).
     pub threads: usize,
 }
@@ -181,6 +183,8 @@ pub struct Simulation {
     a: BlockMatrix,
     slots: assemble::Slots,
     part: assemble::Partition,
+    /// Threads of the assembly and the PCG, started once (one per chunk of `part`).
+    team: team::Team,
     /// Total force at the start of the last step (internal + external + damping).
     pub force: Vec<Vector3<f64>>,
     b: Vec<Vector3<f64>>,
@@ -249,6 +253,7 @@ impl Simulation {
             a,
             slots,
             part,
+            team: team::Team::new(threads),
             force: z.clone(),
             b: z.clone(),
             dv: z.clone(),
@@ -501,6 +506,7 @@ impl Simulation {
             &mut self.dv,
             self.params.cg_tolerance,
             cap,
+            &mut self.team,
         )
     }
 
@@ -657,6 +663,7 @@ impl Simulation {
             &mut self.a,
             &mut self.force,
             &mut self.b,
+            &mut self.team,
         );
         self.dissipated -= self.params.dt * power;
     }

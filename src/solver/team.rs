@@ -1,0 +1,253 @@
+//! A team of worker threads started once per simulation and reused by every
+//! parallel phase of a step (the assembly, the PCG).
+//!
+//! Starting threads at every phase (`std::thread::scope`) cost more than the
+//! threads' start-up: the kernel places each new thread anew, and on the
+//! 2-core benchmark machine it often put the PCG's second thread on the core
+//! of the first, so the spin barrier waited out whole time slices (a
+//! two-thread solve was slower than one thread; README, seventh round). A
+//! worker that lives for the whole run and spins between phases stays on its
+//! own core. After [`SPIN`] without work it sleeps on a condition variable
+//! (an idle node does not burn a core), and the next phase wakes it.
+
+use std::cell::UnsafeCell;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// How long an idle worker spins before it sleeps: longer than the serial
+/// parts of a step (contacts, position update: ~0.5 ms on a 101 × 101 grid),
+/// so a running simulation never puts its workers to sleep.
+pub const SPIN: Duration = Duration::from_millis(1);
+
+/// The caller's thread (index 0) and `size − 1` workers (indices 1..size).
+pub struct Team {
+    shared: Arc<Shared>,
+    workers: Vec<JoinHandle<()>>,
+}
+
+/// A phase's closure, type-erased: its address and the function that calls it.
+#[derive(Clone, Copy)]
+struct Job {
+    data: *const (),
+    call: unsafe fn(*const (), usize),
+}
+
+/// # Safety
+/// `data` must point to a live `F`.
+unsafe fn call<F: Fn(usize) + Sync>(data: *const (), t: usize) {
+    (*(data as *const F))(t)
+}
+
+struct Shared {
+    size: usize,
+    /// Phases started so far; a worker runs the job when it sees it change.
+    epoch: AtomicUsize,
+    /// Workers done with the current phase.
+    done: AtomicUsize,
+    /// Written by [`Team::run`] only while no worker reads it (before the
+    /// epoch changes; every worker has finished the previous phase).
+    job: UnsafeCell<Option<Job>>,
+    sleeping: AtomicUsize,
+    lock: Mutex<()>,
+    wake: Condvar,
+    stop: AtomicBool,
+    panicked: AtomicBool,
+}
+
+// SAFETY: `job` is written only by the team's owner between phases (see the
+// field), and the closures it points to are `Sync`.
+unsafe impl Sync for Shared {}
+unsafe impl Send for Shared {}
+
+impl Team {
+    /// A team of `size` threads in all (the caller counts as one); `size` ≤ 1
+    /// runs every phase on the caller's thread.
+    pub fn new(size: usize) -> Team {
+        let size = size.max(1);
+        let shared = Arc::new(Shared {
+            size,
+            epoch: AtomicUsize::new(0),
+            done: AtomicUsize::new(0),
+            job: UnsafeCell::new(None),
+            sleeping: AtomicUsize::new(0),
+            lock: Mutex::new(()),
+            wake: Condvar::new(),
+            stop: AtomicBool::new(false),
+            panicked: AtomicBool::new(false),
+        });
+        let workers = (1..size)
+            .map(|t| {
+                let sh = Arc::clone(&shared);
+                std::thread::Builder::new()
+                    .name(format!("garment_sim-{t}"))
+                    .spawn(move || worker(&sh, t))
+                    .expect("cannot start a worker thread")
+            })
+            .collect();
+        Team { shared, workers }
+    }
+
+    /// Threads in the team, the caller's included.
+    pub fn size(&self) -> usize {
+        self.shared.size
+    }
+
+    /// Runs `f(t)` for every t in `0..size()`, t = 0 on the caller's thread,
+    /// and returns when all have returned. A panic in a worker is raised
+    /// here, after every thread has finished.
+    pub fn run<F: Fn(usize) + Sync>(&mut self, f: F) {
+        let sh = &*self.shared;
+        if sh.size == 1 {
+            f(0);
+            return;
+        }
+        // SAFETY: every worker finished the previous phase (waited for
+        // below), so none reads `job` now; `f` outlives the phase because
+        // this function waits for the workers before returning, also when
+        // `f(0)` panics (`Wait`'s drop).
+        unsafe {
+            *sh.job.get() = Some(Job {
+                data: &f as *const F as *const (),
+                call: call::<F>,
+            });
+        }
+        sh.done.store(0, Ordering::Relaxed);
+        sh.epoch.fetch_add(1, Ordering::SeqCst);
+        if sh.sleeping.load(Ordering::SeqCst) > 0 {
+            let _g = sh.lock.lock().unwrap_or_else(|e| e.into_inner());
+            sh.wake.notify_all();
+        }
+        struct Wait<'a>(&'a Shared);
+        impl Drop for Wait<'_> {
+            fn drop(&mut self) {
+                let mut spins = 0u32;
+                while self.0.done.load(Ordering::Acquire) + 1 < self.0.size {
+                    if spins < 1 << 16 {
+                        std::hint::spin_loop();
+                        spins += 1;
+                    } else {
+                        std::thread::yield_now();
+                    }
+                }
+            }
+        }
+        let wait = Wait(sh);
+        f(0);
+        drop(wait);
+        if sh.panicked.swap(false, Ordering::Relaxed) {
+            panic!("a worker thread of the simulation panicked");
+        }
+    }
+}
+
+fn worker(sh: &Shared, t: usize) {
+    let mut seen = 0;
+    loop {
+        let start = Instant::now();
+        let mut spins = 0u32;
+        loop {
+            if sh.epoch.load(Ordering::Acquire) != seen || sh.stop.load(Ordering::Acquire) {
+                break;
+            }
+            std::hint::spin_loop();
+            spins += 1;
+            if spins.is_multiple_of(256) && start.elapsed() > SPIN {
+                let mut g = sh.lock.lock().unwrap_or_else(|e| e.into_inner());
+                sh.sleeping.fetch_add(1, Ordering::SeqCst);
+                while sh.epoch.load(Ordering::SeqCst) == seen && !sh.stop.load(Ordering::SeqCst) {
+                    g = sh.wake.wait(g).unwrap_or_else(|e| e.into_inner());
+                }
+                sh.sleeping.fetch_sub(1, Ordering::SeqCst);
+                break;
+            }
+        }
+        if sh.stop.load(Ordering::Acquire) {
+            return;
+        }
+        seen = sh.epoch.load(Ordering::Acquire);
+        // SAFETY: the epoch changed after `run` wrote the job, and `run`
+        // waits for this worker before the closure goes away
+        let job = unsafe { *sh.job.get() };
+        if let Some(job) = job {
+            if catch_unwind(AssertUnwindSafe(|| unsafe { (job.call)(job.data, t) })).is_err() {
+                sh.panicked.store(true, Ordering::Relaxed);
+            }
+        }
+        sh.done.fetch_add(1, Ordering::Release);
+    }
+}
+
+impl Drop for Team {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::SeqCst);
+        {
+            let _g = self.shared.lock.lock().unwrap_or_else(|e| e.into_inner());
+            self.shared.wake.notify_all();
+        }
+        for w in self.workers.drain(..) {
+            let _ = w.join();
+        }
+    }
+}
+
+impl std::fmt::Debug for Team {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Team").field("size", &self.size()).finish()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::AtomicU64;
+
+    #[test]
+    fn every_thread_runs_each_phase_once() {
+        for size in [1, 2, 3] {
+            let mut team = Team::new(size);
+            let hits: Vec<AtomicU64> = (0..size).map(|_| AtomicU64::new(0)).collect();
+            for phase in 0..2000u64 {
+                team.run(|t| {
+                    hits[t].fetch_add(phase + 1, Ordering::Relaxed);
+                });
+            }
+            for h in &hits {
+                assert_eq!(h.load(Ordering::Relaxed), 2000 * 2001 / 2);
+            }
+        }
+    }
+
+    #[test]
+    fn workers_wake_after_sleeping() {
+        let mut team = Team::new(2);
+        let hits = AtomicU64::new(0);
+        for _ in 0..3 {
+            std::thread::sleep(SPIN * 5);
+            team.run(|t| {
+                hits.fetch_add(t as u64 + 1, Ordering::Relaxed);
+            });
+        }
+        assert_eq!(hits.load(Ordering::Relaxed), 3 * 3);
+    }
+
+    #[test]
+    fn a_worker_panic_reaches_the_caller_and_the_team_goes_on() {
+        let mut team = Team::new(2);
+        let r = catch_unwind(AssertUnwindSafe(|| {
+            team.run(|t| {
+                if t == 1 {
+                    panic!("worker fails");
+                }
+            })
+        }));
+        assert!(r.is_err());
+        let hits = AtomicU64::new(0);
+        team.run(|_| {
+            hits.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(hits.load(Ordering::Relaxed), 2);
+    }
+}
