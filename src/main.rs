@@ -58,6 +58,10 @@ enum Cmd {
         /// Relative tolerance of the PCG.
         #[arg(long)]
         cg_tolerance: Option<f64>,
+        /// Threads of the assembly, the PCG and the contacts (default: one per core
+        /// from 3 000 vertices; 1 for one core).
+        #[arg(long)]
+        threads: Option<usize>,
         #[command(flatten)]
         bag: BagArgs,
     },
@@ -119,6 +123,10 @@ enum Cmd {
         /// Simulated time before measuring (the cloth is mid-drape), s.
         #[arg(long, default_value_t = 0.2)]
         warmup: f64,
+        /// Threads of the assembly, the PCG and the contacts (default: one per core
+        /// from 3 000 vertices; 1 for one core).
+        #[arg(long)]
+        threads: Option<usize>,
     },
     /// Virtual Kawabata lab: KES-FB tensile, shear and bending tests on a simulated specimen.
     Kes(cli_lab::KesArgs),
@@ -284,6 +292,7 @@ fn real_main(cli: Cli) -> Result<()> {
             solver,
             no_hysteresis,
             cg_tolerance,
+            threads,
             bag,
         } => {
             let sc = Scene::load(&scene)?;
@@ -294,6 +303,7 @@ fn real_main(cli: Cli) -> Result<()> {
                 solver,
                 hysteresis: if no_hysteresis { Some(false) } else { None },
                 cg_tolerance,
+                threads,
             };
             let mut pr = progress_printer(format!("drape {}", scene.display()));
             let (s, recorded) = match &bag.bag {
@@ -402,6 +412,7 @@ fn real_main(cli: Cli) -> Result<()> {
             steps,
             repeat,
             warmup,
+            threads,
         } => {
             let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
             println!(
@@ -432,6 +443,7 @@ fn real_main(cli: Cli) -> Result<()> {
                             spacing: Some(sp),
                             dt: Some(h),
                             solver: Some(so),
+                            threads,
                             ..Default::default()
                         };
                         let mut sim = sc.build(&ov)?;

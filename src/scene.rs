@@ -225,6 +225,9 @@ pub struct Overrides {
     pub solver: Option<LinearSolverKind>,
     pub hysteresis: Option<bool>,
     pub cg_tolerance: Option<f64>,
+    /// Threads of the assembly and the PCG (0 or none: one per core for
+    /// large cloths).
+    pub threads: Option<usize>,
 }
 
 impl Scene {
@@ -367,6 +370,7 @@ impl Scene {
         };
         let params = Params {
             cg_tolerance: ov.cg_tolerance.unwrap_or(params.cg_tolerance),
+            threads: ov.threads.unwrap_or(0),
             ..params
         };
         let mut pins = Vec::new();

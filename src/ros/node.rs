@@ -75,6 +75,9 @@ pub struct Settings {
     pub dt: f64,
     pub spacing: f64,
     pub solver: String,
+    /// Threads of the assembly, the PCG and the contacts (0: one per core
+    /// from 3 000 vertices).
+    pub threads: i64,
     /// Bag directory to record into ("": no recording).
     pub record_bag: String,
     /// Messages applied per topic between two steps; more are dropped
@@ -97,6 +100,7 @@ impl Default for Settings {
             dt: 0.0,
             spacing: 0.0,
             solver: String::new(),
+            threads: 0,
             record_bag: String::new(),
             max_messages_per_step: 100,
             max_mesh_triangles: 200_000,
@@ -190,6 +194,19 @@ impl Settings {
                 }
                 self.solver = s
             }
+            "threads" => {
+                let k = match v {
+                    Value::Int(i) => *i,
+                    other => bail!("parameter threads: {other:?} is not an integer"),
+                };
+                if !(0..=crate::solver::MAX_THREADS as i64).contains(&k) {
+                    bail!(
+                        "parameter threads = {k}: 0 (one per core) to {}",
+                        crate::solver::MAX_THREADS
+                    );
+                }
+                self.threads = k
+            }
             "record_bag" => self.record_bag = text(v)?,
             "max_messages_per_step" | "max_mesh_triangles" => {
                 let k = match v {
@@ -208,7 +225,7 @@ impl Settings {
             "use_sim_time" => {}
             other => bail!(
                 "unknown parameter {other:?} (known: scene, frame_id, publish_rate, \
-                 real_time_factor, paused, duration, dt, spacing, solver, record_bag, \
+                 real_time_factor, paused, duration, dt, spacing, solver, threads, record_bag, \
                  max_messages_per_step, max_mesh_triangles)"
             ),
         }
@@ -229,6 +246,7 @@ impl Settings {
             ("dt", ParameterValue::Double(self.dt)),
             ("spacing", ParameterValue::Double(self.spacing)),
             ("solver", ParameterValue::String(self.solver.clone())),
+            ("threads", ParameterValue::Integer(self.threads)),
             (
                 "record_bag",
                 ParameterValue::String(self.record_bag.clone()),
@@ -247,6 +265,7 @@ impl Settings {
                 "cholesky" => Some(LinearSolverKind::Cholesky),
                 s => bail!("solver {s:?}"),
             },
+            threads: (self.threads > 0).then_some(self.threads as usize),
             ..Default::default()
         })
     }
@@ -360,7 +379,7 @@ const HELP: &str = "garment_sim node [--ros-args ...]: the simulation as a ROS 2
 ROS arguments: -p NAME:=VALUE, --params-file FILE, -r FROM:=TO (also __ns:=/ns, __node:=name)\n\
 Parameters: scene (path), frame_id (world), publish_rate (30.0 Hz), real_time_factor (1.0; 0 = as\n\
   fast as possible), paused (false), duration (0 = run until stopped, s), dt, spacing, solver\n\
-  (overrides of the scene), record_bag (directory; empty = none)\n\
+  (overrides of the scene), threads (0 = one per core), record_bag (directory; empty = none)\n\
 Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout\n\
 Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin)\n\
 Services: ~/reset (std_srvs/Trigger), ~/set_paused (std_srvs/SetBool), ~/step (garment_sim_msgs/Step)\n\

@@ -22,6 +22,7 @@ pub mod linear;
 pub mod sparse;
 pub mod team;
 pub mod trisolve;
+mod vertices;
 
 use crate::cloth::Cloth;
 use crate::collision::Obstacle;
@@ -32,6 +33,7 @@ pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
 use serde::Serialize;
 use sparse::BlockMatrix;
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Every knob of the integrator in one place.
@@ -218,6 +220,12 @@ impl Simulation {
         if !(params.dt.is_finite() && params.dt > 0.0) {
             bail!("dt = {}: must be > 0 s", params.dt);
         }
+        if params.threads > MAX_THREADS {
+            bail!(
+                "threads = {}: at most {MAX_THREADS} (0: one per core)",
+                params.threads
+            );
+        }
         let fabric = if params.hysteresis {
             fabric
         } else {
@@ -339,82 +347,12 @@ impl Simulation {
             self.set_pins(keep)?;
         }
         // 1. constraints for this step: pins, then contacts (filter, z, y)
-        let mut contacts = 0;
         self.bounds.clear();
         for ob in &self.obstacles {
             let e = ob.thickness + self.params.cloth_thickness;
             self.bounds.push(ob.bounds(e * 1.1));
         }
-        for i in 0..n {
-            self.filter[i] = Filter::Free;
-            self.z[i] = Vector3::zeros();
-            self.y[i] = Vector3::zeros();
-            self.contact_of[i] = None;
-            // last step's force without its friction: what drives the sliding
-            let driving = self.force[i] - self.friction_force[i];
-            self.friction_force[i] = Vector3::zeros();
-            if let Some(k) = self.pinned[i] {
-                let (p, v) = self.pins[k].path.at(t1);
-                self.filter[i] = Filter::Fixed;
-                self.z[i] = v - self.cloth.v[i];
-                self.y[i] = p - self.cloth.x[i] - v * h;
-                continue;
-            }
-            let mut best: Option<(usize, crate::collision::Proximity, f64)> = None;
-            for (o, ob) in self.obstacles.iter().enumerate() {
-                if !inside(&self.bounds[o], &self.cloth.x[i]) {
-                    continue;
-                }
-                let e = ob.thickness + self.params.cloth_thickness;
-                let pr = ob.proximity(&self.cloth.x[i]);
-                // contact zone: within e plus a margin of 10 % of e
-                if pr.distance < e * 1.1
-                    && best
-                        .as_ref()
-                        .is_none_or(|b| pr.distance - e < b.1.distance - b.2)
-                {
-                    best = Some((o, pr, e));
-                }
-            }
-            let mut touching = false;
-            if let Some((o, pr, e)) = best {
-                let n = pr.normal;
-                let rel = self.cloth.v[i] - pr.velocity;
-                let vrel = rel.dot(&n);
-                let pressed = self.force[i].dot(&n) < 0.0;
-                if vrel < 0.0 || pressed || pr.distance < e {
-                    touching = true;
-                    let mu = self.obstacles[o].friction;
-                    self.y[i] = n * (e - pr.distance).max(0.0);
-                    if self.friction[i].stick && mu > 0.0 {
-                        // static friction: the vertex moves with the obstacle
-                        self.filter[i] = Filter::Fixed;
-                        self.z[i] = pr.velocity - self.cloth.v[i];
-                    } else {
-                        // inelastic normal constraint (a separating velocity is kept)
-                        // and kinetic friction from last step's normal force, never
-                        // more than what stops the tangential motion in one step
-                        // against the force driving it
-                        self.filter[i] = Filter::Normal(n);
-                        self.z[i] = n * (-vrel).max(0.0);
-                        let vt = rel - n * vrel;
-                        let vtn = vt.norm();
-                        if vtn > 0.0 && mu > 0.0 {
-                            let t = vt / vtn;
-                            let stop = self.cloth.mass[i] * vtn / h + driving.dot(&t).max(0.0);
-                            let f = (mu * self.friction[i].impulse / h).min(stop);
-                            self.friction_force[i] = -t * f;
-                        }
-                    }
-                    self.contact_of[i] = Some((mu, pr.velocity));
-                    self.normals[i] = n;
-                    contacts += 1;
-                }
-            }
-            if !touching {
-                self.friction[i] = FrictionState::default();
-            }
-        }
+        let contacts = self.constrain(h, t1);
         let t_collide = t_start.elapsed().as_secs_f64();
         // 2. forces and system
         let t_asm = Instant::now();
@@ -444,39 +382,13 @@ impl Simulation {
                 );
             }
         }
-        // 4. velocities and positions; Coulomb stick/slip from the constraint
-        //    impulse r = (A Δv − b)_i of each vertex in contact
+        // 4. obstacles move; velocities and positions, Coulomb stick/slip;
+        //    no vertex may end inside a thickened obstacle
         let t_post = Instant::now();
-        for i in 0..n {
-            let v = self.cloth.v[i] + self.dv[i];
-            if let Some((mu, vo)) = self.contact_of[i] {
-                let mut r = -self.b[i];
-                for k in self.a.row_ptr[i]..self.a.row_ptr[i + 1] {
-                    r += self.a.val[k] * self.dv[self.a.col[k] as usize];
-                }
-                let nrm = match self.filter[i] {
-                    Filter::Normal(nrm) => nrm,
-                    _ => self.contact_normal(i),
-                };
-                let rn = r.dot(&nrm);
-                let st = &mut self.friction[i];
-                st.impulse = rn.max(0.0);
-                st.stick = if self.filter[i] == Filter::Fixed {
-                    // static friction holds while the tangential impulse stays in the cone
-                    rn > 0.0 && (r - nrm * rn).norm() <= mu * rn
-                } else {
-                    let rel = v - vo;
-                    (rel - nrm * rel.dot(&nrm)).norm() < STICK_SPEED
-                };
-            }
-            self.cloth.v[i] = v;
-            self.cloth.x[i] += v * h + self.y[i];
-        }
-        // 5. obstacles move; no vertex may end inside a thickened obstacle
         for ob in self.obstacles.iter_mut() {
             ob.advance(h);
         }
-        self.project_out_of_obstacles();
+        self.finish(h);
         // (the hysteresis memory follows the new shape at the start of the next
         // assembly, fused with it; see `assemble`)
         self.time = t1;
@@ -491,10 +403,6 @@ impl Simulation {
             total_s: t_start.elapsed().as_secs_f64(),
         };
         Ok(self.last)
-    }
-
-    fn contact_normal(&self, i: usize) -> Vector3<f64> {
-        self.normals[i]
     }
 
     fn solve_pcg(&mut self, cap: linear::Cap) -> Result<usize> {
@@ -595,37 +503,97 @@ impl Simulation {
         self.solve_direct()
     }
 
-    /// Pushes every vertex that ended a step inside an obstacle's contact
-    /// distance back to it, and removes its approaching normal velocity.
-    fn project_out_of_obstacles(&mut self) {
+    /// Phase 1 of a step on the team: pins and contacts (see
+    /// [`vertices::constrain`]); returns the vertices in contact.
+    fn constrain(&mut self, h: f64, t1: f64) -> usize {
+        let scene = vertices::Scene {
+            h,
+            t1,
+            cloth_thickness: self.params.cloth_thickness,
+            obstacles: &self.obstacles,
+            bounds: &self.bounds,
+            pins: &self.pins,
+            pinned: &self.pinned,
+            x: &self.cloth.x,
+            v: &self.cloth.v,
+            mass: &self.cloth.mass,
+            force: &self.force,
+        };
+        let bounds = &self.part.bounds;
+        let mut filter = vertices::chunks(&mut self.filter, bounds).into_iter();
+        let mut z = vertices::chunks(&mut self.z, bounds).into_iter();
+        let mut y = vertices::chunks(&mut self.y, bounds).into_iter();
+        let mut contact_of = vertices::chunks(&mut self.contact_of, bounds).into_iter();
+        let mut friction_force = vertices::chunks(&mut self.friction_force, bounds).into_iter();
+        let mut normals = vertices::chunks(&mut self.normals, bounds).into_iter();
+        let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
+        let rows: Vec<Mutex<vertices::ConstraintRows>> = bounds[..bounds.len() - 1]
+            .iter()
+            .map(|&first| {
+                Mutex::new(vertices::ConstraintRows {
+                    first,
+                    filter: filter.next().unwrap_or_default(),
+                    z: z.next().unwrap_or_default(),
+                    y: y.next().unwrap_or_default(),
+                    contact_of: contact_of.next().unwrap_or_default(),
+                    friction_force: friction_force.next().unwrap_or_default(),
+                    normals: normals.next().unwrap_or_default(),
+                    friction: friction.next().unwrap_or_default(),
+                    contacts: 0,
+                })
+            })
+            .collect();
+        self.team.run(|t| {
+            if let Some(r) = rows.get(t) {
+                vertices::constrain(&scene, &mut vertices::lock(r));
+            }
+        });
+        rows.iter().map(|r| vertices::lock(r).contacts).sum()
+    }
+
+    /// Phase 4 of a step on the team, after the obstacles moved: velocities,
+    /// positions, stick/slip, and the push out of obstacles (see
+    /// [`vertices::finish`]).
+    fn finish(&mut self, h: f64) {
         let cloth_t = self.params.cloth_thickness;
         self.bounds.clear();
         for ob in &self.obstacles {
             self.bounds.push(ob.bounds(ob.thickness + cloth_t));
         }
-        for i in 0..self.cloth.len() {
-            if self.pinned[i].is_some() {
-                continue;
+        let solved = vertices::Solved {
+            h,
+            cloth_thickness: cloth_t,
+            a: &self.a,
+            b: &self.b,
+            dv: &self.dv,
+            y: &self.y,
+            filter: &self.filter,
+            contact_of: &self.contact_of,
+            normals: &self.normals,
+            pinned: &self.pinned,
+            obstacles: &self.obstacles,
+            bounds: &self.bounds,
+        };
+        let bounds = &self.part.bounds;
+        let mut x = vertices::chunks(&mut self.cloth.x, bounds).into_iter();
+        let mut v = vertices::chunks(&mut self.cloth.v, bounds).into_iter();
+        let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
+        let rows: Vec<Mutex<vertices::StateRows>> = bounds[..bounds.len() - 1]
+            .iter()
+            .map(|&first| {
+                Mutex::new(vertices::StateRows {
+                    first,
+                    x: x.next().unwrap_or_default(),
+                    v: v.next().unwrap_or_default(),
+                    friction: friction.next().unwrap_or_default(),
+                })
+            })
+            .collect();
+        self.team.run(|t| {
+            if let Some(r) = rows.get(t) {
+                vertices::finish(&solved, &mut vertices::lock(r));
             }
-            for (o, ob) in self.obstacles.iter().enumerate() {
-                if !inside(&self.bounds[o], &self.cloth.x[i]) {
-                    continue;
-                }
-                let e = ob.thickness + cloth_t;
-                // a few passes for curved or meeting surfaces
-                for _ in 0..3 {
-                    let pr = ob.proximity(&self.cloth.x[i]);
-                    if pr.distance >= e - 1e-9 {
-                        break;
-                    }
-                    self.cloth.x[i] += pr.normal * (e - pr.distance);
-                    let vn = (self.cloth.v[i] - pr.velocity).dot(&pr.normal);
-                    if vn < 0.0 {
-                        self.cloth.v[i] -= pr.normal * vn;
-                    }
-                }
-            }
-        }
+        });
     }
 
     fn commit_laws(&mut self) {
@@ -772,6 +740,9 @@ struct FrictionState {
     impulse: f64,
 }
 
+/// Most threads a simulation may be given ([`Params::threads`]).
+pub const MAX_THREADS: usize = 64;
+
 /// PCG iterations allowed with the single-precision factor before the
 /// double-precision one is used.
 pub const F32_REFINE_CAP: usize = 20;
@@ -783,8 +754,3 @@ pub const AUTO_PROBE: u64 = 25;
 /// Largest gap between two tries of the PCG (a failed try costs the
 /// break-even count of iterations: at most a few per cent of the time).
 pub const AUTO_PROBE_MAX: u64 = 200;
-
-#[inline]
-fn inside(b: &([f64; 3], [f64; 3]), p: &Vector3<f64>) -> bool {
-    (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
-}

@@ -1,0 +1,229 @@
+//! The per-vertex phases of a step around the assembly and the solve: the
+//! constraints (pins, contacts and their friction: the filter S, z and the
+//! position correction y), and the update after the solve (velocities,
+//! positions, Coulomb stick/slip, the push out of obstacles). Each vertex's
+//! work reads the shared state and writes only that vertex's entries, so the
+//! simulation's team runs them over its chunks of vertices.
+
+use super::linear::Filter;
+use super::sparse::BlockMatrix;
+use super::{FrictionState, Pin, STICK_SPEED};
+use crate::collision::{Obstacle, Proximity};
+use nalgebra::Vector3;
+use std::sync::Mutex;
+
+/// Axis-aligned box (min, max corners).
+pub(super) type Bounds = ([f64; 3], [f64; 3]);
+
+pub(super) fn inside(b: &Bounds, p: &Vector3<f64>) -> bool {
+    (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
+}
+
+/// What the constraint phase reads.
+pub(super) struct Scene<'a> {
+    pub h: f64,
+    /// End of the step, s.
+    pub t1: f64,
+    pub cloth_thickness: f64,
+    pub obstacles: &'a [Obstacle],
+    /// Each obstacle's box grown by its contact zone.
+    pub bounds: &'a [Bounds],
+    pub pins: &'a [Pin],
+    pub pinned: &'a [Option<usize>],
+    pub x: &'a [Vector3<f64>],
+    pub v: &'a [Vector3<f64>],
+    pub mass: &'a [f64],
+    /// Last step's total force.
+    pub force: &'a [Vector3<f64>],
+}
+
+/// What the constraint phase writes, for vertices `first..first + len`.
+pub(super) struct ConstraintRows<'a> {
+    pub first: usize,
+    pub filter: &'a mut [Filter],
+    pub z: &'a mut [Vector3<f64>],
+    pub y: &'a mut [Vector3<f64>],
+    pub contact_of: &'a mut [Option<(f64, Vector3<f64>)>],
+    pub friction_force: &'a mut [Vector3<f64>],
+    pub normals: &'a mut [Vector3<f64>],
+    pub friction: &'a mut [FrictionState],
+    /// Vertices in contact.
+    pub contacts: usize,
+}
+
+/// Pins, then contacts: the constraint filter, z and y of each vertex, its
+/// kinetic friction force, and its contact for the update after the solve.
+pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
+    let h = s.h;
+    for k in 0..o.filter.len() {
+        let i = o.first + k;
+        o.filter[k] = Filter::Free;
+        o.z[k] = Vector3::zeros();
+        o.y[k] = Vector3::zeros();
+        o.contact_of[k] = None;
+        // last step's force without its friction: what drives the sliding
+        let driving = s.force[i] - o.friction_force[k];
+        o.friction_force[k] = Vector3::zeros();
+        if let Some(p) = s.pinned[i] {
+            let (p, v) = s.pins[p].path.at(s.t1);
+            o.filter[k] = Filter::Fixed;
+            o.z[k] = v - s.v[i];
+            o.y[k] = p - s.x[i] - v * h;
+            continue;
+        }
+        let mut best: Option<(usize, Proximity, f64)> = None;
+        for (ob_i, ob) in s.obstacles.iter().enumerate() {
+            if !inside(&s.bounds[ob_i], &s.x[i]) {
+                continue;
+            }
+            let e = ob.thickness + s.cloth_thickness;
+            let pr = ob.proximity(&s.x[i]);
+            // contact zone: within e plus a margin of 10 % of e
+            if pr.distance < e * 1.1
+                && best
+                    .as_ref()
+                    .is_none_or(|b| pr.distance - e < b.1.distance - b.2)
+            {
+                best = Some((ob_i, pr, e));
+            }
+        }
+        let mut touching = false;
+        if let Some((ob_i, pr, e)) = best {
+            let n = pr.normal;
+            let rel = s.v[i] - pr.velocity;
+            let vrel = rel.dot(&n);
+            // pressed against it by last step's force (resting contact)
+            let pressed = s.force[i].dot(&n) < 0.0;
+            if vrel < 0.0 || pressed || pr.distance < e {
+                touching = true;
+                let mu = s.obstacles[ob_i].friction;
+                o.y[k] = n * (e - pr.distance).max(0.0);
+                if o.friction[k].stick && mu > 0.0 {
+                    // static friction: the vertex moves with the obstacle
+                    o.filter[k] = Filter::Fixed;
+                    o.z[k] = pr.velocity - s.v[i];
+                } else {
+                    // inelastic normal constraint (a separating velocity is kept)
+                    // and kinetic friction from last step's normal force, never
+                    // more than what stops the tangential motion in one step
+                    // against the force driving it
+                    o.filter[k] = Filter::Normal(n);
+                    o.z[k] = n * (-vrel).max(0.0);
+                    let vt = rel - n * vrel;
+                    let vtn = vt.norm();
+                    if vtn > 0.0 && mu > 0.0 {
+                        let t = vt / vtn;
+                        let stop = s.mass[i] * vtn / h + driving.dot(&t).max(0.0);
+                        let f = (mu * o.friction[k].impulse / h).min(stop);
+                        o.friction_force[k] = -t * f;
+                    }
+                }
+                o.contact_of[k] = Some((mu, pr.velocity));
+                o.normals[k] = n;
+                o.contacts += 1;
+            }
+        }
+        if !touching {
+            o.friction[k] = FrictionState::default();
+        }
+    }
+}
+
+/// What the update after the solve reads.
+pub(super) struct Solved<'a> {
+    pub h: f64,
+    pub cloth_thickness: f64,
+    pub a: &'a BlockMatrix,
+    pub b: &'a [Vector3<f64>],
+    pub dv: &'a [Vector3<f64>],
+    pub y: &'a [Vector3<f64>],
+    pub filter: &'a [Filter],
+    pub contact_of: &'a [Option<(f64, Vector3<f64>)>],
+    pub normals: &'a [Vector3<f64>],
+    pub pinned: &'a [Option<usize>],
+    /// The obstacles where they are at the end of the step.
+    pub obstacles: &'a [Obstacle],
+    /// Their boxes grown by the contact distance.
+    pub bounds: &'a [Bounds],
+}
+
+/// What the update writes, for vertices `first..first + len`.
+pub(super) struct StateRows<'a> {
+    pub first: usize,
+    pub x: &'a mut [Vector3<f64>],
+    pub v: &'a mut [Vector3<f64>],
+    pub friction: &'a mut [FrictionState],
+}
+
+/// Velocities and positions; Coulomb stick/slip from the constraint impulse
+/// `r = (A Δv − b)_i` of each vertex in contact; then no vertex may end
+/// inside an obstacle's contact distance: it is pushed back to it and its
+/// approaching normal velocity removed.
+pub(super) fn finish(s: &Solved, o: &mut StateRows) {
+    let h = s.h;
+    for k in 0..o.x.len() {
+        let i = o.first + k;
+        let v = o.v[k] + s.dv[i];
+        if let Some((mu, vo)) = s.contact_of[i] {
+            let mut r = -s.b[i];
+            for q in s.a.row_ptr[i]..s.a.row_ptr[i + 1] {
+                r += s.a.val[q] * s.dv[s.a.col[q] as usize];
+            }
+            let nrm = match s.filter[i] {
+                Filter::Normal(nrm) => nrm,
+                _ => s.normals[i],
+            };
+            let rn = r.dot(&nrm);
+            let st = &mut o.friction[k];
+            st.impulse = rn.max(0.0);
+            st.stick = if s.filter[i] == Filter::Fixed {
+                // static friction holds while the tangential impulse stays in the cone
+                rn > 0.0 && (r - nrm * rn).norm() <= mu * rn
+            } else {
+                let rel = v - vo;
+                (rel - nrm * rel.dot(&nrm)).norm() < STICK_SPEED
+            };
+        }
+        o.v[k] = v;
+        o.x[k] += v * h + s.y[i];
+        if s.pinned[i].is_some() {
+            continue;
+        }
+        for (ob_i, ob) in s.obstacles.iter().enumerate() {
+            if !inside(&s.bounds[ob_i], &o.x[k]) {
+                continue;
+            }
+            let e = ob.thickness + s.cloth_thickness;
+            // a few passes for curved or meeting surfaces
+            for _ in 0..3 {
+                let pr = ob.proximity(&o.x[k]);
+                if pr.distance >= e - 1e-9 {
+                    break;
+                }
+                o.x[k] += pr.normal * (e - pr.distance);
+                let vn = (o.v[k] - pr.velocity).dot(&pr.normal);
+                if vn < 0.0 {
+                    o.v[k] -= pr.normal * vn;
+                }
+            }
+        }
+    }
+}
+
+/// `s` cut at `bounds` (chunk t = `bounds[t]..bounds[t + 1]`), each piece
+/// behind a lock of its own for the team's thread t.
+pub(super) fn chunks<'a, T>(mut s: &'a mut [T], bounds: &[usize]) -> Vec<&'a mut [T]> {
+    let mut out = Vec::with_capacity(bounds.len().saturating_sub(1));
+    for w in bounds.windows(2) {
+        let (head, tail) = std::mem::take(&mut s).split_at_mut(w[1] - w[0]);
+        out.push(head);
+        s = tail;
+    }
+    out
+}
+
+/// Locks a chunk (a panicking thread leaves nothing half-written that the
+/// others would read: the step fails as a whole).
+pub(super) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
