@@ -59,7 +59,7 @@ enum Cmd {
         #[arg(long)]
         cg_tolerance: Option<f64>,
         /// Threads of the assembly, the PCG and the contacts (default: one per core
-        /// from 3 000 vertices; 1 for one core).
+        /// from 500 vertices; 1 for one core).
         #[arg(long)]
         threads: Option<usize>,
         #[command(flatten)]
@@ -124,7 +124,7 @@ enum Cmd {
         #[arg(long, default_value_t = 0.2)]
         warmup: f64,
         /// Threads of the assembly, the PCG and the contacts (default: one per core
-        /// from 3 000 vertices; 1 for one core).
+        /// from 500 vertices; 1 for one core).
         #[arg(long)]
         threads: Option<usize>,
     },

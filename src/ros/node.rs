@@ -76,7 +76,7 @@ pub struct Settings {
     pub spacing: f64,
     pub solver: String,
     /// Threads of the assembly, the PCG and the contacts (0: one per core
-    /// from 3 000 vertices).
+    /// from 500 vertices).
     pub threads: i64,
     /// Bag directory to record into ("": no recording).
     pub record_bag: String,

@@ -14,6 +14,14 @@ use crate::fabric::{Damping, Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
 use std::ops::Range;
 
+/// Vertices from which a simulation uses every core. With threads started
+/// once ([`super::team::Team`]) a PCG barrier costs well under a
+/// microsecond, and two threads paid on every grid measured down to 11 × 11
+/// (121 vertices: 0.088 → 0.058 ms per step); below a few hundred vertices
+/// a step takes tens of microseconds, and a second busy thread is not worth
+/// its core to whatever else runs (a ROS node's other work, parallel tests).
+pub const PARALLEL_FROM: usize = 500;
+
 /// Element groups: `ranges[t]` for chunk t, the last entry for the straddling ones.
 #[derive(Debug, Clone, Default)]
 pub struct Partition {
@@ -26,9 +34,10 @@ pub struct Partition {
     pub span: usize,
 }
 
-/// Number of assembly threads: one per core, at most 8, one for small cloths.
+/// Threads of a simulation (the assembly, the PCG, the contacts): one per
+/// core, at most 8, from [`PARALLEL_FROM`] vertices.
 pub fn threads_for(n: usize) -> usize {
-    if n < 3000 {
+    if n < PARALLEL_FROM {
         1
     } else {
         std::thread::available_parallelism()

@@ -145,8 +145,8 @@ impl Pcg {
     /// an error when `cap` stops it (see [`Cap`]) or the matrix is not
     /// positive definite.
     ///
-    /// From [`PCG_THREADS_FROM`] vertices the solve runs on every thread of
-    /// `team` (the simulation's, started once): each owns a contiguous range
+    /// The solve runs on every thread of `team` (the simulation's, started
+    /// once; see [`super::assemble::threads_for`]): each owns a contiguous range
     /// of rows and does the product, the vector updates and its part of the
     /// dot products on it; three barriers per iteration, partial sums added
     /// in a fixed order (so every thread takes the same branches and the
@@ -173,11 +173,7 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
-        let nt = if n >= PCG_THREADS_FROM {
-            team.size().min(n)
-        } else {
-            1
-        };
+        let nt = team.size().min(n).max(1);
         let sh = Shared {
             r: Ptr(self.r.as_mut_ptr()),
             c: Ptr(self.c.as_mut_ptr()),
@@ -347,11 +343,6 @@ fn out_of_reach(it: usize, ratio2: f64, tol: f64, max_iter: usize) -> bool {
     let per_iter = ratio2.ln() / (2.0 * it as f64);
     per_iter >= 0.0 || tol.ln() / per_iter > max_iter as f64
 }
-
-/// Vertices from which the PCG runs on several threads (the team's): an
-/// iteration on 3 000 vertices takes about 60 µs on one core, its three
-/// barriers about 1 µs.
-pub const PCG_THREADS_FROM: usize = 3_000;
 
 /// Inputs of a PCG solve shared by its threads.
 struct PcgArgs<'a> {
@@ -724,18 +715,16 @@ impl std::fmt::Debug for Direct {
 }
 
 impl Direct {
-    /// `threads` > 1 factorises on that many threads (faer's rayon
-    /// parallelism over the elimination tree and inside the supernodes).
+    /// One thread (faer's sequential kernels): its rayon parallelism made
+    /// the factorisation slower on the 2-core benchmark machine (README,
+    /// seventh round), and the simulation's own threads (the assembly, the
+    /// PCG) would compete with rayon's.
     ///
     /// The fill-reducing ordering is faer's AMD on the vertex graph
     /// ([`super::sparse::amd_vertex_order`]), and the matrix is stored in
     /// that order, so that faer does not permute it at every factorisation.
-    pub fn new(a: &BlockMatrix, threads: usize) -> Result<Direct> {
-        let par = if threads > 1 {
-            Par::rayon(threads)
-        } else {
-            Par::Seq
-        };
+    pub fn new(a: &BlockMatrix) -> Result<Direct> {
+        let par = Par::Seq;
         let perm = super::sparse::amd_vertex_order(a);
         let csc = LowerCsc::new_permuted(a, &perm)?;
         // checked once here (panics on a malformed pattern, a bug), trusted
@@ -1124,7 +1113,6 @@ mod tests {
     fn pcg_on_a_team_matches_one_thread() {
         let (a, _) = spd_grid_sized(60, 55, 5);
         let n = a.n;
-        assert!(n >= PCG_THREADS_FROM);
         let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
         let filter: Vec<Filter> = (0..n)
             .map(|i| match i % 7 {
@@ -1193,7 +1181,7 @@ mod tests {
         // single-precision solve is ours
         for (nx, ny, supernodal) in [(6, 5, false), (40, 40, true)] {
             let (a, mass) = spd_grid_sized(nx, ny, 11);
-            let direct = Direct::new(&a, 1).unwrap();
+            let direct = Direct::new(&a).unwrap();
             assert_eq!(direct.sn.is_some(), supernodal, "{nx} x {ny}");
             agree_under_the_constraint_filter(a, mass);
         }
@@ -1220,7 +1208,7 @@ mod tests {
                 Filter::Free => Vector3::zeros(),
             })
             .collect();
-        let mut direct = Direct::new(&a, 1).unwrap();
+        let mut direct = Direct::new(&a).unwrap();
         let mut x_direct = vec![Vector3::zeros(); n];
         direct
             .solve(&a, &b, &filter, &z, &mass, &mut x_direct)
@@ -1303,7 +1291,7 @@ mod tests {
         let (a, mass) = spd_grid_sized(40, 40, 3);
         let n = a.n;
         let filter = vec![Filter::Free; n];
-        let mut direct = Direct::new(&a, 1).unwrap();
+        let mut direct = Direct::new(&a).unwrap();
         let r: Vec<Vector3<f64>> = (0..n)
             .map(|i| Vector3::new((i as f64 * 0.37).sin(), 1.0, (i as f64 * 0.11).cos()))
             .collect();

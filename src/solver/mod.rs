@@ -244,7 +244,7 @@ impl Simulation {
         let part = assemble::partition(&mut cloth, threads);
         let slots = assemble::Slots::new(&a, &cloth);
         let direct = match params.linear_solver {
-            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a, threads)?),
+            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
             LinearSolverKind::Pcg | LinearSolverKind::Auto => None,
         };
         let z = vec![Vector3::zeros(); n];
@@ -318,10 +318,7 @@ impl Simulation {
     /// The direct solver, built (symbolic analysis) on first use.
     fn direct(&mut self) -> Result<&mut linear::Direct> {
         if self.direct.is_none() {
-            self.direct = Some(linear::Direct::new(
-                &self.a,
-                self.part.bounds.len().saturating_sub(1),
-            )?);
+            self.direct = Some(linear::Direct::new(&self.a)?);
         }
         Ok(self.direct.as_mut().expect("direct solver built"))
     }
