@@ -109,6 +109,8 @@ fn node_start_up_errors_name_what_is_wrong() {
             "publish_rate = -3",
         ),
         (vec!["-p".into(), "solver:=lu".into()], "solver = \"lu\""),
+        (vec!["-p".into(), "threads:=-1".into()], "threads = -1"),
+        (vec!["-p".into(), "threads:=65".into()], "threads = 65"),
         (vec!["-r".into(), "__ns:=/1bad".into()], "namespace"),
         (vec!["-x".into()], "unknown argument \"-x\""),
         (
@@ -135,6 +137,18 @@ fn node_start_up_errors_name_what_is_wrong() {
         assert!(!o.status.success(), "{args:?} was accepted");
         assert!(err.contains(expect), "{args:?}: {err}");
     }
+    // and `drape` refuses a thread count beyond the limit, naming it
+    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        .args(["drape", "config/scenes/free_fall.yaml", "--threads", "65"])
+        .arg("--out")
+        .arg(dir.join("threads"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("threads = 65: at most 64"),
+        "{err}"
+    );
 }
 
 /// `bench` prints one row per case with the time per step, its split into
