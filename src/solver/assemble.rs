@@ -540,24 +540,16 @@ pub fn assemble(
     }
     // chunk t on the team's thread t (the team has one thread per chunk)
     debug_assert_eq!(team.size(), nt);
-    let outs: Vec<std::sync::Mutex<Out>> = outs.into_iter().map(std::sync::Mutex::new).collect();
-    team.run(|t| {
-        if let Some(o) = outs.get(t) {
-            let mut o = o.lock().unwrap_or_else(|e| e.into_inner());
-            elements(
-                &ctx,
-                part.tension[t].clone(),
-                part.shear[t].clone(),
-                part.hinge[t].clone(),
-                &mut o,
-                true,
-            );
-        }
+    team.run_each(&mut outs, |t, o| {
+        elements(
+            &ctx,
+            part.tension[t].clone(),
+            part.shear[t].clone(),
+            part.hinge[t].clone(),
+            o,
+            true,
+        )
     });
-    let outs: Vec<Out> = outs
-        .into_iter()
-        .map(|o| o.into_inner().unwrap_or_else(|e| e.into_inner()))
-        .collect();
     power += outs.iter().map(|o| o.power).sum::<f64>();
     drop(outs);
     // the straddling elements, on this thread, with whole-matrix slices

@@ -1113,24 +1113,7 @@ mod tests {
     fn pcg_on_a_team_matches_one_thread() {
         let (a, _) = spd_grid_sized(60, 55, 5);
         let n = a.n;
-        let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
-        let filter: Vec<Filter> = (0..n)
-            .map(|i| match i % 7 {
-                1 => Filter::Normal(nrm),
-                4 => Filter::Fixed,
-                _ => Filter::Free,
-            })
-            .collect();
-        let b: Vec<Vector3<f64>> = (0..n)
-            .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
-            .collect();
-        let z: Vec<Vector3<f64>> = (0..n)
-            .map(|i| match filter[i] {
-                Filter::Normal(m) => m * 0.05,
-                Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
-                Filter::Free => Vector3::zeros(),
-            })
-            .collect();
+        let (filter, b, z) = mixed_constraints(n);
         let solve = |team: &mut Team, cap: Cap| {
             let mut pcg = Pcg::default();
             let mut x = vec![Vector3::zeros(); n];
@@ -1187,8 +1170,11 @@ mod tests {
         }
     }
 
-    fn agree_under_the_constraint_filter(a: BlockMatrix, mass: Vec<f64>) {
-        let n = a.n;
+    /// Every fifth vertex in contact along one normal, every fifth pinned, the
+    /// rest free; a right-hand side, and prescribed parts z only in the
+    /// constrained directions.
+    #[allow(clippy::type_complexity)]
+    fn mixed_constraints(n: usize) -> (Vec<Filter>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
         let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
         let filter: Vec<Filter> = (0..n)
             .map(|i| match i % 5 {
@@ -1200,7 +1186,6 @@ mod tests {
         let b: Vec<Vector3<f64>> = (0..n)
             .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
             .collect();
-        // z only in the constrained directions
         let z: Vec<Vector3<f64>> = (0..n)
             .map(|i| match filter[i] {
                 Filter::Normal(m) => m * 0.05,
@@ -1208,6 +1193,12 @@ mod tests {
                 Filter::Free => Vector3::zeros(),
             })
             .collect();
+        (filter, b, z)
+    }
+
+    fn agree_under_the_constraint_filter(a: BlockMatrix, mass: Vec<f64>) {
+        let n = a.n;
+        let (filter, b, z) = mixed_constraints(n);
         let mut direct = Direct::new(&a).unwrap();
         let mut x_direct = vec![Vector3::zeros(); n];
         direct

@@ -33,7 +33,6 @@ pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
 use serde::Serialize;
 use sparse::BlockMatrix;
-use std::sync::Mutex;
 use std::time::Instant;
 
 /// Every knob of the integrator in one place.
@@ -524,28 +523,23 @@ impl Simulation {
         let mut friction_force = vertices::chunks(&mut self.friction_force, bounds).into_iter();
         let mut normals = vertices::chunks(&mut self.normals, bounds).into_iter();
         let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
-        let rows: Vec<Mutex<vertices::ConstraintRows>> = bounds[..bounds.len() - 1]
+        let mut rows: Vec<vertices::ConstraintRows> = bounds[..bounds.len() - 1]
             .iter()
-            .map(|&first| {
-                Mutex::new(vertices::ConstraintRows {
-                    first,
-                    filter: filter.next().unwrap_or_default(),
-                    z: z.next().unwrap_or_default(),
-                    y: y.next().unwrap_or_default(),
-                    contact_of: contact_of.next().unwrap_or_default(),
-                    friction_force: friction_force.next().unwrap_or_default(),
-                    normals: normals.next().unwrap_or_default(),
-                    friction: friction.next().unwrap_or_default(),
-                    contacts: 0,
-                })
+            .map(|&first| vertices::ConstraintRows {
+                first,
+                filter: filter.next().unwrap_or_default(),
+                z: z.next().unwrap_or_default(),
+                y: y.next().unwrap_or_default(),
+                contact_of: contact_of.next().unwrap_or_default(),
+                friction_force: friction_force.next().unwrap_or_default(),
+                normals: normals.next().unwrap_or_default(),
+                friction: friction.next().unwrap_or_default(),
+                contacts: 0,
             })
             .collect();
-        self.team.run(|t| {
-            if let Some(r) = rows.get(t) {
-                vertices::constrain(&scene, &mut vertices::lock(r));
-            }
-        });
-        rows.iter().map(|r| vertices::lock(r).contacts).sum()
+        self.team
+            .run_each(&mut rows, |_, r| vertices::constrain(&scene, r));
+        rows.iter().map(|r| r.contacts).sum()
     }
 
     /// Phase 4 of a step on the team, after the obstacles moved: velocities,
@@ -575,22 +569,17 @@ impl Simulation {
         let mut x = vertices::chunks(&mut self.cloth.x, bounds).into_iter();
         let mut v = vertices::chunks(&mut self.cloth.v, bounds).into_iter();
         let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
-        let rows: Vec<Mutex<vertices::StateRows>> = bounds[..bounds.len() - 1]
+        let mut rows: Vec<vertices::StateRows> = bounds[..bounds.len() - 1]
             .iter()
-            .map(|&first| {
-                Mutex::new(vertices::StateRows {
-                    first,
-                    x: x.next().unwrap_or_default(),
-                    v: v.next().unwrap_or_default(),
-                    friction: friction.next().unwrap_or_default(),
-                })
+            .map(|&first| vertices::StateRows {
+                first,
+                x: x.next().unwrap_or_default(),
+                v: v.next().unwrap_or_default(),
+                friction: friction.next().unwrap_or_default(),
             })
             .collect();
-        self.team.run(|t| {
-            if let Some(r) = rows.get(t) {
-                vertices::finish(&solved, &mut vertices::lock(r));
-            }
-        });
+        self.team
+            .run_each(&mut rows, |_, r| vertices::finish(&solved, r));
     }
 
     fn commit_laws(&mut self) {

@@ -95,6 +95,18 @@ impl Team {
         self.shared.size
     }
 
+    /// Runs `f(t, &mut items[t])` on the team's thread t, for every item
+    /// (items beyond the team's size are left alone).
+    pub fn run_each<T: Send>(&mut self, items: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+        debug_assert!(items.len() <= self.size());
+        let cells: Vec<Mutex<&mut T>> = items.iter_mut().map(Mutex::new).collect();
+        self.run(|t| {
+            if let Some(c) = cells.get(t) {
+                f(t, &mut c.lock().unwrap_or_else(|e| e.into_inner()));
+            }
+        });
+    }
+
     /// Runs `f(t)` for every t in `0..size()`, t = 0 on the caller's thread,
     /// and returns when all have returned. A panic in a worker is raised
     /// here, after every thread has finished.

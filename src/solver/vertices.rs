@@ -10,7 +10,6 @@ use super::sparse::BlockMatrix;
 use super::{FrictionState, Pin, STICK_SPEED};
 use crate::collision::{Obstacle, Proximity};
 use nalgebra::Vector3;
-use std::sync::Mutex;
 
 /// Axis-aligned box (min, max corners).
 pub(super) type Bounds = ([f64; 3], [f64; 3]);
@@ -210,8 +209,8 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
     }
 }
 
-/// `s` cut at `bounds` (chunk t = `bounds[t]..bounds[t + 1]`), each piece
-/// behind a lock of its own for the team's thread t.
+/// `s` cut at `bounds` (chunk t = `bounds[t]..bounds[t + 1]`, for the
+/// team's thread t).
 pub(super) fn chunks<'a, T>(mut s: &'a mut [T], bounds: &[usize]) -> Vec<&'a mut [T]> {
     let mut out = Vec::with_capacity(bounds.len().saturating_sub(1));
     for w in bounds.windows(2) {
@@ -220,10 +219,4 @@ pub(super) fn chunks<'a, T>(mut s: &'a mut [T], bounds: &[usize]) -> Vec<&'a mut
         s = tail;
     }
     out
-}
-
-/// Locks a chunk (a panicking thread leaves nothing half-written that the
-/// others would read: the step fails as a whole).
-pub(super) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
 }
