@@ -780,14 +780,19 @@ impl Direct {
     /// operation counts: the factorisation ≈ nnz(L)²/n flops, a PCG iteration
     /// ≈ 2 nnz(A) + 30 n, with κ = 0.55 for the dense supernodal kernels'
     /// speed relative to the sparse products (fitted to this machine's
-    /// benchmark: break-even at 77, 168 and 445 iterations on the 2, 1 and
-    /// 0.5 cm table drapes; the formula gives 70, 179, 499).
+    /// benchmark with the PCG on one thread: break-even at 77, 168 and 445
+    /// iterations on the 2, 1 and 0.5 cm table drapes; the formula gives 70,
+    /// 179, 499). The PCG runs on `threads` threads and the factorisation on
+    /// one, so the count is multiplied by the PCG's speed-up, 1 + 0.8
+    /// (threads − 1) (measured 1.8–1.95 on two threads).
     /// `blocks`: the 3 × 3 blocks of A (both triangles).
-    pub fn break_even_iterations(&self, blocks: usize) -> usize {
+    pub fn break_even_iterations(&self, blocks: usize, threads: usize) -> usize {
         let n = self.csc.dim as f64;
         let l = self.nnz_l() as f64;
         let per_iter = 2.0 * 9.0 * blocks as f64 + 30.0 * n;
-        (0.55 * l * l / n / per_iter).round().max(10.0) as usize
+        let one = 0.55 * l * l / n / per_iter;
+        let speedup = 1.0 + 0.8 * (threads.max(1) - 1) as f64;
+        (one * speedup).round().max(10.0) as usize
     }
 
     /// Fills the values of `S A S + (I − S) m` (lower triangle): every

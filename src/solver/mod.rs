@@ -441,9 +441,10 @@ impl Simulation {
     /// same trajectory every time.
     fn solve_auto(&mut self) -> Result<usize> {
         let blocks = self.a.col.len();
+        let threads = self.team.size();
         let cap = self
             .direct()?
-            .break_even_iterations(blocks)
+            .break_even_iterations(blocks, threads)
             .min(self.params.cg_max_iterations);
         let probe = self.steps >= self.auto_next_probe;
         if !self.auto_on_direct || probe {
