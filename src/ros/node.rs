@@ -738,7 +738,12 @@ pub fn run(ros_args: &[String]) -> Result<()> {
         if running && !initial {
             let dt = loaded.sim.params.dt;
             clock_every = ((1e-3 / dt).round() as u64).max(1);
-            match loaded.sim.step() {
+            let stepped = loaded.sim.step();
+            // between steps the node publishes, reads parameters and
+            // messages, or sleeps: the simulation's workers sleep meanwhile
+            // instead of spinning (the next step wakes them)
+            loaded.sim.rest_threads();
+            match stepped {
                 Ok(st) => {
                     step_ms_sum += st.total_s * 1e3;
                     step_count += 1;

@@ -281,6 +281,14 @@ impl Simulation {
         })
     }
 
+    /// Lets the simulation's worker threads sleep now rather than spin for
+    /// the next step (they spin up to 1 ms after each phase to stay on their
+    /// cores): for a caller about to wait, e.g. a node pacing the steps with
+    /// the wall clock.
+    pub fn rest_threads(&self) {
+        self.team.rest();
+    }
+
     /// Replaces the pins (checks the vertex indices).
     pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<()> {
         for p in &pins {

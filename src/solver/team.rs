@@ -43,6 +43,8 @@ unsafe fn call<F: Fn(usize) + Sync>(data: *const (), t: usize) {
 
 struct Shared {
     size: usize,
+    /// How long an idle worker spins before it sleeps.
+    spin: Duration,
     /// Phases started so far; a worker runs the job when it sees it change.
     epoch: AtomicUsize,
     /// Workers done with the current phase.
@@ -54,6 +56,8 @@ struct Shared {
     lock: Mutex<()>,
     wake: Condvar,
     stop: AtomicBool,
+    /// Idle workers sleep at once instead of spinning (until the next phase).
+    rest: AtomicBool,
     panicked: AtomicBool,
 }
 
@@ -66,9 +70,15 @@ impl Team {
     /// A team of `size` threads in all (the caller counts as one); `size` ≤ 1
     /// runs every phase on the caller's thread.
     pub fn new(size: usize) -> Team {
+        Team::with_spin(size, SPIN)
+    }
+
+    /// [`Team::new`] with idle workers spinning for `spin` before they sleep.
+    pub fn with_spin(size: usize, spin: Duration) -> Team {
         let size = size.max(1);
         let shared = Arc::new(Shared {
             size,
+            spin,
             epoch: AtomicUsize::new(0),
             done: AtomicUsize::new(0),
             job: UnsafeCell::new(None),
@@ -76,6 +86,7 @@ impl Team {
             lock: Mutex::new(()),
             wake: Condvar::new(),
             stop: AtomicBool::new(false),
+            rest: AtomicBool::new(false),
             panicked: AtomicBool::new(false),
         });
         let workers = (1..size)
@@ -93,6 +104,21 @@ impl Team {
     /// Threads in the team, the caller's included.
     pub fn size(&self) -> usize {
         self.shared.size
+    }
+
+    /// Sends the idle workers to sleep now instead of after their spin (for
+    /// a caller about to wait: a node pacing itself with the wall clock would
+    /// otherwise keep a core busy up to 1 ms after every step). The next
+    /// [`Team::run`] wakes them.
+    pub fn rest(&self) {
+        if self.shared.size > 1 {
+            self.shared.rest.store(true, Ordering::SeqCst);
+        }
+    }
+
+    /// Workers asleep now.
+    pub fn sleeping(&self) -> usize {
+        self.shared.sleeping.load(Ordering::SeqCst)
     }
 
     /// Runs `f(t, &mut items[t])` on the team's thread t, for every item
@@ -127,6 +153,7 @@ impl Team {
             });
         }
         sh.done.store(0, Ordering::Relaxed);
+        sh.rest.store(false, Ordering::SeqCst);
         sh.epoch.fetch_add(1, Ordering::SeqCst);
         if sh.sleeping.load(Ordering::SeqCst) > 0 {
             let _g = sh.lock.lock().unwrap_or_else(|e| e.into_inner());
@@ -166,7 +193,9 @@ fn worker(sh: &Shared, t: usize) {
             }
             std::hint::spin_loop();
             spins += 1;
-            if spins.is_multiple_of(256) && start.elapsed() > SPIN {
+            if spins.is_multiple_of(256)
+                && (sh.rest.load(Ordering::Relaxed) || start.elapsed() > sh.spin)
+            {
                 let mut g = sh.lock.lock().unwrap_or_else(|e| e.into_inner());
                 sh.sleeping.fetch_add(1, Ordering::SeqCst);
                 while sh.epoch.load(Ordering::SeqCst) == seen && !sh.stop.load(Ordering::SeqCst) {
@@ -243,6 +272,29 @@ mod tests {
             });
         }
         assert_eq!(hits.load(Ordering::Relaxed), 3 * 3);
+    }
+
+    #[test]
+    fn rest_puts_idle_workers_to_sleep_at_once() {
+        // workers that would spin for a minute
+        let mut team = Team::with_spin(3, Duration::from_secs(60));
+        let hits = AtomicU64::new(0);
+        team.run(|_| {
+            hits.fetch_add(1, Ordering::Relaxed);
+        });
+        std::thread::sleep(Duration::from_millis(20));
+        assert_eq!(team.sleeping(), 0, "spinning, not asleep");
+        team.rest();
+        let t0 = Instant::now();
+        while team.sleeping() < 2 {
+            assert!(t0.elapsed() < Duration::from_secs(5), "still spinning");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // and the next phase wakes them
+        team.run(|_| {
+            hits.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(hits.load(Ordering::Relaxed), 6);
     }
 
     #[test]
