@@ -1,7 +1,8 @@
 //! Assembly of the implicit step's matrix and right-hand side, on the
-//! simulation's team of threads ([`super::team::Team`]) without locks: the vertices are cut into contiguous chunks, each
-//! spring or hinge whose vertices all lie in one chunk is assembled by that
-//! chunk's thread into its own rows, and the few that straddle two chunks are
+//! simulation's team of threads ([`super::team::Team`]) without locks: the
+//! vertices are cut into contiguous chunks, each spring or hinge whose
+//! vertices all lie in one chunk is assembled by that chunk's thread into its
+//! own rows, and the few that straddle two chunks are
 //! assembled afterwards on one thread. Elements are stored grouped that way
 //! (the order of springs changes nothing else), so every thread also owns a
 //! contiguous slice of the hysteresis memories.

@@ -698,8 +698,6 @@ pub struct Direct {
     tmp: Vec<Vector3<f64>>,
     /// Position of the transposed block (j, i) of each block (i, j).
     transpose: Vec<usize>,
-    /// Threads of the numeric factorisation and solve.
-    par: Par,
     /// The single-precision solve (None: faer's, for a simplicial factor).
     sn: Option<super::trisolve::Supernodal>,
     /// Applications of the factor so far.
@@ -724,7 +722,6 @@ impl Direct {
     /// ([`super::sparse::amd_vertex_order`]), and the matrix is stored in
     /// that order, so that faer does not permute it at every factorisation.
     pub fn new(a: &BlockMatrix) -> Result<Direct> {
-        let par = Par::Seq;
         let perm = super::sparse::amd_vertex_order(a);
         let csc = LowerCsc::new_permuted(a, &perm)?;
         // checked once here (panics on a malformed pattern, a bug), trusted
@@ -744,10 +741,10 @@ impl Direct {
         .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, par),
-            symbolic.factorize_numeric_llt_scratch::<f32>(par, Default::default()),
-            symbolic.solve_in_place_scratch::<f32>(1, par),
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+            symbolic.factorize_numeric_llt_scratch::<f32>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f32>(1, Par::Seq),
         ]);
         Ok(Direct {
             perm,
@@ -764,7 +761,6 @@ impl Direct {
                 .flat_map(|i| (a.row_ptr[i]..a.row_ptr[i + 1]).map(move |k| (i, k)))
                 .map(|(i, k)| a.index(a.col[k] as usize, i))
                 .collect(),
-            par,
             sn: super::trisolve::Supernodal::new(&symbolic),
             symbolic,
             applied: 0,
@@ -887,7 +883,7 @@ impl Direct {
                         mat,
                         Side::Lower,
                         LltRegularization::default(),
-                        self.par,
+                        Par::Seq,
                         stack,
                         Default::default(),
                     )
@@ -902,7 +898,7 @@ impl Direct {
                         mat,
                         Side::Lower,
                         LltRegularization::default(),
-                        self.par,
+                        Par::Seq,
                         stack,
                         Default::default(),
                     )
@@ -933,7 +929,7 @@ impl Direct {
             (Precision::F64, _) => {
                 let llt = LltRef::new(&self.symbolic, &self.l_values);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, stack);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
             }
             (Precision::F32, Some(sn)) => sn.solve(&self.l32, &mut self.rhs),
             // a simplicial factor: faer's solve, in single precision
@@ -943,7 +939,7 @@ impl Direct {
                 }
                 let llt = LltRef::new(&self.symbolic, &self.l32);
                 let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs32, dim, 1);
-                llt.solve_in_place_with_conj(Conj::No, rhs, self.par, stack);
+                llt.solve_in_place_with_conj(Conj::No, rhs, Par::Seq, stack);
                 for (x, &x32) in self.rhs.iter_mut().zip(&self.rhs32) {
                     *x = x32 as f64;
                 }

@@ -51,9 +51,9 @@ pub struct Params {
     pub cloth_thickness: f64,
     /// Include the hysteretic parts of the laws.
     pub hysteresis: bool,
-    /// Threads of the assembly and the PCG, started once per simulation
-    /// ([`team::Team`]; 0: one per core for large cloths, see
-    /// [`assemble::threads_for`]).
+    /// Threads of the assembly, the PCG and the contacts, started once per
+    /// simulation ([`team::Team`]; 0: one per core for large cloths, see
+    /// [`assemble::threads_for`]; at most [`MAX_THREADS`]).
     pub threads: usize,
 }
 
@@ -184,7 +184,8 @@ pub struct Simulation {
     a: BlockMatrix,
     slots: assemble::Slots,
     part: assemble::Partition,
-    /// Threads of the assembly and the PCG, started once (one per chunk of `part`).
+    /// Threads of the assembly, the PCG and the contacts, started once (one
+    /// per chunk of `part`).
     team: team::Team,
     /// Total force at the start of the last step (internal + external + damping).
     pub force: Vec<Vector3<f64>>,
