@@ -326,7 +326,13 @@ fn real_main(cli: Cli) -> Result<()> {
                 "grid             {} × {} ({} vertices), spacing {:.4} × {:.4} m",
                 s.grid[0], s.grid[1], s.vertices, s.spacing_m[0], s.spacing_m[1]
             );
-            println!("solver           {}, dt = {} s", s.linear_solver, s.dt_s);
+            println!(
+                "solver           {}, dt = {} s, {} thread{}",
+                s.linear_solver,
+                s.dt_s,
+                s.threads,
+                if s.threads == 1 { "" } else { "s" }
+            );
             println!(
                 "simulated        {:.3} s in {} steps",
                 s.simulated_s, s.steps

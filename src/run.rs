@@ -39,6 +39,8 @@ pub struct Summary {
     pub spacing_m: [f64; 2],
     pub dt_s: f64,
     pub linear_solver: String,
+    /// Threads of the assembly, the PCG and the contacts.
+    pub threads: usize,
     pub simulated_s: f64,
     pub steps: u64,
     pub wall_s: f64,
@@ -156,6 +158,7 @@ pub fn run_with(
         spacing_m: [sim.cloth.lc, sim.cloth.lt],
         dt_s: sim.params.dt,
         linear_solver: format!("{:?}", sim.params.linear_solver).to_lowercase(),
+        threads: sim.threads(),
         simulated_s: sim.time,
         steps,
         wall_s: wall,

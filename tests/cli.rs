@@ -40,6 +40,9 @@ fn drape_writes_ply_energy_and_summary() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["steps"], 240); // dt = 1/1200 s
     assert_eq!(s["grid"][0], 11);
+    // 121 vertices: below the size from which every core is used
+    assert_eq!(s["threads"], 1);
+    assert!(stdout.contains("1 thread\n"), "{stdout}");
     assert!((s["simulated_s"].as_f64().unwrap() - 0.2).abs() < 1e-9);
     let ply = std::fs::read_to_string(out.join("final.ply")).unwrap();
     assert!(ply.starts_with("ply\nformat ascii 1.0"));

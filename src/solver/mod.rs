@@ -282,6 +282,11 @@ impl Simulation {
         })
     }
 
+    /// Threads of the assembly, the PCG and the contacts.
+    pub fn threads(&self) -> usize {
+        self.team.size()
+    }
+
     /// Lets the simulation's worker threads sleep now rather than spin for
     /// the next step (they spin up to 1 ms after each phase to stay on their
     /// cores): for a caller about to wait, e.g. a node pacing the steps with
