@@ -429,7 +429,7 @@ fn real_main(cli: Cli) -> Result<()> {
                 warmup
             );
             println!(
-                "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11}",
+                "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11} {:>7}",
                 "spacing",
                 "grid",
                 "dt",
@@ -440,7 +440,8 @@ fn real_main(cli: Cli) -> Result<()> {
                 "contacts",
                 "RTF",
                 "iters",
-                "peak RSS MB"
+                "peak RSS MB",
+                "threads"
             );
             for &sp in &spacing {
                 for &h in &dt {
@@ -498,7 +499,7 @@ fn real_main(cli: Cli) -> Result<()> {
                         ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
                         let med = ms[ms.len() / 2];
                         println!(
-                            "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1}",
+                            "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7}",
                             sp,
                             format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
                             format!("{h:.4e}"),
@@ -509,7 +510,8 @@ fn real_main(cli: Cli) -> Result<()> {
                             med[3],
                             h * 1e3 / med[0],
                             it,
-                            peak_rss_mb()
+                            peak_rss_mb(),
+                            sim.threads()
                         );
                     }
                 }

@@ -190,6 +190,7 @@ fn bench_reports_time_per_step_and_its_phases() {
         "RTF",
         "iters",
         "peak RSS MB",
+        "threads",
     ] {
         assert!(header.contains(col), "header lacks {col}: {header}");
     }
@@ -212,5 +213,7 @@ fn bench_reports_time_per_step_and_its_phases() {
             "{r:?}"
         );
         assert!(num(9) >= 1.0 && num(10) > 1.0, "{r:?}");
+        // 121 vertices: one thread (every core from 500)
+        assert_eq!(r[11], "1", "{r:?}");
     }
 }
