@@ -36,17 +36,28 @@ pub struct Partition {
 }
 
 /// Threads of a simulation (the assembly, the PCG, the contacts): one per
-/// core, at most 8, from [`PARALLEL_FROM`] vertices.
+/// core from [`PARALLEL_FROM`] vertices, at most 8 and at most one per
+/// [`VERTICES_PER_THREAD`] vertices.
 pub fn threads_for(n: usize) -> usize {
+    let cores = std::thread::available_parallelism()
+        .map(|p| p.get())
+        .unwrap_or(1);
+    threads_for_cores(n, cores)
+}
+
+/// [`threads_for`] on a machine with `cores` cores.
+pub fn threads_for_cores(n: usize, cores: usize) -> usize {
     if n < PARALLEL_FROM {
         1
     } else {
-        std::thread::available_parallelism()
-            .map(|p| p.get())
-            .unwrap_or(1)
-            .min(8)
+        cores.min(8).min(n / VERTICES_PER_THREAD).max(1)
     }
 }
+
+/// Fewest vertices per thread: on a many-core machine a small cloth gets a
+/// few threads, not one per core (each thread's rows must outweigh its share
+/// of the barriers).
+pub const VERTICES_PER_THREAD: usize = 250;
 
 /// Reorders the cloth's springs and hinges (with their memories) into
 /// per-chunk groups and returns the groups.
@@ -578,4 +589,24 @@ pub fn assemble(
         o.rhs[i] = (o.force[i] + o.rhs[i]) * h;
     }
     power
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn threads_grow_with_the_cloth_and_the_cores() {
+        // below PARALLEL_FROM: one thread whatever the cores
+        assert_eq!(threads_for_cores(121, 2), 1);
+        assert_eq!(threads_for_cores(PARALLEL_FROM - 1, 64), 1);
+        // the 2, 1 and 0.5 cm table drapes
+        for n in [676, 2601, 10201] {
+            assert_eq!(threads_for_cores(n, 1), 1);
+            assert_eq!(threads_for_cores(n, 2), 2);
+        }
+        assert_eq!(threads_for_cores(676, 64), 2);
+        assert_eq!(threads_for_cores(2601, 64), 8);
+        assert_eq!(threads_for_cores(10201, 4), 4);
+    }
 }
