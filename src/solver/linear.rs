@@ -195,25 +195,11 @@ impl Pcg {
             tol,
             max_iter,
         };
-        let r = if nt == 1 {
-            pcg_rows(&args, &sh, 0)
-        } else {
-            let first = std::sync::Mutex::new(None);
-            team.run(|t| {
-                if t < nt {
-                    let r = pcg_rows(&args, &sh, t);
-                    if t == 0 {
-                        *first.lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
-                    }
-                }
-            });
-            first
-                .into_inner()
-                .unwrap_or_else(|e| e.into_inner())
-                .unwrap_or_else(|| Err(anyhow!("PCG: no result from the first thread")))
-        };
+        // every thread takes the same branches: thread 0's result is the solve's
+        let mut results: Vec<Result<usize>> = (0..nt).map(|_| Ok(0)).collect();
+        team.run_each(&mut results, |t, r| *r = pcg_rows(&args, &sh, t));
         self.spent = sh.iters.load(Ordering::Relaxed);
-        r
+        results.swap_remove(0)
     }
 
     /// The filtered PCG preconditioned by the Cholesky factor `P = L Lᵀ` held

@@ -203,7 +203,7 @@ pub struct Simulation {
     /// Kinetic friction force of this step.
     friction_force: Vec<Vector3<f64>>,
     /// Broad-phase boxes of the obstacles for this step.
-    bounds: Vec<([f64; 3], [f64; 3])>,
+    bounds: Vec<vertices::Bounds>,
     pinned: Vec<Option<usize>>,
     pcg: linear::Pcg,
     direct: Option<linear::Direct>,

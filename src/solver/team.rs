@@ -1,5 +1,6 @@
 //! A team of worker threads started once per simulation and reused by every
-//! parallel phase of a step (the assembly, the PCG).
+//! parallel phase of a step (the contacts, the assembly, the PCG, the update
+//! after the solve).
 //!
 //! Starting threads at every phase (`std::thread::scope`) cost more than the
 //! threads' start-up: the kernel places each new thread anew, and on the
