@@ -213,6 +213,99 @@ fn a_rising_obstacle_lifts_the_cloth_without_penetration() {
     );
 }
 
+/// A 20 cm square `height` above a 2 mm board (thickness 1 mm: the contact
+/// distance with the 2 mm cloth is 3 mm, so the thickened board is 8 mm
+/// thick), stepped at `dt`; the board moves up at `rise` m/s. Returns the
+/// smallest height above the board's top face of any vertex at the end of
+/// any step, and the largest at the end.
+fn thin_board(height: f64, dt: f64, rise: f64, steps: usize) -> (f64, f64) {
+    let f = fixture();
+    let grid = GridSpec {
+        size: [0.2, 0.2],
+        spacing: [0.02, 0.02],
+        pose: Isometry3::translation(-0.1, -0.1, 0.001 + height),
+    };
+    let cloth = Cloth::grid(&grid, f.areal_mass).unwrap();
+    let mut sim = Simulation::new(
+        cloth,
+        f,
+        Params {
+            dt,
+            cloth_thickness: 0.002,
+            ..Params::default()
+        },
+    )
+    .unwrap();
+    let mut ob = Obstacle::new(
+        "board",
+        ShapeSpec::Box {
+            size: [0.3, 0.3, 0.002],
+        },
+        Isometry3::identity(),
+        0.001,
+        0.3,
+        Path::new("."),
+    )
+    .unwrap();
+    ob.linear_velocity = Vector3::new(0.0, 0.0, rise);
+    sim.obstacles.push(ob);
+    let mut lowest = f64::INFINITY;
+    for _ in 0..steps {
+        sim.step().unwrap();
+        let top = sim.obstacles[0].pose.translation.z + 0.001;
+        for p in &sim.cloth.x {
+            lowest = lowest.min(p.z - top);
+        }
+    }
+    let top = sim.obstacles[0].pose.translation.z + 0.001;
+    let highest = sim
+        .cloth
+        .x
+        .iter()
+        .map(|p| p.z - top)
+        .fold(f64::NEG_INFINITY, f64::max);
+    (lowest, highest)
+}
+
+#[test]
+fn large_steps_do_not_cross_a_thin_board() {
+    let e = 0.003;
+    // (what, height above the top face, dt, board speed up, steps)
+    for (what, height, dt, rise, steps) in [
+        // 1.5 m/s at impact: 2.5 cm per step against the 8 mm thickened board
+        ("dropped from 15 cm, dt = 1/60 s", 0.15, 1.0 / 60.0, 0.0, 90),
+        // released at rest 4 mm above: the first step alone falls 2.5 cm
+        ("released at rest, dt = 0.05 s", 0.004, 0.05, 0.0, 30),
+        // the board sweeps 3.3 cm per step through the cloth's path
+        (
+            "board rising at 2 m/s, dt = 1/60 s",
+            0.05,
+            1.0 / 60.0,
+            2.0,
+            60,
+        ),
+    ] {
+        let (lowest, highest) = thin_board(height, dt, rise, steps);
+        println!(
+            "{what}: lowest vertex {:.3} mm above the top face over all steps, highest {:.3} mm at the end",
+            lowest * 1e3,
+            highest * 1e3
+        );
+        // every vertex stays on the side it came from, at the contact distance
+        assert!(
+            lowest >= e - 1e-6,
+            "{what}: a vertex went {:.3} mm below the contact distance",
+            (e - lowest) * 1e3
+        );
+        // and the square ends lying on the board (flat within 3 mm)
+        assert!(
+            highest < e + 0.003,
+            "{what}: the cloth does not lie on the board (highest vertex {:.1} mm up)",
+            highest * 1e3
+        );
+    }
+}
+
 fn scene_error(yaml: &str) -> String {
     let dir = scratch::Scratch::new("bad_scene");
     std::fs::copy("tests/data/acrylic_test.yaml", dir.join("fab.yaml")).unwrap();

@@ -529,6 +529,7 @@ impl Simulation {
             v: &self.cloth.v,
             mass: &self.cloth.mass,
             force: &self.force,
+            gravity: self.params.gravity,
         };
         let bounds = &self.part.bounds;
         let mut filter = vertices::chunks(&mut self.filter, bounds).into_iter();

@@ -18,6 +18,11 @@ pub(super) fn inside(b: &Bounds, p: &Vector3<f64>) -> bool {
     (0..3).all(|k| p[k] >= b.0[k] && p[k] <= b.1[k])
 }
 
+/// Whether the box spanned by the segment `a → b` meets `bounds`.
+fn overlaps(bounds: &Bounds, a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+    (0..3).all(|k| a[k].min(b[k]) <= bounds.1[k] && a[k].max(b[k]) >= bounds.0[k])
+}
+
 /// What the constraint phase reads.
 pub(super) struct Scene<'a> {
     pub h: f64,
@@ -34,6 +39,8 @@ pub(super) struct Scene<'a> {
     pub mass: &'a [f64],
     /// Last step's total force.
     pub force: &'a [Vector3<f64>],
+    /// Gravity, m/s².
+    pub gravity: Vector3<f64>,
 }
 
 /// What the constraint phase writes, for vertices `first..first + len`.
@@ -70,15 +77,29 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             o.y[k] = p - s.x[i] - v * h;
             continue;
         }
+        // the velocity that carries the vertex this step, as far as the
+        // contacts foresee it: the present one (a resting vertex that springs
+        // hold above a surface is not pulled onto it), with gravity's pull
+        // added before the first step (a cloth released from rest)
+        let free = if s.force[i] == Vector3::zeros() {
+            s.v[i] + s.gravity * h
+        } else {
+            s.v[i]
+        };
         let mut best: Option<(usize, Proximity, f64)> = None;
         for (ob_i, ob) in s.obstacles.iter().enumerate() {
-            if !inside(&s.bounds[ob_i], &s.x[i]) {
+            // where the vertex would go this step relative to the obstacle
+            let ahead = s.x[i] + (free - ob.linear_velocity) * h;
+            if !overlaps(&s.bounds[ob_i], &s.x[i], &ahead) {
                 continue;
             }
             let e = ob.thickness + s.cloth_thickness;
             let pr = ob.proximity(&s.x[i]);
-            // contact zone: within e plus a margin of 10 % of e
-            if pr.distance < e * 1.1
+            // contact zone: within e plus a margin of 10 % of e, or farther
+            // when the vertex would cross the surface within this step at
+            // its present speed (large steps: it is caught where it lands)
+            let approach = -(free - pr.velocity).dot(&pr.normal) * h;
+            if pr.distance - e < approach.max(0.1 * e)
                 && best
                     .as_ref()
                     .is_none_or(|b| pr.distance - e < b.1.distance - b.2)
@@ -93,21 +114,30 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             let vrel = rel.dot(&n);
             // pressed against it by last step's force (resting contact)
             let pressed = s.force[i].dot(&n) < 0.0;
-            if vrel < 0.0 || pressed || pr.distance < e {
+            let gap = pr.distance - e;
+            // beyond the margin: reached within this step at the present speed
+            let landing = gap >= 0.1 * e;
+            if landing || vrel < 0.0 || pressed || gap < 0.0 {
                 touching = true;
                 let mu = s.obstacles[ob_i].friction;
                 o.y[k] = n * (e - pr.distance).max(0.0);
-                if o.friction[k].stick && mu > 0.0 {
+                if o.friction[k].stick && mu > 0.0 && !landing {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
                     o.z[k] = pr.velocity - s.v[i];
                 } else {
-                    // inelastic normal constraint (a separating velocity is kept)
-                    // and kinetic friction from last step's normal force, never
-                    // more than what stops the tangential motion in one step
-                    // against the force driving it
+                    // inelastic normal constraint (a separating velocity is kept;
+                    // a vertex landing from beyond the margin ends the step on
+                    // the surface, the gap closed, not overshot); kinetic friction
+                    // from last step's normal force, never more than what stops
+                    // the tangential motion in one step against the force
+                    // driving it
                     o.filter[k] = Filter::Normal(n);
-                    o.z[k] = n * (-vrel).max(0.0);
+                    o.z[k] = if landing {
+                        n * (-gap / h - vrel)
+                    } else {
+                        n * (-vrel).max(0.0)
+                    };
                     let vt = rel - n * vrel;
                     let vtn = vt.norm();
                     if vtn > 0.0 && mu > 0.0 {
@@ -184,15 +214,33 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
             };
         }
         o.v[k] = v;
+        let x0 = o.x[k];
         o.x[k] += v * h + s.y[i];
         if s.pinned[i].is_some() {
             continue;
         }
         for (ob_i, ob) in s.obstacles.iter().enumerate() {
+            let e = ob.thickness + s.cloth_thickness;
+            // a vertex that moved farther than the contact distance relative
+            // to the obstacle may have crossed its surface, even gone
+            // through a thin one (it started the step outside the thickened
+            // shape): put it back on the side it came from
+            let start = x0 + ob.velocity_at(&x0) * h;
+            if (o.x[k] - start).norm_squared() >= e * e
+                && overlaps(&s.bounds[ob_i], &start, &o.x[k])
+            {
+                if let Some((t, n)) = ob.first_crossing(&start, &o.x[k]) {
+                    let entry = start + (o.x[k] - start) * t;
+                    o.x[k] += n * (e - (o.x[k] - entry).dot(&n));
+                    let vn = (o.v[k] - ob.velocity_at(&entry)).dot(&n);
+                    if vn < 0.0 {
+                        o.v[k] -= n * vn;
+                    }
+                }
+            }
             if !inside(&s.bounds[ob_i], &o.x[k]) {
                 continue;
             }
-            let e = ob.thickness + s.cloth_thickness;
             // a few passes for curved or meeting surfaces
             for _ in 0..3 {
                 let pr = ob.proximity(&o.x[k]);
