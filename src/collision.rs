@@ -449,30 +449,22 @@ mod tests {
             Path::new("."),
         )
         .unwrap();
-        // straight through the 1 cm plate from 2 cm above: enters the top face
-        // a quarter of the way along (0.02 − 0.005 of 0.06 m)
-        let (t, n) = b
-            .first_crossing(
-                &Vector3::new(0.01, 0.02, 0.52),
-                &Vector3::new(0.01, 0.02, 0.46),
-            )
-            .unwrap();
-        assert!((t - 0.25).abs() < 1e-12, "t = {t}");
-        assert!((n - Vector3::z()).norm() < 1e-12, "n = {n}");
-        // slanted through the side face x = 0.15 from outside
-        let (t, n) = b
-            .first_crossing(
-                &Vector3::new(0.17, 0.0, 0.5),
-                &Vector3::new(0.13, 0.0, 0.501),
-            )
-            .unwrap();
-        assert!((t - 0.5).abs() < 1e-12, "t = {t}");
-        assert!((n - Vector3::x()).norm() < 1e-12, "n = {n}");
-        // from below: the bottom face, facing down
-        let (_, n) = b
-            .first_crossing(&Vector3::new(0.0, 0.0, 0.48), &Vector3::new(0.0, 0.0, 0.6))
-            .unwrap();
-        assert!((n + Vector3::z()).norm() < 1e-12, "n = {n}");
+        // (from, to, fraction at the entry, the entered face's normal)
+        for (from, to, t_entry, normal) in [
+            // straight through the 1 cm plate from 2 cm above: the top face a
+            // quarter of the way along (0.02 − 0.005 of 0.06 m)
+            ([0.01, 0.02, 0.52], [0.01, 0.02, 0.46], 0.25, Vector3::z()),
+            // slanted through the side face x = 0.15 from outside
+            ([0.17, 0.0, 0.5], [0.13, 0.0, 0.501], 0.5, Vector3::x()),
+            // from below: the bottom face (0.015 of 0.12 m), facing down
+            ([0.0, 0.0, 0.48], [0.0, 0.0, 0.6], 0.125, -Vector3::z()),
+        ] {
+            let (t, n) = b
+                .first_crossing(&Vector3::from(from), &Vector3::from(to))
+                .unwrap();
+            assert!((t - t_entry).abs() < 1e-12, "t = {t}");
+            assert!((n - normal).norm() < 1e-12, "n = {n}");
+        }
         // sliding over the top at the contact distance, short of it, and from inside: none
         assert!(b
             .first_crossing(
