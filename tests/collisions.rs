@@ -306,6 +306,49 @@ fn large_steps_do_not_cross_a_thin_board() {
     }
 }
 
+#[test]
+fn contacts_come_to_rest_on_the_table() {
+    // the shipped table drape; once the cloth rests, static friction holds
+    // every contact and nothing changes from step to step (before, half the
+    // contacts flipped between stick and slip every step, for ever)
+    use garment_sim::scene::Overrides;
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    for (spacing, dt, duration) in [(0.02, 1e-3, 4.0), (0.01, 1.0 / 120.0, 4.0)] {
+        let mut sim = sc
+            .build(&Overrides {
+                spacing: Some(spacing),
+                dt: Some(dt),
+                ..Default::default()
+            })
+            .unwrap();
+        let steps = (duration / dt).round() as usize;
+        let tail = (0.5 / dt).round() as usize;
+        let mut seen = std::collections::BTreeSet::new();
+        let mut last = (0, 0);
+        for k in 0..steps {
+            let s = sim.step().unwrap();
+            if k >= steps - tail {
+                seen.insert((s.contacts, s.stuck));
+            }
+            last = (s.contacts, s.stuck);
+        }
+        println!(
+            "{spacing} m at dt = {dt:.5} s: over the last 0.5 s (contacts, stuck) took the values {seen:?}"
+        );
+        assert!(
+            last.0 > 100,
+            "the cloth lies on the board ({} contacts)",
+            last.0
+        );
+        assert_eq!(
+            seen.len(),
+            1,
+            "{spacing} m: the contacts still change at rest: {seen:?}"
+        );
+        assert_eq!(last.0, last.1, "{spacing} m: every contact held at rest");
+    }
+}
+
 fn scene_error(yaml: &str) -> String {
     let dir = scratch::Scratch::new("bad_scene");
     std::fs::copy("tests/data/acrylic_test.yaml", dir.join("fab.yaml")).unwrap();

@@ -142,7 +142,10 @@ impl Pin {
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct StepStats {
     pub iterations: usize,
+    /// Vertices in contact with an obstacle this step.
     pub contacts: usize,
+    /// Of those, the ones static friction held (moving with the obstacle).
+    pub stuck: usize,
     pub assemble_s: f64,
     pub solve_s: f64,
     pub collide_s: f64,
@@ -362,7 +365,7 @@ impl Simulation {
             let e = ob.thickness + self.params.cloth_thickness;
             self.bounds.push(ob.bounds(e * 1.1));
         }
-        let contacts = self.constrain(h, t1);
+        let (contacts, stuck) = self.constrain(h, t1);
         let t_collide = t_start.elapsed().as_secs_f64();
         // 2. forces and system
         let t_asm = Instant::now();
@@ -407,6 +410,7 @@ impl Simulation {
         self.last = StepStats {
             iterations,
             contacts,
+            stuck,
             assemble_s,
             solve_s,
             collide_s,
@@ -516,7 +520,7 @@ impl Simulation {
 
     /// Phase 1 of a step on the team: pins and contacts (see
     /// [`vertices::constrain`]); returns the vertices in contact.
-    fn constrain(&mut self, h: f64, t1: f64) -> usize {
+    fn constrain(&mut self, h: f64, t1: f64) -> (usize, usize) {
         let scene = vertices::Scene {
             h,
             t1,
@@ -551,11 +555,15 @@ impl Simulation {
                 normals: normals.next().unwrap_or_default(),
                 friction: friction.next().unwrap_or_default(),
                 contacts: 0,
+                stuck: 0,
             })
             .collect();
         self.team
             .run_each(&mut rows, |_, r| vertices::constrain(&scene, r));
-        rows.iter().map(|r| r.contacts).sum()
+        (
+            rows.iter().map(|r| r.contacts).sum(),
+            rows.iter().map(|r| r.stuck).sum(),
+        )
     }
 
     /// Phase 4 of a step on the team, after the obstacles moved: velocities,
@@ -736,7 +744,8 @@ pub const STICK_SPEED: f64 = 1e-3;
 /// Coulomb friction state of a vertex in contact.
 #[derive(Debug, Clone, Copy, Default)]
 struct FrictionState {
-    /// Static friction holds it (it moves with the obstacle).
+    /// Stuck last step, or slid slower than [`STICK_SPEED`]: the next
+    /// constraint phase holds it if static friction can.
     stick: bool,
     /// Normal impulse of the last step, N·s.
     impulse: f64,

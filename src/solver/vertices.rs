@@ -55,6 +55,8 @@ pub(super) struct ConstraintRows<'a> {
     pub friction: &'a mut [FrictionState],
     /// Vertices in contact.
     pub contacts: usize,
+    /// Of those, the ones held by static friction.
+    pub stuck: usize,
 }
 
 /// Pins, then contacts: the constraint filter, z and y of each vertex, its
@@ -121,10 +123,15 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 touching = true;
                 let mu = s.obstacles[ob_i].friction;
                 o.y[k] = n * (e - pr.distance).max(0.0);
-                if o.friction[k].stick && mu > 0.0 && !landing {
+                // a slow vertex sticks if static friction can hold it against the
+                // force that drives it along the surface (else it creeps on)
+                let along = driving - n * driving.dot(&n);
+                let holds = along.norm() * h <= mu * o.friction[k].impulse;
+                if o.friction[k].stick && mu > 0.0 && !landing && holds {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
                     o.z[k] = pr.velocity - s.v[i];
+                    o.stuck += 1;
                 } else {
                     // inelastic normal constraint (a separating velocity is kept;
                     // a vertex landing from beyond the margin ends the step on
