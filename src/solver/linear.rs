@@ -130,12 +130,25 @@ pub struct Pcg {
     pinv: Vec<Matrix3<f64>>,
     /// Iterations of the last [`Pcg::solve`], also when it failed.
     spent: usize,
+    /// Gravity's impulse on each vertex over a step, `m g h` (empty: none):
+    /// the floor of the convergence test's reference, see [`Pcg::set_scale`].
+    scale: Vec<Vector3<f64>>,
 }
 
 impl Pcg {
     /// Iterations the last solve ran, whether it converged or not.
     pub fn spent(&self) -> usize {
         self.spent
+    }
+
+    /// Sets gravity's impulse on each vertex over a step, `m g h`. The
+    /// convergence test measures the residual against the larger of the
+    /// filtered right-hand side and this impulse (filtered, in the same
+    /// norm): on a cloth at rest the right-hand side is tiny, and a test
+    /// relative to it alone asks for round-off (hundreds of iterations to
+    /// change Δv by nanometres per second). Empty: relative only.
+    pub fn set_scale(&mut self, scale: Vec<Vector3<f64>>) {
+        self.scale = scale;
     }
 
     /// Solves with relative tolerance `tol` on the filtered, preconditioned
@@ -194,6 +207,7 @@ impl Pcg {
             z,
             tol,
             max_iter,
+            scale: &self.scale,
         };
         // every thread takes the same branches: thread 0's result is the solve's
         let mut results: Vec<Result<usize>> = (0..nt).map(|_| Ok(0)).collect();
@@ -207,7 +221,8 @@ impl Pcg {
     /// factor of `S A S + (I − S) m`). It starts from the prescribed part `z`
     /// and stops on [`Pcg::solve`]'s test, Baraff–Witkin's: the filtered
     /// residual in the block-Jacobi norm, `rᵀ D⁻¹ r ≤ tol² · (S b)ᵀ D⁻¹ (S b)`
-    /// (`D` = the 3 × 3 diagonal blocks of A). That test costs a block-diagonal
+    /// (`D` = the 3 × 3 diagonal blocks of A), the reference floored by
+    /// gravity's impulse ([`Pcg::set_scale`]). That test costs a block-diagonal
     /// product, not a triangular solve with the factor, so an iteration
     /// applies the factor only when it goes on: a step that converges in k
     /// iterations applies it k times. One thread.
@@ -231,17 +246,23 @@ impl Pcg {
         let fma = has_fma();
         dv.copy_from_slice(z);
         // δ0 = (S b)ᵀ D⁻¹ (S b), and the first residual in the same norm
-        let (mut delta0, mut rj) = (0.0, 0.0);
+        let (mut delta0, mut rj, mut floor) = (0.0, 0.0, 0.0);
         for i in 0..n {
             self.pinv[i] = block_jacobi(&a.val[a.diag[i]]);
             let fb = filter[i].apply(&b[i]);
             delta0 += fb.dot(&(self.pinv[i] * fb));
+            if let Some(w) = self.scale.get(i) {
+                let fw = filter[i].apply(w);
+                floor += fw.dot(&(self.pinv[i] * fw));
+            }
             self.r[i] = filter[i].apply(&(b[i] - row_mul_best(fma, a, i, dv)));
             rj += self.r[i].dot(&(self.pinv[i] * self.r[i]));
         }
         if !(delta0.is_finite() && rj.is_finite()) {
             return Err(anyhow!("PCG breakdown: non-finite right-hand side"));
         }
+        // the reference: the right-hand side, or gravity's impulse if larger
+        let delta0 = delta0.max(floor);
         let eps2 = tol * tol * delta0;
         if delta0 <= 0.0 || rj <= eps2 {
             return Ok(0);
@@ -340,6 +361,8 @@ struct PcgArgs<'a> {
     z: &'a [Vector3<f64>],
     tol: f64,
     max_iter: usize,
+    /// [`Pcg::set_scale`] (empty: none).
+    scale: &'a [Vector3<f64>],
 }
 
 #[derive(Clone, Copy)]
@@ -467,7 +490,7 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let c_all = sh.c.0 as *const Vector3<f64>;
     let dv_all = sh.dv.0 as *const Vector3<f64>;
     let (f, bb, zz) = (&filter[lo..hi], &b[lo..hi], &z[lo..hi]);
-    let mut delta0 = 0.0;
+    let (mut delta0, mut floor) = (0.0, 0.0);
     for k in 0..len {
         pinv[k] = block_jacobi(&a.val[a.diag[lo + k]]);
         // start from the caller's guess in dv (the last step's Δv: at small
@@ -481,8 +504,14 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         // δ0 = filter(b)ᵀ P⁻¹ filter(b)
         let fb = f[k].apply(&bb[k]);
         delta0 += fb.dot(&(pinv[k] * fb));
+        if let Some(w) = args.scale.get(lo + k) {
+            let fw = f[k].apply(w);
+            floor += fw.dot(&(pinv[k] * fw));
+        }
     }
     sh.put(t, 0, delta0);
+    // slot 2 is next written after the second barrier below
+    sh.put(t, 2, floor);
     sh.barrier.wait();
     let mut dnew = 0.0;
     {
@@ -495,7 +524,8 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         }
     }
     sh.put(t, 1, dnew);
-    let delta0 = sh.sum(0);
+    // the reference: the right-hand side, or gravity's impulse if larger
+    let delta0 = sh.sum(0).max(sh.sum(2));
     sh.barrier.wait();
     let mut dnew = sh.sum(1);
     if delta0 <= 0.0 {

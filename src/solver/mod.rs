@@ -216,6 +216,8 @@ pub struct Simulation {
     /// to the one after if it fails (doubled at each failure).
     auto_next_probe: u64,
     auto_probe_gap: u64,
+    /// The step and gravity the PCG's scale was set for ([`linear::Pcg::set_scale`]).
+    scale_for: Option<(f64, Vector3<f64>)>,
 }
 
 impl Simulation {
@@ -282,6 +284,7 @@ impl Simulation {
             auto_on_direct: false,
             auto_next_probe: 0,
             auto_probe_gap: AUTO_PROBE,
+            scale_for: None,
         })
     }
 
@@ -345,6 +348,14 @@ impl Simulation {
         let h = self.params.dt;
         let t1 = self.time + h;
         let n = self.cloth.len();
+        // the linear solvers' convergence test is floored by gravity's
+        // impulse over the step (see `Pcg::set_scale`)
+        if self.scale_for != Some((h, self.params.gravity)) {
+            let g = self.params.gravity * h;
+            self.pcg
+                .set_scale(self.cloth.mass.iter().map(|&m| g * m).collect());
+            self.scale_for = Some((h, self.params.gravity));
+        }
         // pins whose release time has come let go
         if self
             .pins
