@@ -361,6 +361,12 @@ fn real_main(cli: Cli) -> Result<()> {
                     s.settle_speed_m_s
                 ),
             }
+            if s.final_contacts > 0 {
+                println!(
+                    "contacts         {} vertices at the end, {} held by static friction",
+                    s.final_contacts, s.final_contacts_held
+                );
+            }
             println!(
                 "final energies   kinetic {:.3e} J, tension {:.3e} J, shear {:.3e} J, bending {:.3e} J, dissipated (damping) {:.3e} J",
                 e.kinetic, e.tension, e.shear, e.bending, e.dissipated

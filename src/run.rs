@@ -54,6 +54,10 @@ pub struct Summary {
     pub settle_speed_m_s: f64,
     pub final_energies: EnergyRow,
     pub time_split_ms_per_step: TimeSplit,
+    /// Vertices in contact with an obstacle at the last step, and of those
+    /// the ones static friction held.
+    pub final_contacts: usize,
+    pub final_contacts_held: usize,
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Default)]
@@ -178,6 +182,8 @@ pub fn run_with(
             solve: 1e3 * split.solve / n,
             collide: 1e3 * split.collide / n,
         },
+        final_contacts: sim.last.contacts,
+        final_contacts_held: sim.last.stuck,
     };
     Ok((rows, summary))
 }

@@ -44,6 +44,11 @@ fn drape_writes_ply_energy_and_summary() {
     assert_eq!(s["threads"], 1);
     assert!(stdout.contains("1 thread\n"), "{stdout}");
     assert!((s["simulated_s"].as_f64().unwrap() - 0.2).abs() < 1e-9);
+    // hanging in the air: no contacts
+    assert_eq!(
+        (&s["final_contacts"], &s["final_contacts_held"]),
+        (&0.into(), &0.into())
+    );
     let ply = std::fs::read_to_string(out.join("final.ply")).unwrap();
     assert!(ply.starts_with("ply\nformat ascii 1.0"));
     assert!(ply.contains("element vertex 121") && ply.contains("element face 200"));

@@ -75,6 +75,19 @@ fn messages_match_rosbags_byte_for_byte() {
             last_error: "pin: vertex 99999 out of range".into(),
         },
     );
+    let keys: Vec<&str> = diag.status[0]
+        .values
+        .iter()
+        .map(|kv| kv.key.as_str())
+        .collect();
+    for k in [
+        "solver_iterations",
+        "contacts",
+        "contacts_held",
+        "real_time_factor",
+    ] {
+        assert!(keys.contains(&k), "diagnostics lack {k}: {keys:?}");
+    }
     round_trip(&diag);
     write(&dir, "diagnostics", &diag);
     write(&dir, "clock", &Clock { clock: h.stamp });

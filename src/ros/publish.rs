@@ -237,6 +237,8 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
                 kv("dt_s", format!("{}", sim.params.dt)),
                 kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
                 kv("solver_iterations", f.iterations.to_string()),
+                kv("contacts", sim.last.contacts.to_string()),
+                kv("contacts_held", sim.last.stuck.to_string()),
                 kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
                 kv("rejected_messages", f.rejected_messages.to_string()),
                 kv("dropped_messages", f.dropped_messages.to_string()),
