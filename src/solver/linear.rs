@@ -141,14 +141,15 @@ impl Pcg {
         self.spent
     }
 
-    /// Sets gravity's impulse on each vertex over a step, `m g h`. The
-    /// convergence test measures the residual against the larger of the
-    /// filtered right-hand side and this impulse (filtered, in the same
-    /// norm): on a cloth at rest the right-hand side is tiny, and a test
-    /// relative to it alone asks for round-off (hundreds of iterations to
-    /// change Δv by nanometres per second). Empty: relative only.
-    pub fn set_scale(&mut self, scale: Vec<Vector3<f64>>) {
-        self.scale = scale;
+    /// Sets gravity's impulse on each vertex over the step, `m g h` (`gh` =
+    /// g h), in place. The convergence test measures the residual against
+    /// the larger of the filtered right-hand side and this impulse (filtered,
+    /// in the same norm): on a cloth at rest the right-hand side is tiny, and
+    /// a test relative to it alone asks for round-off (hundreds of iterations
+    /// to change Δv by nanometres per second). Never set: relative only.
+    pub fn set_scale(&mut self, mass: &[f64], gh: Vector3<f64>) {
+        self.scale.clear();
+        self.scale.extend(mass.iter().map(|&m| gh * m));
     }
 
     /// Solves with relative tolerance `tol` on the filtered, preconditioned

@@ -216,8 +216,6 @@ pub struct Simulation {
     /// to the one after if it fails (doubled at each failure).
     auto_next_probe: u64,
     auto_probe_gap: u64,
-    /// The step and gravity the PCG's scale was set for ([`linear::Pcg::set_scale`]).
-    scale_for: Option<(f64, Vector3<f64>)>,
 }
 
 impl Simulation {
@@ -284,7 +282,6 @@ impl Simulation {
             auto_on_direct: false,
             auto_next_probe: 0,
             auto_probe_gap: AUTO_PROBE,
-            scale_for: None,
         })
     }
 
@@ -350,12 +347,8 @@ impl Simulation {
         let n = self.cloth.len();
         // the linear solvers' convergence test is floored by gravity's
         // impulse over the step (see `Pcg::set_scale`)
-        if self.scale_for != Some((h, self.params.gravity)) {
-            let g = self.params.gravity * h;
-            self.pcg
-                .set_scale(self.cloth.mass.iter().map(|&m| g * m).collect());
-            self.scale_for = Some((h, self.params.gravity));
-        }
+        self.pcg
+            .set_scale(&self.cloth.mass, self.params.gravity * h);
         // pins whose release time has come let go
         if self
             .pins
@@ -530,7 +523,8 @@ impl Simulation {
     }
 
     /// Phase 1 of a step on the team: pins and contacts (see
-    /// [`vertices::constrain`]); returns the vertices in contact.
+    /// [`vertices::constrain`]); returns the vertices in contact and, of
+    /// those, the ones static friction holds.
     fn constrain(&mut self, h: f64, t1: f64) -> (usize, usize) {
         let scene = vertices::Scene {
             h,
