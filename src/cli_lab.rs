@@ -3,7 +3,6 @@
 //! [`garment_sim::lab`].
 
 use anyhow::{bail, Context, Result};
-use garment_sim::fabric::Fabric;
 use garment_sim::lab::kes_lab::{self, Direction, KesTest, LabOptions, LabReport};
 use std::path::PathBuf;
 
@@ -39,7 +38,7 @@ pub struct KesArgs {
 }
 
 pub fn kes(a: KesArgs) -> Result<()> {
-    let fabric = Fabric::load(&a.fabric)?;
+    let fabric = garment_sim::io::load_fabric(&a.fabric)?;
     let opt = LabOptions {
         fb1_spacing: a.spacing,
         fb2_spacing: a.bending_spacing,
@@ -120,7 +119,7 @@ pub struct DrapemeterArgs {
 
 pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
     use garment_sim::lab::drapemeter::{self, DrapeOptions};
-    let fabric = Fabric::load(&a.fabric)?;
+    let fabric = garment_sim::io::load_fabric(&a.fabric)?;
     let opt = DrapeOptions {
         diameter: a.diameter,
         disk: a.disk,
@@ -204,7 +203,7 @@ pub fn fit_kes(a: FitKesArgs) -> Result<()> {
     use garment_sim::lab::fit_kes::{fit_fabric, read_curves_csv, FitMeta};
     let curves = read_curves_csv(&a.curves)?;
     let base: Option<FabricFile> = match &a.base {
-        Some(p) => Some(Fabric::load(p)?.file),
+        Some(p) => Some(garment_sim::io::load_fabric(p)?.file),
         None => None,
     };
     let areal = match (a.areal_mass, &base) {
@@ -230,7 +229,7 @@ pub fn fit_kes(a: FitKesArgs) -> Result<()> {
     };
     let (file, fits) = fit_fabric(&curves, &meta)?;
     // the file must load
-    Fabric::from_file(file.clone(), std::path::Path::new("."))
+    garment_sim::io::fabric_from_file(file.clone(), std::path::Path::new("."))
         .context("the fitted fabric does not load")?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -2,21 +2,23 @@
 //! `garment_sim`: measured-parameter woven-fabric cloth simulation (Charfi 2006)
 //! advanced by the Baraff–Witkin implicit solver at a fixed time step.
 //!
-//! Layers (data flows one way): [`fabric`] (KES data → laws) and [`cloth`]
-//! (the warp/weft grid) feed [`solver`] (forces, Jacobians, implicit step),
-//! which [`collision`] constrains; [`scene`] builds it all from YAML;
-//! [`run`] writes shapes, curves and summaries; [`capture`] reads and
-//! writes motion captures (C3D, CSV), [`lab`] runs the thesis experiments
-//! and [`plot`] draws their curves as PNG.
+//! Layers (data flows one way): the physics lives in the `garment_core`
+//! crate, re-exported here as [`fabric`] (KES data → laws), [`cloth`] (the
+//! warp/weft grid), [`collision`] (obstacles) and [`solver`] (forces,
+//! Jacobians, implicit step); it reads no files. Above it: [`io`] reads
+//! fabric files, KES curves and OBJ meshes, [`scene`] builds a simulation
+//! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
+//! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
+//! experiments and [`plot`] draws their curves as PNG; [`bag`] records
+//! rosbag2 bags and [`ros`] is the ROS 2 node.
+
+pub use garment_core::{cloth, collision, fabric, solver};
 
 pub mod bag;
 pub mod capture;
-pub mod cloth;
-pub mod collision;
-pub mod fabric;
+pub mod io;
 pub mod lab;
 pub mod plot;
 pub mod ros;
 pub mod run;
 pub mod scene;
-pub mod solver;

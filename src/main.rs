@@ -23,7 +23,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Run the simulation as a ROS 2 node (see README: topics, parameters,
+    /// Run the simulation as a ROS 2 node (see docs/ros.md: topics, parameters,
     /// services). Options as in any ROS 2 node:
     /// `garment_sim node --ros-args -p publish_rate:=10.0 -r __ns:=/robot1`.
     Node {
@@ -539,7 +539,6 @@ fn identify_cmd(
     warp_major: bool,
     out: PathBuf,
 ) -> Result<()> {
-    use garment_sim::fabric::Fabric;
     use garment_sim::lab::identify::{identify_file, IdentifyOptions, MarkerGrid};
     let (nx, ny) = grid
         .split_once('x')
@@ -562,7 +561,7 @@ fn identify_cmd(
         ),
         None => None,
     };
-    let fab = Fabric::load(&fabric)?;
+    let fab = garment_sim::io::load_fabric(&fabric)?;
     let opts = IdentifyOptions {
         grid: MarkerGrid {
             nx,

@@ -3,7 +3,9 @@
 //! Errors name the file, the field and what is wrong.
 
 use crate::cloth::{Cloth, GridSpec};
-use crate::collision::{Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_OBSTACLE_THICKNESS};
+use crate::collision::{
+    Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS,
+};
 use crate::fabric::Fabric;
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
@@ -117,14 +119,80 @@ fn yes() -> bool {
     true
 }
 fn default_friction() -> f64 {
-    0.3
+    DEFAULT_FRICTION
+}
+
+/// An obstacle's geometry as a scene file gives it, in its own frame:
+/// the primitives of [`ShapeSpec`], or a triangle mesh from an OBJ file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ShapeFile {
+    /// Box with full side lengths, m.
+    Box {
+        size: [f64; 3],
+    },
+    Sphere {
+        radius: f64,
+    },
+    /// Capsule: cylinder of `length` between the centres of its end caps.
+    Capsule {
+        length: f64,
+        radius: f64,
+    },
+    Cylinder {
+        height: f64,
+        radius: f64,
+    },
+    Cone {
+        height: f64,
+        radius: f64,
+    },
+    /// Triangle mesh from an OBJ file (path relative to the scene file), with
+    /// an optional uniform scale.
+    Mesh {
+        obj: String,
+        #[serde(default = "one")]
+        scale: f64,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+impl ShapeFile {
+    /// The geometry, with an OBJ mesh read (relative to `base`) and scaled.
+    pub fn resolve(&self, id: &str, base: &Path) -> Result<ShapeSpec> {
+        Ok(match *self {
+            ShapeFile::Box { size } => ShapeSpec::Box { size },
+            ShapeFile::Sphere { radius } => ShapeSpec::Sphere { radius },
+            ShapeFile::Capsule { length, radius } => ShapeSpec::Capsule { length, radius },
+            ShapeFile::Cylinder { height, radius } => ShapeSpec::Cylinder { height, radius },
+            ShapeFile::Cone { height, radius } => ShapeSpec::Cone { height, radius },
+            ShapeFile::Mesh { ref obj, scale } => {
+                if !(scale.is_finite() && scale > 0.0) {
+                    bail!("obstacle {id:?}: scale = {scale}: must be > 0 m");
+                }
+                let (v, t) = crate::io::load_obj(&base.join(obj))
+                    .with_context(|| format!("obstacle {id:?}"))?;
+                let vertices = v
+                    .iter()
+                    .map(|p| [p[0] * scale, p[1] * scale, p[2] * scale])
+                    .collect();
+                ShapeSpec::Triangles {
+                    vertices,
+                    triangles: t,
+                }
+            }
+        })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleSpec {
     pub id: String,
-    pub shape: ShapeSpec,
+    pub shape: ShapeFile,
     #[serde(default)]
     pub pose: PoseSpec,
     #[serde(default = "default_obstacle_thickness")]
@@ -254,7 +322,7 @@ impl Scene {
 
     pub fn from_file(file: SceneFile, path: &Path) -> Result<Scene> {
         let fpath = Scene::fabric_path_of(&file, path);
-        let fabric = Fabric::load(&fpath)
+        let fabric = crate::io::load_fabric(&fpath)
             .with_context(|| format!("scene file {}: cloth.fabric", path.display()))?;
         let s = Scene {
             file,
@@ -322,10 +390,12 @@ impl Scene {
                 .pose
                 .isometry(&format!("obstacles[{k}].pose"))
                 .with_context(ctx)?;
-            let mut ob =
-                Obstacle::new(&o.id, o.shape.clone(), pose, o.thickness, o.friction, &base)
-                    .with_context(|| format!("obstacles[{k}]"))
-                    .with_context(ctx)?;
+            let mut ob = o
+                .shape
+                .resolve(&o.id, &base)
+                .and_then(|shape| Obstacle::new(&o.id, shape, pose, o.thickness, o.friction))
+                .with_context(|| format!("obstacles[{k}]"))
+                .with_context(ctx)?;
             ob.linear_velocity = Vector3::from(o.linear_velocity);
             ob.angular_velocity = Vector3::from(o.angular_velocity);
             obstacles.push(ob);

@@ -7,13 +7,13 @@ mod scratch;
 use garment_sim::cloth::{Cloth, GridSpec};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::fabric::Fabric;
-use garment_sim::scene::Scene;
+use garment_sim::scene::{Scene, ShapeFile};
 use garment_sim::solver::{Params, Simulation};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 
 fn fixture() -> Fabric {
-    Fabric::load(Path::new("tests/data/acrylic_test.yaml")).unwrap()
+    garment_sim::io::load_fabric(Path::new("tests/data/acrylic_test.yaml")).unwrap()
 }
 
 /// A 10 cm square lying on a plane inclined by `angle` about x, undamped.
@@ -45,7 +45,6 @@ fn incline(angle: f64, mu: f64) -> Simulation {
         plane,
         0.006,
         mu,
-        Path::new("."),
     )
     .unwrap();
     sim.obstacles.push(ob);
@@ -85,7 +84,7 @@ fn friction_on_an_incline_matches_the_sliding_block() {
 /// Drops a 30 cm cloth on an obstacle and checks every step that no vertex is
 /// closer to it than the contact distance (obstacle + cloth thickness).
 fn drop_on(
-    spec: ShapeSpec,
+    spec: ShapeFile,
     pose: Isometry3<f64>,
     velocity: Vector3<f64>,
     steps: usize,
@@ -106,7 +105,8 @@ fn drop_on(
         },
     )
     .unwrap();
-    let mut ob = Obstacle::new("o", spec, pose, 0.006, 0.3, Path::new("tests/data")).unwrap();
+    let spec = spec.resolve("o", Path::new("tests/data")).unwrap();
+    let mut ob = Obstacle::new("o", spec, pose, 0.006, 0.3).unwrap();
     ob.linear_velocity = velocity;
     sim.obstacles.push(ob);
     let e = 0.008;
@@ -141,24 +141,24 @@ fn drop_on(
 fn no_vertex_inside_primitives() {
     let z = Isometry3::identity();
     for (name, spec) in [
-        ("sphere", ShapeSpec::Sphere { radius: 0.06 }),
+        ("sphere", ShapeFile::Sphere { radius: 0.06 }),
         (
             "capsule",
-            ShapeSpec::Capsule {
+            ShapeFile::Capsule {
                 length: 0.1,
                 radius: 0.04,
             },
         ),
         (
             "cylinder",
-            ShapeSpec::Cylinder {
+            ShapeFile::Cylinder {
                 height: 0.1,
                 radius: 0.06,
             },
         ),
         (
             "box",
-            ShapeSpec::Box {
+            ShapeFile::Box {
                 size: [0.1, 0.1, 0.1],
             },
         ),
@@ -178,7 +178,7 @@ fn no_vertex_inside_primitives() {
 #[test]
 fn no_vertex_inside_an_obj_mesh() {
     let (worst, lowest, _) = drop_on(
-        ShapeSpec::Mesh {
+        ShapeFile::Mesh {
             obj: "cube.obj".into(),
             scale: 1.0,
         },
@@ -197,7 +197,7 @@ fn no_vertex_inside_an_obj_mesh() {
 fn a_rising_obstacle_lifts_the_cloth_without_penetration() {
     // a sphere below the cloth moving up at 0.5 m/s pushes it up
     let (worst, _, highest) = drop_on(
-        ShapeSpec::Sphere { radius: 0.05 },
+        ShapeFile::Sphere { radius: 0.05 },
         Isometry3::translation(0.0, 0.0, 0.0),
         Vector3::new(0.0, 0.0, 0.5),
         400,
@@ -244,7 +244,6 @@ fn thin_board(height: f64, dt: f64, rise: f64, steps: usize) -> (f64, f64) {
         Isometry3::identity(),
         0.001,
         0.3,
-        Path::new("."),
     )
     .unwrap();
     ob.linear_velocity = Vector3::new(0.0, 0.0, rise);
@@ -406,7 +405,10 @@ fn bad_fabric_files_name_the_field() {
         assert!(good.contains(from), "{from}");
         let p = dir.join("f.yaml");
         std::fs::write(&p, good.replacen(from, to, 1)).unwrap();
-        let e = format!("{:#}", Fabric::load(&p).expect_err("must be rejected"));
+        let e = format!(
+            "{:#}",
+            garment_sim::io::load_fabric(&p).expect_err("must be rejected")
+        );
         assert!(e.contains("f.yaml") && e.contains(want), "{want}: {e}");
     }
 }
@@ -416,7 +418,7 @@ fn obj_with_a_face_on_a_missing_vertex_is_rejected() {
     let dir = scratch::Scratch::new("bad_obj");
     let p = dir.join("bad.obj");
     std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
-    let e = format!("{:#}", garment_sim::collision::load_obj(&p).unwrap_err());
+    let e = format!("{:#}", garment_sim::io::load_obj(&p).unwrap_err());
     assert!(e.contains("bad.obj:4") && e.contains("vertex 7"), "{e}");
 }
 
@@ -430,7 +432,8 @@ fn shipped_fabrics_load_and_cite_a_source() {
         if p.extension().and_then(|x| x.to_str()) != Some("yaml") {
             continue;
         }
-        let f = Fabric::load(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
+        let f =
+            garment_sim::io::load_fabric(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
         assert!(
             f.file.source.trim().len() > 20,
             "{} has no source",

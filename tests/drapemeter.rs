@@ -13,12 +13,13 @@ fn with_bending_scaled(f: &Fabric, k: f64) -> Fabric {
         d.bending.b = d.bending.b.map(|b| b * k);
         d.bending.hb = d.bending.hb.map(|b| b * k);
     }
-    Fabric::from_file(file, Path::new("config/fabrics")).unwrap()
+    garment_sim::io::fabric_from_file(file, Path::new("config/fabrics")).unwrap()
 }
 
 #[test]
 fn drape_coefficient_falls_with_softer_bending() {
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     let opt = DrapeOptions::default(); // 30 cm on 18 cm, 1 cm grid
     let mut dcs = Vec::new();
     for k in [10.0, 1.0, 0.25] {
@@ -70,7 +71,7 @@ fn drape_coefficient_falls_with_softer_bending() {
 fn with_mass_scaled(f: &Fabric, k: f64) -> Fabric {
     let mut file = f.file.clone();
     file.areal_mass_mg_per_cm2 *= k;
-    Fabric::from_file(file, Path::new("config/fabrics")).unwrap()
+    garment_sim::io::fabric_from_file(file, Path::new("config/fabrics")).unwrap()
 }
 
 /// At fixed rigidity a heavier specimen drapes more: gravity against bending
@@ -79,7 +80,8 @@ fn with_mass_scaled(f: &Fabric, k: f64) -> Fabric {
 /// 1 cm grid as in the rigidity test above.
 #[test]
 fn drape_coefficient_falls_with_weight() {
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     let opt = DrapeOptions::default();
     let mut dcs = Vec::new();
     for k in [0.5, 1.0, 2.0] {
@@ -142,7 +144,8 @@ fn drape_coefficient_falls_with_weight() {
 /// drapemeter keeps the clamp within the disks by default.
 #[test]
 fn drape_coefficient_is_steady_under_grid_refinement() {
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     let mut rows = Vec::new();
     for seed in [1, 2] {
         let mut dc = Vec::new();
@@ -177,7 +180,7 @@ fn drape_coefficient_is_steady_under_grid_refinement() {
 fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml"))
+    let wool = garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml"))
         .unwrap()
         .without_hysteresis();
     let outline = Outline::Circle {
@@ -271,7 +274,8 @@ fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
 /// 4-fold symmetry, and there is no self-collision to keep folds apart.
 #[test]
 fn isotropic_fabric_spreads_its_nodes_evenly() {
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     assert_eq!(wool.warp.bending, wool.weft.bending);
     assert_eq!(wool.warp.tensile, wool.weft.tensile);
     let worst = |symmetric_hinges: bool| -> (usize, f64, Vec<f64>) {
@@ -303,7 +307,8 @@ fn isotropic_fabric_spreads_its_nodes_evenly() {
 #[test]
 fn border_on_the_circle_is_at_rest_and_covers_the_annulus() {
     use garment_sim::solver::{Params, Simulation};
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     let outline = Outline::Circle {
         center: [0.0, 0.0],
         radius: 0.15,
@@ -450,7 +455,7 @@ fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
     use garment_sim::cloth::GridSpec;
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
-    let wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml"))
+    let wool = garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml"))
         .unwrap()
         .without_hysteresis();
     let spec = GridSpec {
@@ -505,7 +510,8 @@ fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
 /// against 8.74 and 8.88 cm.
 #[test]
 fn area_matched_clamp_converges_under_refinement_with_soft_shear() {
-    let mut wool = Fabric::load(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
+    let mut wool =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml")).unwrap();
     for c in wool.shear.elastic.c.iter_mut() {
         *c *= 0.1;
     }

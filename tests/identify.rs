@@ -190,7 +190,7 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
         "alpha {alpha}"
     );
     // the measured fabric loads and carries the measured α
-    let f = garment_sim::fabric::Fabric::load(&dir.join("out/fabric_measured.yaml")).unwrap();
+    let f = garment_sim::io::load_fabric(&dir.join("out/fabric_measured.yaml")).unwrap();
     assert!((f.damping.alpha - alpha).abs() < 1e-12);
     // the vertical given as a direction instead of a ball drop
     let up = tilt * Vector3::z();

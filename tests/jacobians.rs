@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Vector3};
 use rand::{Rng, SeedableRng};
 
 fn fixture() -> Fabric {
-    Fabric::load(std::path::Path::new("tests/data/acrylic_test.yaml")).unwrap()
+    garment_sim::io::load_fabric(std::path::Path::new("tests/data/acrylic_test.yaml")).unwrap()
 }
 
 /// A 4 × 5 cloth, deformed randomly; memory committed at a first random shape

@@ -37,7 +37,7 @@ fn every_shipped_fabric_gives_back_its_kes_values() {
     let mut table = String::new();
     for path in shipped() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
-        let f = Fabric::load(&path).unwrap();
+        let f = garment_sim::io::load_fabric(&path).unwrap();
         for r in all_runs(&f, &opt) {
             for v in &r.summary {
                 let bound = match v.name.as_str() {
@@ -100,7 +100,7 @@ fn every_shipped_fabric_gives_back_its_kes_values() {
 
 #[test]
 fn answers_do_not_depend_on_the_grid_or_the_step() {
-    let f = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let f = garment_sim::io::load_fabric(Path::new("config/fabrics/acrylic.yaml")).unwrap();
     let coarse = LabOptions::default();
     let fine = LabOptions {
         fb1_spacing: coarse.fb1_spacing / 2.0,
@@ -165,7 +165,7 @@ fn discrete_cochleoid_keeps_lengths_and_tends_to_the_cochleoid() {
 
 #[test]
 fn fit_kes_round_trip_within_two_percent() {
-    let f = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let f = garment_sim::io::load_fabric(Path::new("config/fabrics/acrylic.yaml")).unwrap();
     let opt = LabOptions::default();
     let first = all_runs(&f, &opt);
     let meta = FitMeta {
@@ -184,7 +184,7 @@ fn fit_kes_round_trip_within_two_percent() {
     // through YAML, as the command writes it
     let yaml = serde_yaml::to_string(&file).unwrap();
     let back: garment_sim::fabric::FabricFile = serde_yaml::from_str(&yaml).unwrap();
-    let g = Fabric::from_file(back, Path::new(".")).unwrap();
+    let g = garment_sim::io::fabric_from_file(back, Path::new(".")).unwrap();
     let second = all_runs(&g, &opt);
     for (a, b) in first.iter().zip(&second) {
         for (x, y) in a.summary.iter().zip(&b.summary) {
@@ -294,7 +294,7 @@ fn kes_command_writes_curve_plot_and_report() {
     let png = std::fs::read(out.join("bending_weft.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     // the CSV is a valid fabric curve file whose summary is the report's
-    let c = read_curve_csv(&out.join("bending_weft.csv")).unwrap();
+    let c = garment_sim::io::read_kes_curve(&out.join("bending_weft.csv")).unwrap();
     let v = summarise(KesTest::Bending, &c).unwrap();
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -421,7 +421,7 @@ fn loop_shape(r: &KesRun) -> (f64, f64, [f64; 2]) {
 /// servo in shear and the sampling of the path at dt.
 #[test]
 fn loops_close_without_hysteresis_and_keep_a_residual_with_it() {
-    let acrylic = Fabric::load(Path::new("config/fabrics/acrylic.yaml")).unwrap();
+    let acrylic = garment_sim::io::load_fabric(Path::new("config/fabrics/acrylic.yaml")).unwrap();
     let elastic = acrylic.without_hysteresis();
     let opt = LabOptions::default();
     let mut rows = Vec::new();

@@ -11,7 +11,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 
 fn fixture() -> Fabric {
-    Fabric::load(Path::new("tests/data/acrylic_test.yaml")).unwrap()
+    garment_sim::io::load_fabric(Path::new("tests/data/acrylic_test.yaml")).unwrap()
 }
 
 fn scene(name: &str) -> Scene {
@@ -334,7 +334,7 @@ fn auto_solver_runs_are_reproducible() {
 /// sheet buckles, and there any perturbation grows tenfold every step or
 /// two, round-off as well: 4e-9 m at step 41, 0.4 mm at step 50.) With contacts (the table drape, 0.1 s: the
 /// cloth lands, stick/slip) round-off grows to the tenth of a millimetre
-/// (see README, sixth round), so there the test asks for the same bits on a
+/// (docs/drape.md), so there the test asks for the same bits on a
 /// repeat on two threads (partial sums added in thread order) and the same
 /// number of contacts as on one.
 #[test]

@@ -334,6 +334,23 @@ class SetParameters_Response(IdlStruct, typename=ros("rcl_interfaces", "srv", "S
 
 
 @dataclass
+class ListParametersResult(IdlStruct, typename=ros("rcl_interfaces", "msg", "ListParametersResult")):
+    names: t.sequence[str]
+    prefixes: t.sequence[str]
+
+
+@dataclass
+class ListParameters_Request(IdlStruct, typename=ros("rcl_interfaces", "srv", "ListParameters_Request")):
+    prefixes: t.sequence[str]
+    depth: t.uint64
+
+
+@dataclass
+class ListParameters_Response(IdlStruct, typename=ros("rcl_interfaces", "srv", "ListParameters_Response")):
+    result: ListParametersResult
+
+
+@dataclass
 class GetParameters_Request(IdlStruct, typename=ros("rcl_interfaces", "srv", "GetParameters_Request")):
     names: t.sequence[str]
 
@@ -664,6 +681,107 @@ def test_parameter_services():
         ratio = (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
         print(f"real-time factor 0.5 asked, {ratio:.3f} measured")
         assert 0.4 < ratio < 0.56, ratio
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+
+
+def parameter_table():
+    """The node's parameters as docs/ros.md lists them (a unit test checks
+    that table against the node's own): {name: (type, runtime)}."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    text = open(os.path.join(here, "..", "docs", "ros.md")).read()
+    rows = text.split("<!-- parameters:begin -->")[1].split("<!-- parameters:end -->")[0]
+    table = {}
+    for line in rows.strip().splitlines()[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        table[cells[0].strip("`")] = (cells[1], cells[3] == "yes")
+    return table
+
+
+def test_every_runtime_parameter_is_listed_and_takes_effect():
+    table = parameter_table()
+    kinds = {"bool": 1, "integer": 2, "double": 3, "string": 4}
+    n = Node("-p", "spacing:=0.05", "-p", "real_time_factor:=0.0", "-p", "publish_rate:=50.0")
+    srv = "/garment_sim/"
+
+    def set_param(name, value):
+        kind = table[name][0]
+        v = ParameterValue(type=kinds[kind])
+        setattr(v, {"bool": "bool_value", "integer": "integer_value", "double": "double_value",
+                    "string": "string_value"}[kind], value)
+        r = n.call(srv + "set_parameters", SetParameters_Request, SetParameters_Response,
+                   SetParameters_Request(parameters=[Parameter(name, v)]))
+        assert r.results[0].successful, (name, value, r.results[0].reason)
+
+    try:
+        n.wait("/cloth/points", PointCloud2)
+        listed = n.call(srv + "list_parameters", ListParameters_Request, ListParameters_Response,
+                        ListParameters_Request(prefixes=[], depth=0)).result.names
+        print("listed:", sorted(listed))
+        assert set(table) <= set(listed), set(table) - set(listed)
+        g = n.call(srv + "get_parameters", GetParameters_Request, GetParameters_Response,
+                   GetParameters_Request(names=list(table)))
+        assert [v.type for v in g.values] == [kinds[k] for k, _ in table.values()]
+        runtime = {name for name, (_, rt) in table.items() if rt}
+        checked = set()
+        # frame_id: what is published carries the new frame
+        set_param("frame_id", "odom")
+        n.wait("/cloth/points", PointCloud2, lambda c: c.header.frame_id == "odom")
+        set_param("frame_id", "world")
+        n.wait("/cloth/points", PointCloud2, lambda c: c.header.frame_id == "world")
+        checked.add("frame_id")
+        # publish_rate: frames 0.1 s of simulated time apart at 10 Hz (0.02 s at 50)
+        set_param("publish_rate", 10.0)
+        time.sleep(0.5)
+        a = n.latest("/cloth/points", PointCloud2)
+        b = n.latest("/cloth/points", PointCloud2)
+        gap = stamp(b.header) - stamp(a.header)
+        assert abs(gap - 0.1) < 2e-3, gap
+        set_param("publish_rate", 50.0)
+        checked.add("publish_rate")
+        # paused: simulated time stops, then goes on
+        set_param("paused", True)
+        time.sleep(0.5)
+        t0 = stamp(n.latest("/cloth/points", PointCloud2).header)
+        time.sleep(0.5)
+        assert stamp(n.latest("/cloth/points", PointCloud2).header) == t0
+        set_param("paused", False)
+        n.wait("/cloth/points", PointCloud2, lambda c: stamp(c.header) > t0)
+        checked.add("paused")
+        # real_time_factor: simulated time follows the wall clock at 1.0
+        set_param("real_time_factor", 1.0)
+        time.sleep(0.5)
+        a = n.latest("/cloth/points", PointCloud2)
+        wa = time.time()
+        time.sleep(2.0)
+        b = n.latest("/cloth/points", PointCloud2)
+        ratio = (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
+        print(f"real-time factor 1 asked, {ratio:.3f} measured")
+        assert 0.8 < ratio < 1.1, ratio
+        checked.add("real_time_factor")
+        # max_mesh_triangles: a 3-triangle mesh refused at 2, accepted at 3
+        obs = n.writer("/obstacles", Obstacle)
+        pins = n.writer("/pins", Pin)
+        time.sleep(1.0)
+        tri = Mesh(triangles=[MeshTriangle([0, 1, 2])] * 3,
+                   vertices=[Point(x=2.0), Point(x=3.0), Point(x=2.0, y=1.0)])
+        set_param("max_mesh_triangles", 2)
+        obs.write(Obstacle(header=Header(frame_id="world"), id="tri", meshes=[tri], mesh_poses=[Pose()]))
+        d = n.wait("/diagnostics", DiagnosticArray, lambda d: n.diag(d)["rejected_messages"] == "1")
+        assert "max_mesh_triangles = 2" in d.status[0].message, d.status[0].message
+        set_param("max_mesh_triangles", 3)
+        obs.write(Obstacle(header=Header(frame_id="world"), id="tri", meshes=[tri], mesh_poses=[Pose()]))
+        n.wait("/obstacles/markers", MarkerArray, lambda a: any(m.text == "tri" for m in a.markers))
+        checked.add("max_mesh_triangles")
+        # max_messages_per_step: 40 pins at once (fewer than the default 100) are cut to 1 per step
+        set_param("max_messages_per_step", 1)
+        for _ in range(40):
+            pins.write(Pin(header=Header(frame_id="world"), operation=0, vertices=[60]))
+        d = n.wait("/diagnostics", DiagnosticArray, lambda d: int(n.diag(d)["dropped_messages"]) > 0)
+        print(f"40 pins at max_messages_per_step 1: {n.diag(d)['dropped_messages']} dropped")
+        checked.add("max_messages_per_step")
+        assert checked == runtime, (checked, runtime)
     finally:
         code, out = n.stop()
     assert code == 0, out

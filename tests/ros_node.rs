@@ -25,6 +25,6 @@ fn node_interoperates_with_cyclone_dds() {
         "cyclonedds, numpy, pytest",
         true,
         &[("GARMENT_SIM_BIN", &bin), ("CYCLONEDDS_URI", &uri)],
-        "5 passed",
+        "6 passed",
     );
 }

@@ -45,7 +45,6 @@ use crate::solver::{Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
-use std::path::Path;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct DrapeOptions {
@@ -359,8 +358,7 @@ pub fn run(
         },
         Isometry3::translation(0.0, 0.0, -disk_h / 2.0),
         0.0,
-        0.3,
-        Path::new("."),
+        crate::collision::DEFAULT_FRICTION,
     )?);
     sim.set_pins(
         clamped

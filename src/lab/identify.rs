@@ -1,5 +1,5 @@
 //! Identification of a fabric's dissipation from a motion capture of a free
-//! fall (thesis ch. 5, MODEL.md §6).
+//! fall (thesis ch. 5, docs/identify.md).
 //!
 //! Markers form an `nx × ny` grid (grid order: index `j·nx + i`, warp index
 //! `i`), the same grid the model is built on, so every marker is a mass.

@@ -4,16 +4,10 @@
 //! as it was.
 
 use super::msgs;
-use crate::collision::{Obstacle, ShapeSpec};
+use crate::collision::{Obstacle, ShapeSpec, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS};
 use crate::solver::{Pin, PinPath, Simulation};
 use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;
-use std::path::Path;
-
-/// Default contact thickness of message obstacles (thesis: table thickened by 6 mm), m.
-pub const DEFAULT_THICKNESS: f64 = 0.006;
-/// Default Coulomb friction coefficient of message obstacles.
-pub const DEFAULT_FRICTION: f64 = 0.3;
 
 /// Which simulation obstacles make up each message obstacle: an obstacle with
 /// several primitives and meshes becomes several shapes (`id#0`, `id#1`, ...)
@@ -162,7 +156,7 @@ pub fn apply_obstacle(
         msgs::Obstacle::ADD => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
             let thickness = if m.thickness.is_nan() {
-                DEFAULT_THICKNESS
+                DEFAULT_OBSTACLE_THICKNESS
             } else {
                 m.thickness
             };
@@ -222,9 +216,8 @@ pub fn apply_obstacle(
                 } else {
                     id.to_string()
                 };
-                let mut o =
-                    Obstacle::new(&pid, spec, frame * sub, thickness, friction, Path::new("."))
-                        .map_err(|e| format!("{e:#}"))?;
+                let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
+                    .map_err(|e| format!("{e:#}"))?;
                 set_motion(&mut o, &frame, &sub, &lin, &ang);
                 built.push(o);
                 parts.push((pid, sub));
@@ -399,7 +392,8 @@ mod tests {
     use crate::scene::{Overrides, Scene};
 
     fn sim() -> Simulation {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/table_drape.yaml");
+        let p =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/table_drape.yaml");
         Scene::load(&p)
             .unwrap()
             .build(&Overrides {
@@ -446,7 +440,7 @@ mod tests {
         assert_eq!(s.obstacles.len(), n0 + 2);
         let part = s.obstacles.iter().find(|o| o.id == "gripper#0").unwrap();
         assert!((part.pose.translation.vector - Vector3::new(0.1, 0.0, 1.0)).norm() < 1e-12);
-        assert_eq!(part.thickness, DEFAULT_THICKNESS);
+        assert_eq!(part.thickness, DEFAULT_OBSTACLE_THICKNESS);
         // move the frame up 0.5 m while turning about z: parts follow, with
         // the velocity of their own origin
         m.operation = msgs::Obstacle::MOVE;

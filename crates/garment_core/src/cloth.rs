@@ -53,6 +53,15 @@ pub struct ShearSpring {
     pub l0: f64,
 }
 
+impl ShearSpring {
+    /// The shear measure of a diagonal of length `l`, thesis eq. 4.34/4.35:
+    /// `sin θ = (l² − l_c² − l_t²) / (2 l_c l_t)`.
+    #[inline]
+    pub fn strain(&self, l: f64) -> f64 {
+        (l * l - self.l0 * self.l0) / (2.0 * self.lc * self.lt)
+    }
+}
+
 /// A bending hinge: shared edge `v[0]–v[1]`, wings `v[2]` and `v[3]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Hinge {

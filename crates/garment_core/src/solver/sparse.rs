@@ -69,24 +69,9 @@ impl BlockMatrix {
         }
     }
 
-    /// y = A x (rows split over the cores for large matrices)
+    /// y = A x
     pub fn mul(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>]) {
-        let threads = super::assemble::threads_for(self.n);
-        if threads <= 1 {
-            self.mul_rows(x, y, 0);
-            return;
-        }
-        let chunk = self.n.div_ceil(threads);
-        std::thread::scope(|sc| {
-            for (t, yc) in y.chunks_mut(chunk).enumerate() {
-                sc.spawn(move || self.mul_rows(x, yc, t * chunk));
-            }
-        });
-    }
-
-    fn mul_rows(&self, x: &[Vector3<f64>], y: &mut [Vector3<f64>], first: usize) {
-        for (r, yi) in y.iter_mut().enumerate() {
-            let i = first + r;
+        for (i, yi) in y.iter_mut().enumerate() {
             let mut s = Vector3::zeros();
             for k in self.row_ptr[i]..self.row_ptr[i + 1] {
                 s += self.val[k] * x[self.col[k] as usize];

@@ -81,7 +81,7 @@ pub const BENDING_MAX_PER_CM: f64 = 2.5;
 
 const SAMPLES: usize = 161;
 
-/// Tensile curve from summary values (the documented construction, README §Fabrics):
+/// Tensile curve from summary values (the documented construction, docs/fabrics.md):
 /// loading `F(ε) = Fm (ε/εm)^n` with `n = 2/LT − 1` (so that its energy is
 /// `LT·Fm·εm/2`), and recovery `F(ε) − 2 h2 ε²` with `h2 = 1.5 (1 − RT) WT / εm³`
 /// so that the energy given back is `RT·WT` (the recovery curve is clipped at 0).
@@ -223,21 +223,20 @@ pub fn interp(branch: &[(f64, f64)], x: f64) -> Option<f64> {
     Some(y0 + (y1 - y0) * (x - x0) / (x1 - x0))
 }
 
-/// Reads a raw KES curve from CSV. Header names the columns; accepted forms:
+/// Parses a raw KES curve in CSV; `source` (the file's path) names it in
+/// errors. The header names the columns; accepted forms:
 /// `strain_pct,force_gf_cm,branch` (tensile), `angle_deg,force_gf_cm,branch`
 /// (shear), `curvature_per_cm,moment_gf_cm_cm,branch` (bending); `branch` is
 /// `load` or `recover`. Values are converted to SI here.
-pub fn read_curve_csv(path: &std::path::Path) -> anyhow::Result<KesCurve> {
+pub fn parse_curve_csv(text: &str, source: &str) -> anyhow::Result<KesCurve> {
     use anyhow::{bail, Context};
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read KES curve file {}", path.display()))?;
     let mut lines = text.lines().enumerate().filter(|(_, l)| {
         let t = l.trim();
         !t.is_empty() && !t.starts_with('#')
     });
     let (_, header) = lines
         .next()
-        .with_context(|| format!("{}: empty curve file", path.display()))?;
+        .with_context(|| format!("{}: empty curve file", source))?;
     let cols: Vec<&str> = header.split(',').map(|s| s.trim()).collect();
     let (sx, sy) = match (cols.first().copied(), cols.get(1).copied()) {
         (Some("strain_pct"), Some("force_gf_cm")) => (0.01, GF_PER_CM),
@@ -247,33 +246,33 @@ pub fn read_curve_csv(path: &std::path::Path) -> anyhow::Result<KesCurve> {
         _ => bail!(
             "{}: line 1: unknown header {header:?}; expected strain_pct,force_gf_cm,branch \
              or angle_deg,force_gf_cm,branch or curvature_per_cm,moment_gf_cm_cm,branch",
-            path.display()
+            source
         ),
     };
     if cols.get(2).copied() != Some("branch") {
-        bail!("{}: line 1: third column must be `branch`", path.display());
+        bail!("{}: line 1: third column must be `branch`", source);
     }
     let mut c = KesCurve::default();
     for (ln, l) in lines {
         let f: Vec<&str> = l.split(',').map(|s| s.trim()).collect();
         if f.len() < 3 {
-            bail!("{}: line {}: expected 3 columns", path.display(), ln + 1);
+            bail!("{}: line {}: expected 3 columns", source, ln + 1);
         }
-        let x: f64 = f[0].parse().with_context(|| {
-            format!("{}: line {}: bad number {:?}", path.display(), ln + 1, f[0])
-        })?;
-        let y: f64 = f[1].parse().with_context(|| {
-            format!("{}: line {}: bad number {:?}", path.display(), ln + 1, f[1])
-        })?;
+        let x: f64 = f[0]
+            .parse()
+            .with_context(|| format!("{}: line {}: bad number {:?}", source, ln + 1, f[0]))?;
+        let y: f64 = f[1]
+            .parse()
+            .with_context(|| format!("{}: line {}: bad number {:?}", source, ln + 1, f[1]))?;
         if !x.is_finite() || !y.is_finite() {
-            bail!("{}: line {}: non-finite value", path.display(), ln + 1);
+            bail!("{}: line {}: non-finite value", source, ln + 1);
         }
         match f[2] {
             "load" => c.load.push((x * sx, y * sy)),
             "recover" => c.recover.push((x * sx, y * sy)),
             other => bail!(
                 "{}: line {}: branch must be load or recover, got {other:?}",
-                path.display(),
+                source,
                 ln + 1
             ),
         }
@@ -281,7 +280,7 @@ pub fn read_curve_csv(path: &std::path::Path) -> anyhow::Result<KesCurve> {
     if c.load.len() < 4 || c.recover.len() < 4 {
         bail!(
             "{}: need at least 4 points on each branch (load {}, recover {})",
-            path.display(),
+            source,
             c.load.len(),
             c.recover.len()
         );

@@ -2,19 +2,20 @@
 //! friction coefficient, static or moving with a prescribed velocity
 //! (thesis §3.3, §6.4.1.2: objects are thickened for robust contact).
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::query::Ray;
 use parry3d_f64::shape::{
     Ball, Capsule, Cone, Cuboid, Cylinder, SharedShape, TriMesh, TriMeshFlags,
 };
 use serde::{Deserialize, Serialize};
-use std::path::Path;
 
 /// Default obstacle thickness (thesis §6.4.1.2: the table is thickened by 6 mm).
 pub const DEFAULT_OBSTACLE_THICKNESS: f64 = 0.006;
 /// Default cloth thickness (thesis: 2 mm).
 pub const DEFAULT_CLOTH_THICKNESS: f64 = 0.002;
+/// Default Coulomb friction coefficient of an obstacle.
+pub const DEFAULT_FRICTION: f64 = 0.3;
 /// Vertices (m) and triangles of a mesh.
 pub type MeshData = (Vec<[f64; 3]>, Vec<[u32; 3]>);
 
@@ -46,23 +47,13 @@ pub enum ShapeSpec {
         height: f64,
         radius: f64,
     },
-    /// Triangle mesh from an OBJ file (path relative to the scene file), with
-    /// an optional uniform scale.
-    Mesh {
-        obj: String,
-        #[serde(default = "one")]
-        scale: f64,
-    },
-    /// Triangle mesh given inline (messages).
+    /// Triangle mesh (vertices in m, in the obstacle frame): read from an OBJ
+    /// file by the scene loader, or given in a message.
     #[serde(skip)]
     Triangles {
         vertices: Vec<[f64; 3]>,
         triangles: Vec<[u32; 3]>,
     },
-}
-
-fn one() -> f64 {
-    1.0
 }
 
 #[derive(Clone)]
@@ -113,7 +104,6 @@ impl Obstacle {
         pose: Isometry3<f64>,
         thickness: f64,
         friction: f64,
-        base: &Path,
     ) -> Result<Obstacle> {
         if !(thickness.is_finite() && thickness >= 0.0) {
             bail!("obstacle {id:?}: thickness = {thickness}: must be ≥ 0 m");
@@ -167,18 +157,6 @@ impl Obstacle {
                 pos("height", *height)?;
                 pos("radius", *radius)?;
                 (SharedShape::new(Cone::new(height / 2.0, *radius)), y_to_z)
-            }
-            ShapeSpec::Mesh { obj, scale } => {
-                pos("scale", *scale)?;
-                let p = base.join(obj);
-                let (v, t) = load_obj(&p).with_context(|| format!("obstacle {id:?}"))?;
-                let v: Vec<[f64; 3]> = v
-                    .iter()
-                    .map(|p| [p[0] * scale, p[1] * scale, p[2] * scale])
-                    .collect();
-                let s = trimesh(id, &v, &t)?;
-                mesh = Some((v, t));
-                (s, Isometry3::identity())
             }
             ShapeSpec::Triangles {
                 vertices,
@@ -325,10 +303,6 @@ impl Obstacle {
             .collect();
         (v, tris)
     }
-
-    pub fn is_moving(&self) -> bool {
-        self.linear_velocity != Vector3::zeros() || self.angular_velocity != Vector3::zeros()
-    }
 }
 
 fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
@@ -367,71 +341,6 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
     Ok(SharedShape::new(m))
 }
 
-/// Reads the vertices and faces of a Wavefront OBJ file (faces fan-triangulated).
-pub fn load_obj(path: &Path) -> Result<MeshData> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read OBJ file {}", path.display()))?;
-    let mut v = Vec::new();
-    let mut faces: Vec<(usize, Vec<i64>)> = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("v") => {
-                let c: Vec<f64> = it
-                    .take(3)
-                    .map(|s| s.parse::<f64>())
-                    .collect::<std::result::Result<_, _>>()
-                    .with_context(|| format!("{}:{}: bad vertex", path.display(), ln + 1))?;
-                if c.len() != 3 || c.iter().any(|x| !x.is_finite()) {
-                    bail!(
-                        "{}:{}: a vertex needs 3 finite coordinates",
-                        path.display(),
-                        ln + 1
-                    );
-                }
-                v.push([c[0], c[1], c[2]]);
-            }
-            Some("f") => {
-                let idx: Vec<i64> = it
-                    .map(|s| s.split('/').next().unwrap_or("").parse::<i64>())
-                    .collect::<std::result::Result<_, _>>()
-                    .with_context(|| format!("{}:{}: bad face", path.display(), ln + 1))?;
-                if idx.len() < 3 {
-                    bail!(
-                        "{}:{}: a face needs at least 3 vertices",
-                        path.display(),
-                        ln + 1
-                    );
-                }
-                faces.push((ln + 1, idx));
-            }
-            _ => {}
-        }
-    }
-    let nv = v.len() as i64;
-    let mut tris = Vec::new();
-    for (ln, f) in faces {
-        let mut r = Vec::with_capacity(f.len());
-        for i in f {
-            let k = if i > 0 { i - 1 } else { nv + i };
-            if k < 0 || k >= nv {
-                bail!(
-                    "{}:{ln}: face uses vertex {i} but the file has {nv} vertices",
-                    path.display()
-                );
-            }
-            r.push(k as u32);
-        }
-        for k in 1..r.len() - 1 {
-            tris.push([r[0], r[k], r[k + 1]]);
-        }
-    }
-    if tris.is_empty() {
-        bail!("{}: no faces", path.display());
-    }
-    Ok((v, tris))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -446,7 +355,6 @@ mod tests {
             Isometry3::translation(0.0, 0.0, 0.5),
             0.006,
             0.3,
-            Path::new("."),
         )
         .unwrap();
         // (from, to, fraction at the entry, the entered face's normal)
@@ -492,7 +400,6 @@ mod tests {
             Isometry3::identity(),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         for dir in [1.0, -1.0] {
@@ -517,7 +424,6 @@ mod tests {
             Isometry3::identity(),
             0.006,
             0.3,
-            Path::new("."),
         )
         .unwrap();
         let p = b.proximity(&Vector3::new(0.0, 0.0, 0.01));
@@ -532,7 +438,6 @@ mod tests {
             Isometry3::identity(),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         assert!((s.proximity(&Vector3::new(0.0, 0.3, 0.0)).distance - 0.2).abs() < 1e-12);
@@ -546,7 +451,6 @@ mod tests {
             Isometry3::identity(),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         assert!((c.proximity(&Vector3::new(0.0, 0.0, 0.6)).distance - 0.1).abs() < 1e-9);
@@ -561,7 +465,6 @@ mod tests {
             Isometry3::identity(),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         s.linear_velocity = Vector3::new(1.0, 0.0, 0.0);

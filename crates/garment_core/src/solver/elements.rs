@@ -86,7 +86,7 @@ pub fn shear_law(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64
 /// [`shear_law`] plus the step tangent: (T, dT/dl, step dT/dl, sin θ).
 #[inline]
 pub fn shear_law_step(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64, f64) {
-    let u = (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt);
+    let u = s.strain(l);
     let (sig, dsig, dsig_step) = law.eval_for_step(st, u);
     let k = l * l / (s.lc * s.lt);
     (
@@ -136,8 +136,7 @@ pub fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 
 
 /// Elastic energy of a shear spring (J): `½ l_c l_t Φ(u)`.
 pub fn shear_energy(s: &ShearSpring, law: &Law, l: f64) -> f64 {
-    let u = (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt);
-    0.5 * s.lc * s.lt * law.elastic.energy(u)
+    0.5 * s.lc * s.lt * law.elastic.energy(s.strain(l))
 }
 
 /// Elastic energy of a hinge (J): `L h Φ(κ)`.
@@ -371,19 +370,6 @@ pub fn hinge_eval(
     let kappa = theta / h.h;
     let (s, ds) = law.eval(st, kappa);
     (theta, kappa, s, ds, g)
-}
-
-/// [`hinge_eval`] returning (σ, σ', step σ', ∇θ).
-#[inline]
-pub fn hinge_eval_step(
-    h: &Hinge,
-    law: &Law,
-    st: &LawState,
-    x: &[Vector3<f64>],
-) -> (f64, f64, f64, SMatrix<f64, 12, 1>) {
-    let (theta, g) = dihedral_and_grad(hinge_positions(h, x));
-    let (s, ds, ds_step) = law.eval_for_step(st, theta / h.h);
-    (s, ds, ds_step, g)
 }
 
 /// Exact Jacobian ∂f/∂x of a hinge (12 × 12).

@@ -2,14 +2,16 @@
 //! parallel phase of a step (the contacts, the assembly, the PCG, the update
 //! after the solve).
 //!
-//! Starting threads at every phase (`std::thread::scope`) cost more than the
-//! threads' start-up: the kernel places each new thread anew, and on the
-//! 2-core benchmark machine it often put the PCG's second thread on the core
-//! of the first, so the spin barrier waited out whole time slices (a
-//! two-thread solve was slower than one thread; README, seventh round). A
-//! worker that lives for the whole run and spins between phases stays on its
-//! own core. After [`SPIN`] without work it sleeps on a condition variable
-//! (an idle node does not burn a core), and the next phase wakes it.
+//! This is the solver's only threading mechanism: [`Team::run_each`] hands
+//! item t of a phase to thread t, and a phase whose threads must meet inside
+//! it (the PCG, three times per iteration) uses a [`Barrier`].
+//!
+//! The threads are not started per phase (`std::thread::scope`): the kernel
+//! places each new thread anew and may put two of them on one core, where a
+//! spin barrier waits out whole time slices. A worker that lives for the
+//! whole run and spins between phases stays on its own core. After [`SPIN`]
+//! without work it sleeps on a condition variable (an idle node does not burn
+//! a core), and the next phase wakes it.
 
 use std::cell::UnsafeCell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -17,6 +19,38 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+
+/// Vertices from which a simulation uses every core. With threads started
+/// once ([`super::team::Team`]) a PCG barrier costs well under a
+/// microsecond, and two threads paid on every grid measured down to 11 × 11
+/// (121 vertices: 0.088 → 0.058 ms per step); below a few hundred vertices
+/// a step takes tens of microseconds, and a second busy thread is not worth
+/// its core to whatever else runs (a ROS node's other work, parallel tests).
+pub const PARALLEL_FROM: usize = 500;
+
+/// Threads of a simulation (the assembly, the PCG, the contacts): one per
+/// core from [`PARALLEL_FROM`] vertices, at most 8 and at most one per
+/// [`VERTICES_PER_THREAD`] vertices.
+pub fn threads_for(n: usize) -> usize {
+    let cores = std::thread::available_parallelism()
+        .map(|p| p.get())
+        .unwrap_or(1);
+    threads_for_cores(n, cores)
+}
+
+/// [`threads_for`] on a machine with `cores` cores.
+pub fn threads_for_cores(n: usize, cores: usize) -> usize {
+    if n < PARALLEL_FROM {
+        1
+    } else {
+        cores.min(8).min(n / VERTICES_PER_THREAD).max(1)
+    }
+}
+
+/// Fewest vertices per thread: on a many-core machine a small cloth gets a
+/// few threads, not one per core (each thread's rows must outweigh its share
+/// of the barriers).
+pub const VERTICES_PER_THREAD: usize = 250;
 
 /// How long an idle worker spins before it sleeps: longer than the serial
 /// parts of a step (contacts, position update: ~0.5 ms on a 101 × 101 grid),
@@ -241,6 +275,44 @@ impl std::fmt::Debug for Team {
     }
 }
 
+/// Sense-reversing barrier that spins briefly, then yields (the machine may
+/// be shared, so it never spins for long).
+pub struct Barrier {
+    n: usize,
+    count: AtomicUsize,
+    generation: AtomicUsize,
+}
+
+impl Barrier {
+    pub fn new(n: usize) -> Self {
+        Barrier {
+            n,
+            count: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+        }
+    }
+    pub fn wait(&self) {
+        if self.n == 1 {
+            return;
+        }
+        let g = self.generation.load(Ordering::Acquire);
+        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
+            self.count.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::AcqRel);
+            return;
+        }
+        let mut spins = 0u32;
+        while self.generation.load(Ordering::Acquire) == g {
+            if spins < 4000 {
+                std::hint::spin_loop();
+                spins += 1;
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -314,5 +386,20 @@ mod tests {
             hits.fetch_add(1, Ordering::Relaxed);
         });
         assert_eq!(hits.load(Ordering::Relaxed), 2);
+    }
+
+    #[test]
+    fn threads_grow_with_the_cloth_and_the_cores() {
+        // below PARALLEL_FROM: one thread whatever the cores
+        assert_eq!(threads_for_cores(121, 2), 1);
+        assert_eq!(threads_for_cores(PARALLEL_FROM - 1, 64), 1);
+        // the 2, 1 and 0.5 cm table drapes
+        for n in [676, 2601, 10201] {
+            assert_eq!(threads_for_cores(n, 1), 1);
+            assert_eq!(threads_for_cores(n, 2), 2);
+        }
+        assert_eq!(threads_for_cores(676, 64), 2);
+        assert_eq!(threads_for_cores(2601, 64), 8);
+        assert_eq!(threads_for_cores(10201, 4), 4);
     }
 }

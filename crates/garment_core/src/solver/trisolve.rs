@@ -114,7 +114,7 @@ impl Supernodal {
     pub fn solve(&mut self, l: &[f32], x: &mut [f64]) {
         assert_eq!(l.len(), self.len_val, "factor of another structure");
         #[cfg(target_arch = "x86_64")]
-        if super::linear::has_fma() {
+        if super::cpu::has_fma() {
             // SAFETY: the CPU has AVX2 and FMA (checked above)
             unsafe { solve_fma(self, l, x) };
             return;

@@ -15,7 +15,6 @@ use anyhow::{bail, Context, Result};
 use kes::*;
 pub use law::{ElasticPoly, Hysteresis, Law, LawState};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
 
 /// The three KES behaviours.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -149,18 +148,10 @@ pub struct Fabric {
 }
 
 impl Fabric {
-    /// Loads and validates a fabric file; errors name the file and the field.
-    pub fn load(path: &Path) -> Result<Fabric> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read fabric file {}", path.display()))?;
-        let file: FabricFile = serde_yaml::from_str(&text)
-            .with_context(|| format!("fabric file {}: invalid YAML or field", path.display()))?;
-        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Fabric::from_file(file, &dir).with_context(|| format!("fabric file {}", path.display()))
-    }
-
-    /// Builds the SI fabric; `base` resolves relative curve paths.
-    pub fn from_file(file: FabricFile, base: &Path) -> Result<Fabric> {
+    /// Builds the SI fabric from its file's contents; `curve` reads a raw KES
+    /// curve named by a `curve:` field (the I/O layer resolves the name
+    /// against the fabric file's folder).
+    pub fn from_file(file: FabricFile, curve: &dyn Fn(&str) -> Result<KesCurve>) -> Result<Fabric> {
         positive("areal_mass_mg_per_cm2", file.areal_mass_mg_per_cm2)?;
         let d = &file.damping;
         for (n, v) in [
@@ -173,8 +164,8 @@ impl Fabric {
                 bail!("{n} = {v}: must be finite and ≤ 0 (thesis sign convention: C·V opposes motion)");
             }
         }
-        let warp = direction(&file.warp, "warp", base)?;
-        let weft = direction(&file.weft, "weft", base)?;
+        let warp = direction(&file.warp, "warp", curve)?;
+        let weft = direction(&file.weft, "weft", curve)?;
         let shear_curve = mean_curve(&warp.shear_curve, &weft.shear_curve);
         let shear = shear_law(&file.warp.shear, &file.weft.shear, &shear_curve);
         Ok(Fabric {
@@ -257,21 +248,24 @@ fn nonneg(name: &str, v: Option<f64>) -> Result<f64> {
     Ok(v)
 }
 
-fn curve_of(spec: &BehaviourSpec, name: &str, base: &Path) -> Result<Option<KesCurve>> {
+fn curve_of(
+    spec: &BehaviourSpec,
+    name: &str,
+    curve: &dyn Fn(&str) -> Result<KesCurve>,
+) -> Result<Option<KesCurve>> {
     match &spec.curve {
-        Some(c) => {
-            let p: PathBuf = base.join(c);
-            Ok(Some(
-                read_curve_csv(&p).with_context(|| format!("{name}.curve"))?,
-            ))
-        }
+        Some(c) => Ok(Some(curve(c).with_context(|| format!("{name}.curve"))?)),
         None => Ok(None),
     }
 }
 
-fn direction(d: &DirectionSpec, name: &str, base: &Path) -> Result<DirectionLaws> {
+fn direction(
+    d: &DirectionSpec,
+    name: &str,
+    curve: &dyn Fn(&str) -> Result<KesCurve>,
+) -> Result<DirectionLaws> {
     let tn = format!("{name}.tensile");
-    let tensile_curve = match curve_of(&d.tensile, &tn, base)? {
+    let tensile_curve = match curve_of(&d.tensile, &tn, curve)? {
         Some(c) => c,
         None => {
             let s = TensileSummary {
@@ -295,7 +289,7 @@ fn direction(d: &DirectionSpec, name: &str, base: &Path) -> Result<DirectionLaws
         }
     };
     let sn = format!("{name}.shear");
-    let shear_curve = match curve_of(&d.shear, &sn, base)? {
+    let shear_curve = match curve_of(&d.shear, &sn, curve)? {
         Some(c) => c,
         None => kes::shear_curve(
             &ShearSummary {
@@ -307,7 +301,7 @@ fn direction(d: &DirectionSpec, name: &str, base: &Path) -> Result<DirectionLaws
         ),
     };
     let bn = format!("{name}.bending");
-    let bending_curve = match curve_of(&d.bending, &bn, base)? {
+    let bending_curve = match curve_of(&d.bending, &bn, curve)? {
         Some(c) => c,
         None => kes::bending_curve(
             &BendingSummary {

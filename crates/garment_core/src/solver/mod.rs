@@ -16,6 +16,7 @@
 //! correction y, never through penalty springs.
 
 pub mod assemble;
+mod cpu;
 pub mod elements;
 pub mod family;
 pub mod linear;
@@ -53,7 +54,7 @@ pub struct Params {
     pub hysteresis: bool,
     /// Threads of the assembly, the PCG and the contacts, started once per
     /// simulation ([`team::Team`]; 0: one per core for large cloths, see
-    /// [`assemble::threads_for`]; at most [`MAX_THREADS`]).
+    /// [`team::threads_for`]; at most [`MAX_THREADS`]).
     pub threads: usize,
 }
 
@@ -241,7 +242,7 @@ impl Simulation {
         cliques.extend(cloth.hinges.iter().map(|h| h.v.to_vec()));
         let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
         let threads = match params.threads {
-            0 => assemble::threads_for(n),
+            0 => team::threads_for(n),
             t => t,
         };
         let part = assemble::partition(&mut cloth, threads);
@@ -314,20 +315,6 @@ impl Simulation {
             self.pinned[p.vertex] = Some(k);
         }
         self.pins = pins;
-        Ok(())
-    }
-
-    /// Contact distance of obstacle `o`: its thickness plus the cloth's.
-    pub fn contact_distance(&self, o: usize) -> f64 {
-        self.obstacles[o].thickness + self.params.cloth_thickness
-    }
-
-    /// Switches the linear solver (builds the Cholesky analysis if needed).
-    pub fn set_linear_solver(&mut self, kind: LinearSolverKind) -> Result<()> {
-        self.params.linear_solver = kind;
-        if kind == LinearSolverKind::Cholesky {
-            self.direct()?;
-        }
         Ok(())
     }
 
@@ -620,8 +607,7 @@ impl Simulation {
         }
         for (s, st) in c.shear.iter().zip(c.shear_state.iter_mut()) {
             let l = (c.x[s.b] - c.x[s.a]).norm();
-            f.shear
-                .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
+            f.shear.commit(st, s.strain(l));
         }
         for (hg, st) in c.hinges.iter().zip(c.hinge_state.iter_mut()) {
             let th = dihedral(hinge_positions(hg, &c.x));
@@ -735,11 +721,6 @@ impl Simulation {
             self.dissipated,
         ) = saved;
         out
-    }
-
-    /// Number of non-zero 3 × 3 blocks of the system matrix.
-    pub fn matrix_blocks(&self) -> usize {
-        self.a.nnz_blocks()
     }
 }
 

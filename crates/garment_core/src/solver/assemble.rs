@@ -15,14 +15,6 @@ use crate::fabric::{Damping, Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
 use std::ops::Range;
 
-/// Vertices from which a simulation uses every core. With threads started
-/// once ([`super::team::Team`]) a PCG barrier costs well under a
-/// microsecond, and two threads paid on every grid measured down to 11 × 11
-/// (121 vertices: 0.088 → 0.058 ms per step); below a few hundred vertices
-/// a step takes tens of microseconds, and a second busy thread is not worth
-/// its core to whatever else runs (a ROS node's other work, parallel tests).
-pub const PARALLEL_FROM: usize = 500;
-
 /// Element groups: `ranges[t]` for chunk t, the last entry for the straddling ones.
 #[derive(Debug, Clone, Default)]
 pub struct Partition {
@@ -34,30 +26,6 @@ pub struct Partition {
     /// Largest vertex-index distance within one element.
     pub span: usize,
 }
-
-/// Threads of a simulation (the assembly, the PCG, the contacts): one per
-/// core from [`PARALLEL_FROM`] vertices, at most 8 and at most one per
-/// [`VERTICES_PER_THREAD`] vertices.
-pub fn threads_for(n: usize) -> usize {
-    let cores = std::thread::available_parallelism()
-        .map(|p| p.get())
-        .unwrap_or(1);
-    threads_for_cores(n, cores)
-}
-
-/// [`threads_for`] on a machine with `cores` cores.
-pub fn threads_for_cores(n: usize, cores: usize) -> usize {
-    if n < PARALLEL_FROM {
-        1
-    } else {
-        cores.min(8).min(n / VERTICES_PER_THREAD).max(1)
-    }
-}
-
-/// Fewest vertices per thread: on a many-core machine a small cloth gets a
-/// few threads, not one per core (each thread's rows must outweigh its share
-/// of the barriers).
-pub const VERTICES_PER_THREAD: usize = 250;
 
 /// Reorders the cloth's springs and hinges (with their memories) into
 /// per-chunk groups and returns the groups.
@@ -343,8 +311,7 @@ fn elements_range(
         let s = &c.shear[k];
         let st = &mut o.sstate[k - s0];
         let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-        f.shear
-            .commit(st, (l * l - s.l0 * s.l0) / (2.0 * s.lc * s.lt));
+        f.shear.commit(st, s.strain(l));
         let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
         let sp = AxialStep {
             a: s.a,
@@ -589,24 +556,4 @@ pub fn assemble(
         o.rhs[i] = (o.force[i] + o.rhs[i]) * h;
     }
     power
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn threads_grow_with_the_cloth_and_the_cores() {
-        // below PARALLEL_FROM: one thread whatever the cores
-        assert_eq!(threads_for_cores(121, 2), 1);
-        assert_eq!(threads_for_cores(PARALLEL_FROM - 1, 64), 1);
-        // the 2, 1 and 0.5 cm table drapes
-        for n in [676, 2601, 10201] {
-            assert_eq!(threads_for_cores(n, 1), 1);
-            assert_eq!(threads_for_cores(n, 2), 2);
-        }
-        assert_eq!(threads_for_cores(676, 64), 2);
-        assert_eq!(threads_for_cores(2601, 64), 8);
-        assert_eq!(threads_for_cores(10201, 4), 4);
-    }
 }

@@ -7,8 +7,9 @@
 //! identity (free), `I − n nᵀ` (contact along n), or 0 (pinned), and `z_i`
 //! is the prescribed velocity change in the constrained directions.
 
+use super::cpu::has_fma;
 use super::sparse::{BlockMatrix, LowerCsc};
-use super::team::Team;
+use super::team::{Barrier, Team};
 use anyhow::{anyhow, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -30,7 +31,7 @@ pub enum LinearSolverKind {
     Cholesky,
     /// The default: the PCG while it converges within the iterations that
     /// cost as much as the Cholesky (from operation counts), else the
-    /// Cholesky. By benchmark (README) the PCG wins at small steps (dt = 1e-4
+    /// Cholesky. By benchmark (docs/benchmarks.md) the PCG wins at small steps (dt = 1e-4
     /// s: 7–25 iterations) and the Cholesky at large ones (dt = 1e-3 s on 1 cm
     /// and finer grids, where the PCG needs hundreds), so neither is the
     /// faster everywhere. Decided on iteration counts, never on measured time:
@@ -160,7 +161,7 @@ impl Pcg {
     /// positive definite.
     ///
     /// The solve runs on every thread of `team` (the simulation's, started
-    /// once; see [`super::assemble::threads_for`]): each owns a contiguous range
+    /// once; see [`super::team::threads_for`]): each owns a contiguous range
     /// of rows and does the product, the vector updates and its part of the
     /// dot products on it; three barriers per iteration, partial sums added
     /// in a fixed order (so every thread takes the same branches and the
@@ -196,7 +197,7 @@ impl Pcg {
             pinv: Ptr(self.pinv.as_mut_ptr()),
             dv: Ptr(dv.as_mut_ptr()),
             partial: (0..3 * nt).map(|_| AtomicU64::new(0)).collect(),
-            barrier: SpinBarrier::new(nt),
+            barrier: Barrier::new(nt),
             nt,
             iters: AtomicUsize::new(0),
         };
@@ -382,7 +383,7 @@ struct Shared {
     dv: Ptr<Vector3<f64>>,
     /// Per-thread partial sums, 3 slots per thread.
     partial: Vec<AtomicU64>,
-    barrier: SpinBarrier,
+    barrier: Barrier,
     nt: usize,
     /// Iterations run so far (kept by thread 0).
     iters: AtomicUsize,
@@ -400,44 +401,6 @@ impl Shared {
     }
 }
 
-/// Sense-reversing barrier that spins briefly, then yields (the machine may
-/// be shared, so it never spins for long).
-struct SpinBarrier {
-    n: usize,
-    count: AtomicUsize,
-    generation: AtomicUsize,
-}
-
-impl SpinBarrier {
-    fn new(n: usize) -> Self {
-        SpinBarrier {
-            n,
-            count: AtomicUsize::new(0),
-            generation: AtomicUsize::new(0),
-        }
-    }
-    fn wait(&self) {
-        if self.n == 1 {
-            return;
-        }
-        let g = self.generation.load(Ordering::Acquire);
-        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
-            self.count.store(0, Ordering::Relaxed);
-            self.generation.fetch_add(1, Ordering::AcqRel);
-            return;
-        }
-        let mut spins = 0u32;
-        while self.generation.load(Ordering::Acquire) == g {
-            if spins < 4000 {
-                std::hint::spin_loop();
-                spins += 1;
-            } else {
-                std::thread::yield_now();
-            }
-        }
-    }
-}
-
 /// One thread's part of the filtered PCG (rows `lo..hi` of thread `t`):
 /// where the CPU has AVX2 and FMA, the block products use them (four-wide
 /// fused multiply-adds on the 3 × 3 blocks, [`row_mul_fma`]); the portable
@@ -450,19 +413,6 @@ fn pcg_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
         return unsafe { pcg_rows_fma(args, sh, t) };
     }
     pcg_rows_impl::<false>(args, sh, t)
-}
-
-/// The CPU has AVX2 and FMA (x86-64).
-#[inline]
-pub fn has_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -669,7 +619,7 @@ unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<
 }
 
 /// Row i of `A x`, with [`row_mul_fma`] when `fma` (the CPU has AVX2 and
-/// FMA, [`has_fma`]): [`row_mul_k`] chosen at run time, for callers not
+/// FMA, [`has_fma`](super::cpu::has_fma)): [`row_mul_k`] chosen at run time, for callers not
 /// compiled with those features.
 #[inline]
 fn row_mul_best(fma: bool, a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
@@ -730,10 +680,9 @@ impl std::fmt::Debug for Direct {
 }
 
 impl Direct {
-    /// One thread (faer's sequential kernels): its rayon parallelism made
-    /// the factorisation slower on the 2-core benchmark machine (README,
-    /// seventh round), and the simulation's own threads (the assembly, the
-    /// PCG) would compete with rayon's.
+    /// One thread (faer's sequential kernels): rayon's threads would compete
+    /// with the simulation's own (the assembly, the PCG), and measured slower
+    /// on two cores (docs/benchmarks.md, "Alternatives measured").
     ///
     /// The fill-reducing ordering is faer's AMD on the vertex graph
     /// ([`super::sparse::amd_vertex_order`]), and the matrix is stored in
@@ -792,10 +741,9 @@ impl Direct {
     /// PCG iterations that cost as much as one factorisation and solve, by
     /// operation counts: the factorisation ≈ nnz(L)²/n flops, a PCG iteration
     /// ≈ 2 nnz(A) + 30 n, with κ = 0.55 for the dense supernodal kernels'
-    /// speed relative to the sparse products (fitted to this machine's
-    /// benchmark with the PCG on one thread: break-even at 77, 168 and 445
-    /// iterations on the 2, 1 and 0.5 cm table drapes; the formula gives 70,
-    /// 179, 499). The PCG runs on `threads` threads and the factorisation on
+    /// speed relative to the sparse products (measured with the PCG on one
+    /// thread: break-even at 77, 168 and 445 iterations on the 2, 1 and
+    /// 0.5 cm table drapes; the formula gives 70, 179, 499). The PCG runs on `threads` threads and the factorisation on
     /// one, so the count is multiplied by the PCG's speed-up, 1 + 0.8
     /// (threads − 1) (measured 1.8–1.95 on two threads).
     /// `blocks`: the 3 × 3 blocks of A (both triangles).

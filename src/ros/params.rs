@@ -1,0 +1,518 @@
+//! The node's parameters, in one table ([`PARAMETERS`]): name, ROS type,
+//! default, whether it can change while the node runs, and what it does. The
+//! declarations, `-p` and params-file parsing, the parameter services'
+//! validation, the runtime updates, `node --help` and the table of
+//! `docs/ros.md` (checked by a test) all come from it.
+
+use super::args::{self, RosArgs, Value};
+use crate::scene::Overrides;
+use crate::solver::{LinearSolverKind, MAX_THREADS};
+use anyhow::{bail, Context as _, Result};
+use ros2_client::ParameterValue;
+use std::path::Path;
+
+/// The node's settings: one field per parameter of [`PARAMETERS`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Settings {
+    pub scene: String,
+    pub frame_id: String,
+    pub publish_rate: f64,
+    pub real_time_factor: f64,
+    pub paused: bool,
+    pub duration: f64,
+    pub dt: f64,
+    pub spacing: f64,
+    pub solver: String,
+    pub threads: i64,
+    pub record_bag: String,
+    pub max_messages_per_step: i64,
+    pub max_mesh_triangles: i64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            scene: default_scene(),
+            frame_id: "world".into(),
+            publish_rate: 30.0,
+            real_time_factor: 1.0,
+            paused: false,
+            duration: 0.0,
+            dt: 0.0,
+            spacing: 0.0,
+            solver: String::new(),
+            threads: 0,
+            record_bag: String::new(),
+            max_messages_per_step: 100,
+            max_mesh_triangles: 200_000,
+        }
+    }
+}
+
+/// The shipped example: `config/scenes/table_drape.yaml` from the working
+/// directory, else from the source tree the binary was built from.
+fn default_scene() -> String {
+    let rel = "config/scenes/table_drape.yaml";
+    if Path::new(rel).exists() {
+        rel.into()
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(rel)
+            .display()
+            .to_string()
+    }
+}
+
+/// A parameter's ROS 2 type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Bool,
+    Integer,
+    Double,
+    String,
+}
+
+impl Kind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Bool => "bool",
+            Kind::Integer => "integer",
+            Kind::Double => "double",
+            Kind::String => "string",
+        }
+    }
+}
+
+/// One parameter of the node.
+pub struct Parameter {
+    pub name: &'static str,
+    pub kind: Kind,
+    /// Can be changed while the node runs (the parameter services); the
+    /// others are read at start (`scene` also on `~/reset`).
+    pub runtime: bool,
+    pub description: &'static str,
+    get: fn(&Settings) -> Value,
+    /// Stores a value already converted to `kind`, after checking its range.
+    put: fn(&mut Settings, Value) -> Result<()>,
+}
+
+impl Parameter {
+    /// The parameter's value in `s`.
+    pub fn get(&self, s: &Settings) -> Value {
+        (self.get)(s)
+    }
+
+    /// Sets it in `s` from a value of any type that converts to its own (an
+    /// integer where a double is expected); wrong types and out-of-range
+    /// values are errors that name the parameter.
+    pub fn set(&self, s: &mut Settings, v: &Value) -> Result<()> {
+        let name = self.name;
+        let v = match (self.kind, v) {
+            (Kind::Bool, Value::Bool(_))
+            | (Kind::Integer, Value::Int(_))
+            | (Kind::Double, Value::Double(_))
+            | (Kind::String, Value::Str(_)) => v.clone(),
+            (Kind::Double, Value::Int(i)) => Value::Double(*i as f64),
+            (k, other) => bail!("parameter {name}: {other:?} is not a {}", k.name()),
+        };
+        (self.put)(s, v).with_context(|| format!("parameter {name}"))
+    }
+
+    /// Its declaration for ros2-client.
+    pub fn declared(&self, s: &Settings) -> ParameterValue {
+        match self.get(s) {
+            Value::Bool(b) => ParameterValue::Boolean(b),
+            Value::Int(i) => ParameterValue::Integer(i),
+            Value::Double(d) => ParameterValue::Double(d),
+            Value::Str(t) => ParameterValue::String(t),
+        }
+    }
+}
+
+fn double(v: Value) -> f64 {
+    match v {
+        Value::Double(d) => d,
+        _ => unreachable!("converted by Parameter::set"),
+    }
+}
+
+fn int(v: Value) -> i64 {
+    match v {
+        Value::Int(i) => i,
+        _ => unreachable!("converted by Parameter::set"),
+    }
+}
+
+fn text(v: Value) -> String {
+    match v {
+        Value::Str(s) => s,
+        _ => unreachable!("converted by Parameter::set"),
+    }
+}
+
+fn boolean(v: Value) -> bool {
+    match v {
+        Value::Bool(b) => b,
+        _ => unreachable!("converted by Parameter::set"),
+    }
+}
+
+/// A finite double ≥ 0 (`positive`: > 0).
+fn nonneg(v: Value, positive: bool, rule: &str) -> Result<f64> {
+    let d = double(v);
+    if !(d.is_finite() && (d > 0.0 || (!positive && d == 0.0))) {
+        bail!("{d}: {rule}");
+    }
+    Ok(d)
+}
+
+/// Every parameter of the node, in the order `list_parameters` gives them.
+pub const PARAMETERS: &[Parameter] = &[
+    Parameter {
+        name: "scene",
+        kind: Kind::String,
+        runtime: false,
+        description: "scene file, read at start and on `~/reset` (a new value takes effect at \
+                      the next reset); the default is taken from the working directory, else \
+                      from the source tree the binary was built from",
+        get: |s| Value::Str(s.scene.clone()),
+        put: |s, v| {
+            s.scene = text(v);
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "frame_id",
+        kind: Kind::String,
+        runtime: true,
+        description: "frame of everything published; messages in another frame are refused \
+                      (no TF); not empty",
+        get: |s| Value::Str(s.frame_id.clone()),
+        put: |s, v| {
+            let f = text(v);
+            if f.is_empty() {
+                bail!("must not be empty");
+            }
+            s.frame_id = f;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "publish_rate",
+        kind: Kind::Double,
+        runtime: true,
+        description: "Hz of simulated time; > 0",
+        get: |s| Value::Double(s.publish_rate),
+        put: |s, v| {
+            s.publish_rate = nonneg(v, true, "must be > 0 Hz")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "real_time_factor",
+        kind: Kind::Double,
+        runtime: true,
+        description: "1 paces with the wall clock, 0 runs as fast as it can; ≥ 0",
+        get: |s| Value::Double(s.real_time_factor),
+        put: |s, v| {
+            s.real_time_factor = nonneg(v, false, "must be ≥ 0 (0: as fast as possible)")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "paused",
+        kind: Kind::Bool,
+        runtime: true,
+        description: "pauses the simulation (also `~/set_paused`)",
+        get: |s| Value::Bool(s.paused),
+        put: |s, v| {
+            s.paused = boolean(v);
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "duration",
+        kind: Kind::Double,
+        runtime: false,
+        description: "simulated seconds after which the node exits (0: never)",
+        get: |s| Value::Double(s.duration),
+        put: |s, v| {
+            s.duration = nonneg(v, false, "must be ≥ 0 s (0: run until stopped)")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "dt",
+        kind: Kind::Double,
+        runtime: false,
+        description: "time step override, s (0: the scene's)",
+        get: |s| Value::Double(s.dt),
+        put: |s, v| {
+            s.dt = nonneg(v, false, "must be > 0 s (0: the scene's)")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "spacing",
+        kind: Kind::Double,
+        runtime: false,
+        description: "grid spacing override, m (0: the scene's)",
+        get: |s| Value::Double(s.spacing),
+        put: |s, v| {
+            s.spacing = nonneg(v, false, "must be > 0 m (0: the scene's)")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "solver",
+        kind: Kind::String,
+        runtime: false,
+        description: "linear solver override: `auto`, `pcg` or `cholesky` (empty: the scene's)",
+        get: |s| Value::Str(s.solver.clone()),
+        put: |s, v| {
+            let k = text(v);
+            if !k.is_empty() {
+                k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?;
+            }
+            s.solver = k;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "threads",
+        kind: Kind::Integer,
+        runtime: false,
+        description: "threads of the assembly, the PCG and the contacts, 0 to 64 (0: one per \
+                      core from 500 vertices; they sleep between steps; 1 leaves the other \
+                      cores to the ROS side)",
+        get: |s| Value::Int(s.threads),
+        put: |s, v| {
+            let k = int(v);
+            if !(0..=MAX_THREADS as i64).contains(&k) {
+                bail!("{k}: 0 (one per core) to {MAX_THREADS}");
+            }
+            s.threads = k;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "record_bag",
+        kind: Kind::String,
+        runtime: false,
+        description: "bag directory to record everything published into, at `publish_rate` \
+                      ([bags.md](bags.md)); must not exist (empty: no recording)",
+        get: |s| Value::Str(s.record_bag.clone()),
+        put: |s, v| {
+            s.record_bag = text(v);
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "max_messages_per_step",
+        kind: Kind::Integer,
+        runtime: true,
+        description: "messages applied per topic between two steps; more are dropped, logged \
+                      and counted (`dropped_messages`); ≥ 1",
+        get: |s| Value::Int(s.max_messages_per_step),
+        put: |s, v| {
+            let k = int(v);
+            if k < 1 {
+                bail!("{k}: must be ≥ 1");
+            }
+            s.max_messages_per_step = k;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "max_mesh_triangles",
+        kind: Kind::Integer,
+        runtime: true,
+        description: "largest obstacle mesh accepted, triangles; ≥ 1, at most 2 000 000",
+        get: |s| Value::Int(s.max_mesh_triangles),
+        put: |s, v| {
+            let k = int(v);
+            if k < 1 {
+                bail!("{k}: must be ≥ 1");
+            }
+            s.max_mesh_triangles = k.min(crate::collision::MAX_MESH_TRIANGLES as i64);
+            Ok(())
+        },
+    },
+];
+
+/// The parameter called `name`.
+pub fn parameter(name: &str) -> Option<&'static Parameter> {
+    PARAMETERS.iter().find(|p| p.name == name)
+}
+
+impl Settings {
+    /// Sets one parameter (unknown names and wrong types are errors;
+    /// `use_sim_time` is accepted and ignored: the node's clock is the
+    /// simulation).
+    pub fn set(&mut self, name: &str, v: &Value) -> Result<()> {
+        match parameter(name) {
+            Some(p) => p.set(self, v),
+            None if name == "use_sim_time" => Ok(()),
+            None => {
+                let known: Vec<&str> = PARAMETERS.iter().map(|p| p.name).collect();
+                bail!("unknown parameter {name:?} (known: {})", known.join(", "))
+            }
+        }
+    }
+
+    /// The declarations of every parameter, with this value.
+    pub fn declared(&self) -> Vec<(&'static str, ParameterValue)> {
+        PARAMETERS
+            .iter()
+            .map(|p| (p.name, p.declared(self)))
+            .collect()
+    }
+
+    /// The scene overrides these settings ask for.
+    pub fn overrides(&self) -> Result<Overrides> {
+        Ok(Overrides {
+            spacing: (self.spacing > 0.0).then_some(self.spacing),
+            dt: (self.dt > 0.0).then_some(self.dt),
+            solver: match self.solver.as_str() {
+                "" => None,
+                k => Some(k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?),
+            },
+            threads: (self.threads > 0).then_some(self.threads as usize),
+            ..Default::default()
+        })
+    }
+}
+
+/// Reads `--ros-args`, params files and `-p` into settings (defaults, then
+/// files in order, then `-p`).
+pub fn settings_from_args(ra: &RosArgs, fq_name: &str) -> Result<Settings> {
+    let mut s = Settings::default();
+    for f in &ra.params_files {
+        for (n, v) in args::read_params_file(f, fq_name)? {
+            s.set(&n, &v)
+                .with_context(|| format!("params file {}", f.display()))?;
+        }
+    }
+    for (n, v) in &ra.params {
+        s.set(n, v).context("-p")?;
+    }
+    Ok(s)
+}
+
+/// The value as a params file or `-p` would write it.
+fn shown(v: &Value) -> String {
+    match v {
+        Value::Bool(b) => b.to_string(),
+        Value::Int(i) => i.to_string(),
+        Value::Double(d) => format!("{d:?}"),
+        Value::Str(s) if s.is_empty() => "\"\"".into(),
+        Value::Str(s) => s.clone(),
+    }
+}
+
+/// The parameter table of `docs/ros.md` (Markdown), from [`PARAMETERS`] and
+/// the defaults. The default scene is shown by its relative path.
+pub fn markdown_table() -> String {
+    let d = Settings {
+        scene: "config/scenes/table_drape.yaml".into(),
+        ..Settings::default()
+    };
+    let mut t = String::from(
+        "| parameter | type | default | runtime | description |\n|---|---|---|---|---|\n",
+    );
+    for p in PARAMETERS {
+        t.push_str(&format!(
+            "| `{}` | {} | `{}` | {} | {} |\n",
+            p.name,
+            p.kind.name(),
+            shown(&p.get(&d)),
+            if p.runtime { "yes" } else { "no" },
+            p.description
+        ));
+    }
+    t
+}
+
+/// The parameters as `node --help` lists them.
+pub fn help_lines() -> String {
+    let d = Settings::default();
+    PARAMETERS
+        .iter()
+        .map(|p| {
+            format!(
+                "  {:<22} {:<7} {:<8} {}{}\n",
+                p.name,
+                p.kind.name(),
+                shown(&p.get(&d)),
+                if p.runtime { "(runtime) " } else { "" },
+                p.description
+            )
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn docs_table_is_the_parameter_table() {
+        let docs =
+            std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/ros.md"))
+                .expect("docs/ros.md");
+        let begin = "<!-- parameters:begin -->\n";
+        let a = docs.find(begin).expect("parameters:begin marker") + begin.len();
+        let b = docs
+            .find("<!-- parameters:end -->")
+            .expect("parameters:end marker");
+        let want = markdown_table();
+        assert_eq!(
+            &docs[a..b],
+            want,
+            "docs/ros.md's parameter table differs from src/ros/params.rs; it should read:\n{want}"
+        );
+    }
+
+    #[test]
+    fn every_parameter_round_trips_and_refuses_other_types() {
+        let mut s = Settings::default();
+        for p in PARAMETERS {
+            let v = p.get(&s);
+            p.set(&mut s, &v).unwrap();
+            assert_eq!(p.get(&s), v, "{}", p.name);
+            let wrong = match p.kind {
+                Kind::String | Kind::Integer | Kind::Double => Value::Bool(true),
+                Kind::Bool => Value::Str("yes".into()),
+            };
+            let e = format!("{:#}", p.set(&mut s, &wrong).unwrap_err());
+            assert!(e.contains(p.name), "{e}");
+        }
+        assert!(s.set("use_sim_time", &Value::Bool(true)).is_ok());
+        let e = format!("{:#}", s.set("bogus", &Value::Int(1)).unwrap_err());
+        assert!(e.contains("max_mesh_triangles"), "{e}");
+    }
+
+    #[test]
+    fn ranges_are_checked() {
+        let mut s = Settings::default();
+        for (n, v) in [
+            ("publish_rate", Value::Double(0.0)),
+            ("publish_rate", Value::Double(f64::NAN)),
+            ("real_time_factor", Value::Double(-1.0)),
+            ("threads", Value::Int(65)),
+            ("solver", Value::Str("lu".into())),
+            ("frame_id", Value::Str(String::new())),
+            ("max_messages_per_step", Value::Int(0)),
+        ] {
+            assert!(s.set(n, &v).is_err(), "{n} = {v:?}");
+        }
+        assert_eq!(s, Settings::default());
+        s.set("publish_rate", &Value::Int(10)).unwrap();
+        assert_eq!(s.publish_rate, 10.0);
+        s.set("max_mesh_triangles", &Value::Int(i64::MAX)).unwrap();
+        assert_eq!(
+            s.max_mesh_triangles,
+            crate::collision::MAX_MESH_TRIANGLES as i64
+        );
+    }
+}

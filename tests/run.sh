@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# The whole test suite, on a fresh machine as on CI (.ci/run calls this): it
+# installs what the tests check against (the Python packages of
+# tests/requirements.txt), builds the physics core on its own (the
+# garment_core crate must build without ROS, bags, the command line and
+# PNG), then runs every test of the workspace.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+python3 -m pip install --quiet --disable-pip-version-check -r tests/requirements.txt
+cargo build --release -p garment_core
+forbidden=$(cargo tree -p garment_core -e normal --prefix none \
+    | grep -E '^(ros2-client|rustdds|mcap|clap|indicatif|png|serde_yaml|serde_json) ' || true)
+if [ -n "$forbidden" ]; then
+    echo "garment_core must not depend on: $forbidden" >&2
+    exit 1
+fi
+cargo test --release --workspace
