@@ -92,8 +92,9 @@ pub struct Parameter {
     pub runtime: bool,
     pub description: &'static str,
     get: fn(&Settings) -> Value,
-    /// Stores a value already converted to `kind`, after checking its range.
-    put: fn(&mut Settings, Value) -> Result<()>,
+    /// Stores a value already converted to `kind`, or says which rule it
+    /// breaks.
+    put: fn(&mut Settings, Value) -> std::result::Result<(), String>,
 }
 
 impl Parameter {
@@ -115,7 +116,12 @@ impl Parameter {
             (Kind::Double, Value::Int(i)) => Value::Double(*i as f64),
             (k, other) => bail!("parameter {name}: {other:?} is not a {}", k.name()),
         };
-        (self.put)(s, v).with_context(|| format!("parameter {name}"))
+        let shown = match &v {
+            Value::Str(t) => format!("{t:?}"),
+            Value::Double(d) => d.to_string(),
+            other => shown(other),
+        };
+        (self.put)(s, v).map_err(|rule| anyhow::anyhow!("parameter {name} = {shown}: {rule}"))
     }
 
     /// Its declaration for ros2-client.
@@ -157,11 +163,11 @@ fn boolean(v: Value) -> bool {
     }
 }
 
-/// A finite double ≥ 0 (`positive`: > 0).
-fn nonneg(v: Value, positive: bool, rule: &str) -> Result<f64> {
+/// A finite double ≥ 0 (`positive`: > 0), else `rule`.
+fn nonneg(v: Value, positive: bool, rule: &str) -> std::result::Result<f64, String> {
     let d = double(v);
     if !(d.is_finite() && (d > 0.0 || (!positive && d == 0.0))) {
-        bail!("{d}: {rule}");
+        return Err(rule.into());
     }
     Ok(d)
 }
@@ -191,7 +197,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let f = text(v);
             if f.is_empty() {
-                bail!("must not be empty");
+                return Err("must not be empty".into());
             }
             s.frame_id = f;
             Ok(())
@@ -272,7 +278,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let k = text(v);
             if !k.is_empty() {
-                k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?;
+                k.parse::<LinearSolverKind>()?;
             }
             s.solver = k;
             Ok(())
@@ -289,7 +295,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let k = int(v);
             if !(0..=MAX_THREADS as i64).contains(&k) {
-                bail!("{k}: 0 (one per core) to {MAX_THREADS}");
+                return Err(format!("0 (one per core) to {MAX_THREADS}"));
             }
             s.threads = k;
             Ok(())
@@ -317,7 +323,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let k = int(v);
             if k < 1 {
-                bail!("{k}: must be ≥ 1");
+                return Err("must be ≥ 1".into());
             }
             s.max_messages_per_step = k;
             Ok(())
@@ -332,7 +338,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let k = int(v);
             if k < 1 {
-                bail!("{k}: must be ≥ 1");
+                return Err("must be ≥ 1".into());
             }
             s.max_mesh_triangles = k.min(crate::collision::MAX_MESH_TRIANGLES as i64);
             Ok(())
