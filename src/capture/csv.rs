@@ -12,7 +12,8 @@ fn csv_err(line: usize, message: impl Into<String>) -> CaptureError {
     }
 }
 
-/// Writes a capture in the CSV format described in the [`crate::capture`] documentation.
+/// Writes a capture in the CSV format described in the [`crate::capture`]
+/// documentation.
 pub fn write_capture_csv(path: &Path, cap: &Capture) -> Result<(), CaptureError> {
     let text = capture_to_csv(cap)?;
     std::fs::write(path, text).map_err(|e| io_err(path, e))
@@ -54,7 +55,8 @@ pub fn capture_to_csv(cap: &Capture) -> Result<String, CaptureError> {
     Ok(s)
 }
 
-/// Reads a capture from the CSV format described in the [`crate::capture`] documentation.
+/// Reads a capture from the CSV format described in the [`crate::capture`]
+/// documentation.
 pub fn read_capture_csv(path: &Path) -> Result<Capture, CaptureError> {
     let text = std::fs::read_to_string(path).map_err(|e| io_err(path, e))?;
     parse_capture_csv(&text).map_err(|e| e.with_path(path))

@@ -179,7 +179,7 @@ mod tests {
         };
         let back = parse_c3d(&encode(&cap, Processor::Intel, None, "mm")).unwrap();
         assert_close(&back, &cap, 6e-8, 1e-12);
-        // 700 such labels no longer fit in 255 parameter blocks: an error, not a bad file.
+        // 700 such labels do not fit in 255 parameter blocks: an error, not a bad file.
         let mut big = cap.clone();
         big.labels.extend((n..700).map(|m| format!("{m:0>200}")));
         big.frames[0].resize(700, None);

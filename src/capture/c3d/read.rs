@@ -330,7 +330,8 @@ pub fn read_c3d(path: &Path) -> Result<Capture, CaptureError> {
     parse_c3d(&bytes).map_err(|e| e.with_path(path))
 }
 
-/// Parses the bytes of a C3D file; see the [`crate::capture`] documentation for what is supported.
+/// Parses the bytes of a C3D file; see the [`crate::capture`] documentation for what is
+/// supported.
 pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
     if bytes.len() < BLOCK {
         return Err(c3d_err(
