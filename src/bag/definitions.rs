@@ -1,8 +1,9 @@
 //! The ROS 2 Jazzy message definitions (`.msg` text) of every type a bag
 //! holds, and the concatenated `ros2msg` schema text of a type with its
-//! dependencies, as rosbag2 writes it into MCAP schemas: the type's own
-//! definition, then for each dependency (depth first, in order of first use)
-//! a line of 80 `=`, a line `MSG: pkg/msg/Type` and that type's definition.
+//! dependencies, laid out as rosbag2 writes it into MCAP schemas (see
+//! [`schema_text`]): the type's own definition, then for each dependency an
+//! empty line, a line of 80 `=`, a line `MSG: pkg/Type` naming it as the
+//! field that uses it does, and that type's definition.
 //!
 //! The texts are those of ros2/common_interfaces, rcl_interfaces and
 //! ros2/geometry2 on Jazzy with comments left out (constants kept); they are
@@ -108,8 +109,19 @@ const PRIMITIVES: &[&str] = &[
     "uint32", "int64", "uint64", "string", "wstring",
 ];
 
-/// The types a definition refers to, as full names, in order of first use.
-/// Relative names (`PointField`) are in the package of `name`.
+/// The full name (`pkg/msg/Type`) of a type named `pkg/Type` or `pkg/msg/Type`.
+pub fn full_name(name: &str) -> Option<String> {
+    match name.split('/').collect::<Vec<_>>().as_slice() {
+        [p, t] => Some(format!("{p}/msg/{t}")),
+        [p, "msg", t] => Some(format!("{p}/msg/{t}")),
+        _ => None,
+    }
+}
+
+/// The types a definition refers to, named as rosbag2 names them: as the
+/// field writes them (`std_msgs/Header`, `foo_msgs/msg/Bar`), a relative name
+/// (`PointField`) prefixed with the package of `name` (`sensor_msgs/PointField`);
+/// each once, in byte order of the names.
 pub fn dependencies_of(name: &str, text: &str) -> Vec<String> {
     let pkg = name.split('/').next().unwrap_or_default();
     let mut out: Vec<String> = Vec::new();
@@ -123,43 +135,48 @@ pub fn dependencies_of(name: &str, text: &str) -> Vec<String> {
         if PRIMITIVES.contains(&base) {
             continue;
         }
-        let full = match base.split('/').collect::<Vec<_>>().as_slice() {
-            [p, t] => format!("{p}/msg/{t}"),
-            [p, m, t] => format!("{p}/{m}/{t}"),
-            [t] => format!("{pkg}/msg/{t}"),
-            _ => continue,
+        let dep = if base.contains('/') {
+            base.to_string()
+        } else {
+            format!("{pkg}/{base}")
         };
-        if !out.contains(&full) {
-            out.push(full);
+        if !out.contains(&dep) {
+            out.push(dep);
         }
     }
+    out.sort();
     out
 }
 
-/// The full `ros2msg` schema text of `name`: its definition and, depth first,
-/// every dependency's, each after a line of 80 `=` and `MSG: pkg/msg/Type`.
-/// `None` if the type or one of its dependencies is unknown.
+/// The full `ros2msg` schema text of `name` (`pkg/msg/Type`) as rosbag2's
+/// `ros2 bag record` writes it (rosbag2_cpp's LocalMessageDefinitionSource):
+/// the type's definition, then for each dependency not written yet, in the
+/// order of [`dependencies_of`] and depth first, an empty line, a line of 80
+/// `=`, a line `MSG: ` with the dependency's name as its field writes it
+/// (`MSG: std_msgs/Header`, `MSG: sensor_msgs/PointField`) and that type's
+/// definition. Foxglove's `@foxglove/rosmsg` matches these names exactly
+/// against the field types. `None` if the type or one of its dependencies is
+/// unknown.
 pub fn schema_text(name: &str) -> Option<String> {
-    let mut order: Vec<String> = Vec::new();
-    fn visit(n: &str, order: &mut Vec<String>) -> Option<()> {
-        let text = definition(n)?;
-        for d in dependencies_of(n, text) {
-            if !order.contains(&d) {
-                order.push(d.clone());
-                visit(&d, order)?;
+    fn append(name: &str, seen: &mut Vec<String>, text: &mut String) -> Option<()> {
+        let def = definition(&full_name(name)?)?;
+        text.push_str(def);
+        for dep in dependencies_of(name, def) {
+            if seen.contains(&dep) {
+                continue;
             }
+            seen.push(dep.clone());
+            text.push('\n');
+            text.push_str(SEPARATOR);
+            text.push_str("\nMSG: ");
+            text.push_str(&dep);
+            text.push('\n');
+            append(&dep, seen, text)?;
         }
         Some(())
     }
-    let mut text = definition(name)?.to_string();
-    visit(name, &mut order)?;
-    for d in order.iter().filter(|d| d.as_str() != name) {
-        text.push_str(SEPARATOR);
-        text.push_str("\nMSG: ");
-        text.push_str(d);
-        text.push('\n');
-        text.push_str(definition(d)?);
-    }
+    let mut text = String::new();
+    append(name, &mut Vec::new(), &mut text)?;
     Some(text)
 }
 
@@ -175,30 +192,116 @@ mod tests {
     }
 
     #[test]
-    fn point_cloud_schema_has_its_dependencies_once() {
-        let s = schema_text("sensor_msgs/msg/PointCloud2").unwrap();
-        assert!(s.starts_with("std_msgs/Header header\n"));
-        for dep in [
-            "std_msgs/msg/Header",
-            "builtin_interfaces/msg/Time",
-            "sensor_msgs/msg/PointField",
-        ] {
-            assert_eq!(s.matches(&format!("MSG: {dep}\n")).count(), 1, "{dep}\n{s}");
-        }
-        assert_eq!(s.matches(SEPARATOR).count(), 3);
-        // Marker, Header, Time, Pose, Point, Quaternion, Vector3, ColorRGBA,
-        // Duration, CompressedImage, UVCoordinate, MeshFile
-        let m = schema_text("visualization_msgs/msg/MarkerArray").unwrap();
-        assert_eq!(m.matches(SEPARATOR).count(), 12, "{m}");
-        assert!(m.contains("MSG: geometry_msgs/msg/Quaternion\nfloat64 x 0"));
+    fn point_cloud_schema_is_laid_out_as_rosbag2_writes_it() {
+        // rosbag2: dependencies in byte order of their names as the fields
+        // write them, each after an empty line, 80 `=` and `MSG: <name>`
+        let sep = format!("\n{SEPARATOR}\nMSG: ");
+        let expected = [
+            definition("sensor_msgs/msg/PointCloud2").unwrap(),
+            &sep,
+            "sensor_msgs/PointField\n",
+            definition("sensor_msgs/msg/PointField").unwrap(),
+            &sep,
+            "std_msgs/Header\n",
+            "builtin_interfaces/Time stamp\nstring frame_id\n",
+            &sep,
+            "builtin_interfaces/Time\n",
+            "int32 sec\nuint32 nanosec\n",
+        ]
+        .concat();
+        assert_eq!(
+            schema_text("sensor_msgs/msg/PointCloud2").unwrap(),
+            expected
+        );
+        assert!(expected.contains(
+            "bool is_dense\n\n================================================================================\n\
+             MSG: sensor_msgs/PointField\nuint8 INT8    = 1\n"
+        ));
     }
 
     #[test]
-    fn constants_are_not_dependencies() {
+    fn marker_array_schema_has_each_dependency_once_by_its_field_name() {
+        let m = schema_text("visualization_msgs/msg/MarkerArray").unwrap();
+        assert!(m.starts_with("Marker[] markers\n\n"));
+        let names: Vec<&str> = m.lines().filter_map(|l| l.strip_prefix("MSG: ")).collect();
+        // depth first: Pose brings Quaternion, CompressedImage brings Header
+        // and Time; Marker's own std_msgs/Header is then written already
+        assert_eq!(
+            names,
+            [
+                "visualization_msgs/Marker",
+                "builtin_interfaces/Duration",
+                "geometry_msgs/Point",
+                "geometry_msgs/Pose",
+                "geometry_msgs/Quaternion",
+                "geometry_msgs/Vector3",
+                "sensor_msgs/CompressedImage",
+                "std_msgs/Header",
+                "builtin_interfaces/Time",
+                "std_msgs/ColorRGBA",
+                "visualization_msgs/MeshFile",
+                "visualization_msgs/UVCoordinate",
+            ]
+        );
+        assert_eq!(m.matches(SEPARATOR).count(), names.len(), "{m}");
+        assert!(m.contains("MSG: geometry_msgs/Quaternion\nfloat64 x 0"));
+        assert!(!m.contains("/msg/"), "{m}");
+    }
+
+    #[test]
+    fn dependencies_are_named_as_the_fields_write_them() {
         let d = dependencies_of(
             "diagnostic_msgs/msg/DiagnosticStatus",
             definition("diagnostic_msgs/msg/DiagnosticStatus").unwrap(),
         );
-        assert_eq!(d, vec!["diagnostic_msgs/msg/KeyValue".to_string()]);
+        // constants are not dependencies; a relative name takes the package
+        assert_eq!(d, vec!["diagnostic_msgs/KeyValue".to_string()]);
+        // a name with `msg/` keeps it; comments are not fields
+        let d = dependencies_of(
+            "foo_msgs/msg/Bar",
+            "# std_msgs/Header h\nfoo_msgs/msg/Baz[<=3] a # Qux q\nQux[] b\nstring<=5 s\n",
+        );
+        assert_eq!(
+            d,
+            vec!["foo_msgs/Qux".to_string(), "foo_msgs/msg/Baz".to_string()]
+        );
+        // the node's own messages, with their comments
+        let d = dependencies_of(
+            "garment_sim_msgs/msg/Obstacle",
+            include_str!("../../msg/garment_sim_msgs/msg/Obstacle.msg"),
+        );
+        assert_eq!(
+            d,
+            [
+                "geometry_msgs/Pose",
+                "geometry_msgs/Twist",
+                "shape_msgs/Mesh",
+                "shape_msgs/SolidPrimitive",
+                "std_msgs/Header",
+            ]
+        );
+        let d = dependencies_of(
+            "garment_sim_msgs/msg/Pin",
+            include_str!("../../msg/garment_sim_msgs/msg/Pin.msg"),
+        );
+        assert_eq!(
+            d,
+            [
+                "geometry_msgs/Point",
+                "geometry_msgs/Vector3",
+                "std_msgs/Header"
+            ]
+        );
+    }
+
+    #[test]
+    fn full_names() {
+        assert_eq!(full_name("std_msgs/Header").unwrap(), "std_msgs/msg/Header");
+        assert_eq!(
+            full_name("std_msgs/msg/Header").unwrap(),
+            "std_msgs/msg/Header"
+        );
+        assert_eq!(full_name("Header"), None);
+        assert_eq!(full_name("std_srvs/srv/Trigger"), None);
     }
 }
