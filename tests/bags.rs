@@ -8,8 +8,7 @@
 //! runs in a network namespace made for the test (`unshare -rn`, loopback
 //! only) because the node starts DDS.
 
-mod common;
-mod scratch;
+mod support;
 
 use garment_sim::ros::publish::FrameClock;
 use garment_sim::scene::{Overrides, Scene};
@@ -65,11 +64,11 @@ fn write_expected(path: &Path) {
 
 #[test]
 fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
-    let dir = scratch::Scratch::new("bags");
+    let dir = support::Scratch::new("bags");
     let expected = dir.join("expected.json");
     write_expected(&expected);
-    let bin = std::ffi::OsString::from(env!("CARGO_BIN_EXE_garment_sim"));
-    common::pytest(
+    let bin = std::ffi::OsString::from(support::garment_sim_path());
+    support::pytest(
         "tests/bag_interop.py",
         "rosbags, mcap, mcap_ros2, numpy, yaml, pytest",
         true,

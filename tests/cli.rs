@@ -1,16 +1,16 @@
 //! The command line a newcomer runs: outputs exist and say what they should.
 
-mod scratch;
+mod support;
 use std::process::Command;
 
-fn tmp(name: &str) -> scratch::Scratch {
-    scratch::Scratch::new(&format!("cli_{name}"))
+fn tmp(name: &str) -> support::Scratch {
+    support::Scratch::new(&format!("cli_{name}"))
 }
 
 #[test]
 fn drape_writes_ply_energy_and_summary() {
     let out = tmp("drape");
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args([
             "drape",
             "config/scenes/free_fall.yaml",
@@ -77,7 +77,7 @@ fn a_bad_scene_is_a_clear_error_not_a_panic() {
         "cloth: { fabric: x.yaml, size: [1, 1], spacing: 0.1 }\ndt: 0.001\n",
     )
     .unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args(["drape"])
         .arg(&p)
         .output()
@@ -135,7 +135,7 @@ fn node_start_up_errors_name_what_is_wrong() {
         ),
     ];
     for (args, expect) in cases {
-        let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        let o = support::garment_sim()
             .arg("node")
             .arg("--ros-args")
             .args(&args)
@@ -146,7 +146,7 @@ fn node_start_up_errors_name_what_is_wrong() {
         assert!(err.contains(expect), "{args:?}: {err}");
     }
     // and `drape` refuses a thread count beyond the limit, naming it
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args(["drape", "config/scenes/free_fall.yaml", "--threads", "65"])
         .arg("--out")
         .arg(dir.join("threads"))
@@ -164,7 +164,7 @@ fn node_start_up_errors_name_what_is_wrong() {
 /// real-time factor (dt / time per step) and the peak memory.
 #[test]
 fn bench_reports_time_per_step_and_its_phases() {
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args([
             "bench",
             "--spacing",

@@ -3,7 +3,7 @@
 //! clear errors for bad scene files.
 #![allow(clippy::needless_range_loop)]
 
-mod scratch;
+mod support;
 use garment_sim::cloth::{Cloth, GridSpec};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::fabric::Fabric;
@@ -359,7 +359,7 @@ fn contacts_come_to_rest_on_the_table() {
 }
 
 fn scene_error(yaml: &str) -> String {
-    let dir = scratch::Scratch::new("bad_scene");
+    let dir = support::Scratch::new("bad_scene");
     std::fs::copy("tests/data/acrylic_test.yaml", dir.join("fab.yaml")).unwrap();
     let p = dir.join("bad.yaml");
     std::fs::write(&p, yaml).unwrap();
@@ -394,7 +394,7 @@ fn bad_scene_files_name_the_file_and_the_field() {
 
 #[test]
 fn bad_fabric_files_name_the_field() {
-    let dir = scratch::Scratch::new("bad_fabric");
+    let dir = support::Scratch::new("bad_fabric");
     let good = std::fs::read_to_string("tests/data/acrylic_test.yaml").unwrap();
     for (from, to, want) in [
         ("EMT: 5.34", "EMT: -5.34", "warp.tensile.EMT"),
@@ -415,7 +415,7 @@ fn bad_fabric_files_name_the_field() {
 
 #[test]
 fn obj_with_a_face_on_a_missing_vertex_is_rejected() {
-    let dir = scratch::Scratch::new("bad_obj");
+    let dir = support::Scratch::new("bad_obj");
     let p = dir.join("bad.obj");
     std::fs::write(&p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
     let e = format!("{:#}", garment_sim::io::load_obj(&p).unwrap_err());

@@ -1,6 +1,6 @@
 //! Drapemeter (thesis §2.3.2, Chu/Cusick) on a clipped circular grid.
 
-mod scratch;
+mod support;
 use garment_sim::cloth::{Cloth, Outline, REMOVED};
 use garment_sim::fabric::Fabric;
 use garment_sim::lab::drapemeter::{run, DrapeOptions};
@@ -402,8 +402,8 @@ fn clipped_disc_for_the_drapemeter() {
 
 #[test]
 fn drapemeter_command_writes_report_and_top_view() {
-    let out = scratch::Scratch::new("drapemeter");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let out = support::Scratch::new("drapemeter");
+    let o = support::garment_sim()
         .args([
             "drapemeter",
             "config/fabrics/polyester_faille.yaml",
@@ -432,7 +432,7 @@ fn drapemeter_command_writes_report_and_top_view() {
     let png = std::fs::read(out.join("top_view.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     // a bad geometry is an error naming it
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args([
             "drapemeter",
             "config/fabrics/polyester_faille.yaml",

@@ -12,7 +12,7 @@
 //! runs in a network namespace made for the test (`unshare -rn`, loopback
 //! only): no packet leaves it.
 
-mod scratch;
+mod support;
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -37,7 +37,7 @@ const TOPICS: [(&str, &str); 6] = [
 ];
 
 fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_garment_sim")
+    support::garment_sim_path()
 }
 
 fn text(o: &Output) -> String {
@@ -231,7 +231,7 @@ fn end_ns(out: &Path) -> u64 {
 
 #[test]
 fn drape_bags_decode_in_foxglove() {
-    let dir = scratch::Scratch::new("foxglove_drape");
+    let dir = support::Scratch::new("foxglove_drape");
     for compression in ["zstd", "lz4"] {
         let (bag, out) = drape(&dir, &format!("bag_{compression}"), compression);
         let expected = ply_positions(&out.join("final.ply"));
@@ -251,20 +251,16 @@ fn drape_bags_decode_in_foxglove() {
 #[test]
 fn node_bags_decode_in_foxglove() {
     require_decoders();
-    let dir = scratch::Scratch::new("foxglove_node");
+    let dir = support::Scratch::new("foxglove_node");
     let bag = dir.join("node_bag");
     // the node in a network namespace of its own: loopback only, with
     // multicast for DDS discovery
     let node = format!(
-        "ip link set lo up && ip link set lo multicast on && \
-         ip route add 224.0.0.0/4 dev lo && exec \"$0\" node --ros-args \
+        "exec \"$0\" node --ros-args \
          -p scene:={SCENE} -p spacing:={SPACING} -p dt:={DT} -p duration:={DURATION} \
          -p publish_rate:={RATE} -p real_time_factor:=0.0 -p record_bag:=\"$1\""
     );
-    let o = Command::new("unshare")
-        .args(["-rn", "sh", "-c", &node, bin()])
-        .arg(&bag)
-        .env_remove("ROS_DOMAIN_ID")
+    let o = support::in_loopback_namespace(&node, &[bin().as_ref(), bag.as_os_str()])
         .output()
         .expect("unshare (util-linux) and ip (iproute2) are needed");
     assert!(o.status.success(), "node:\n{}", text(&o));

@@ -1,7 +1,7 @@
 //! Damping identification (thesis ch. 5) on a synthetic capture of
 //! `free_fall.yaml` (known α, β), sampled at 120 Hz on the 11 × 11 grid.
 
-mod scratch;
+mod support;
 use garment_sim::lab::identify::{identify, sample_capture, IdentifyOptions};
 use garment_sim::scene::{Overrides, Scene};
 use nalgebra::Vector3;
@@ -153,10 +153,10 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
             .map(|p| vec![p])
             .collect(),
     };
-    let dir = scratch::Scratch::new("identify");
+    let dir = support::Scratch::new("identify");
     write_c3d(&dir.join("fall.c3d"), &cap).unwrap();
     write_c3d(&dir.join("ball.c3d"), &ball).unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let out = support::garment_sim()
         .args(["identify"])
         .arg(dir.join("fall.c3d"))
         .args(["--fabric", "config/fabrics/acrylic.yaml", "--vertical"])
@@ -194,7 +194,7 @@ fn identify_command_on_a_tilted_noisy_c3d_with_missing_markers() {
     assert!((f.damping.alpha - alpha).abs() < 1e-12);
     // the vertical given as a direction instead of a ball drop
     let up = tilt * Vector3::z();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let out = support::garment_sim()
         .args(["identify"])
         .arg(dir.join("fall.c3d"))
         .args(["--fabric", "config/fabrics/acrylic.yaml", "--up"])
@@ -261,7 +261,7 @@ fn noise_free_files_give_back_alpha_and_betas() {
             .map(|f| f.iter().map(|p| Some(*p * scale)).collect())
             .collect(),
     };
-    let dir = scratch::Scratch::new("identify_truth");
+    let dir = support::Scratch::new("identify_truth");
     let csv = dir.join("free_fall.csv");
     write_capture_csv(&csv, &cap("m", 1.0)).unwrap();
     let c3d = dir.join("free_fall.c3d");

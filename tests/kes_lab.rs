@@ -2,7 +2,7 @@
 //! summary values through the full solver, the answer does not depend on the
 //! grid, and fabric → virtual curves → fit-kes → fabric is a round trip.
 
-mod scratch;
+mod support;
 use garment_sim::fabric::kes::*;
 use garment_sim::fabric::{Fabric, Family};
 use garment_sim::lab::fit_kes::{curve_set, fit_fabric, FitMeta};
@@ -264,14 +264,14 @@ fn summary_values_of_constructed_curves_are_the_fabrics() {
     assert!((v[3] - 5.36).abs() < 1e-9, "EMT {}", v[3]);
 }
 
-fn tmp(name: &str) -> scratch::Scratch {
-    scratch::Scratch::new(&format!("kes_{name}"))
+fn tmp(name: &str) -> support::Scratch {
+    support::Scratch::new(&format!("kes_{name}"))
 }
 
 #[test]
 fn kes_command_writes_curve_plot_and_report() {
     let out = tmp("cli");
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args([
             "kes",
             "config/fabrics/wool_tropical.yaml",
@@ -313,7 +313,7 @@ fn kes_command_writes_curve_plot_and_report() {
         "direction,test,x,y,branch\nwarp,tensile,0,0,load\nwarp,tensile,1,x,load\n",
     )
     .unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+    let o = support::garment_sim()
         .args(["fit-kes"])
         .arg(&bad)
         .args(["--areal-mass", "20", "--out"])

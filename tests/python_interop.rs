@@ -4,10 +4,10 @@
 //! from tests/requirements.txt, which .ci/run installs; without them these
 //! tests fail and say what to install (they never pass silently).
 
-mod common;
+mod support;
 
 fn pytest(file: &str, modules: &str, expect: &str) {
-    common::pytest(file, modules, false, &[], expect);
+    support::pytest(file, modules, false, &[], expect);
 }
 
 #[test]

@@ -3,8 +3,7 @@
 //! simulation (cloud, cloth and obstacle markers, diagnostics) and the
 //! garment_sim_msgs types from msg/.
 
-mod common;
-mod scratch;
+mod support;
 
 use garment_sim::ros::msgs::*;
 use garment_sim::ros::publish;
@@ -43,7 +42,7 @@ fn messages_match_rosbags_byte_for_byte() {
         sim.step().unwrap();
     }
     let h = publish::header(&sim, "world");
-    let dir = scratch::Scratch::new("msgs");
+    let dir = support::Scratch::new("msgs");
 
     let cloud = publish::cloud(&sim, h.clone());
     assert_eq!(cloud.width as usize, sim.cloth.len());
@@ -235,7 +234,7 @@ fn messages_match_rosbags_byte_for_byte() {
         },
     );
 
-    common::pytest(
+    support::pytest(
         "tests/ros_msgs.py",
         "rosbags, numpy, pytest",
         false,

@@ -4,12 +4,11 @@
 //! parameter services. Everything runs in a network namespace made for the
 //! test (`unshare -rn`: only a loopback interface), so no packet leaves it.
 
-mod common;
-mod scratch;
+mod support;
 
 #[test]
 fn node_interoperates_with_cyclone_dds() {
-    let dir = scratch::Scratch::new("ros_node");
+    let dir = support::Scratch::new("ros_node");
     let cfg = dir.join("cyclonedds.xml");
     std::fs::write(
         &cfg,
@@ -19,8 +18,8 @@ fn node_interoperates_with_cyclone_dds() {
     )
     .unwrap();
     let uri = std::ffi::OsString::from(format!("file://{}", cfg.display()));
-    let bin = std::ffi::OsString::from(env!("CARGO_BIN_EXE_garment_sim"));
-    common::pytest(
+    let bin = std::ffi::OsString::from(support::garment_sim_path());
+    support::pytest(
         "tests/ros_interop.py",
         "cyclonedds, numpy, pytest",
         true,

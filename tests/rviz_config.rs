@@ -7,7 +7,8 @@
 use garment_sim::bag::Qos;
 use garment_sim::ros::args::RosArgs;
 use garment_sim::ros::msgs::{Marker, MarkerArray, PointCloud2, RosType};
-use garment_sim::ros::node::{Names, Settings};
+use garment_sim::ros::node::Names;
+use garment_sim::ros::params::Settings;
 use garment_sim::ros::publish;
 use garment_sim::scene::{Overrides, Scene};
 use serde_yaml::Value;

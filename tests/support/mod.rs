@@ -1,0 +1,123 @@
+//! What the integration tests share: the binary under test
+//! ([`garment_sim`]), a scratch directory per test ([`Scratch`]), running a
+//! command inside a network namespace made for it ([`in_loopback_namespace`]:
+//! only a loopback interface, with multicast for DDS discovery, so that no
+//! packet leaves it), and the Python interoperability tests ([`pytest`],
+//! failing with what to install, never passing silently).
+#![allow(dead_code)] // each test file uses part of it
+
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The `garment_sim` binary under test, as a command to add arguments to.
+pub fn garment_sim() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+}
+
+/// The binary's path.
+pub fn garment_sim_path() -> &'static str {
+    env!("CARGO_BIN_EXE_garment_sim")
+}
+
+/// Runs `script` with `sh -c` (with `args` as `$0`, `$1`, …) in a network
+/// namespace made for it (`unshare -rn`) whose loopback interface is up and
+/// routes multicast, without `ROS_DOMAIN_ID`.
+pub fn in_loopback_namespace(script: &str, args: &[&OsStr]) -> Command {
+    let mut c = Command::new("unshare");
+    c.args(["-rn", "sh", "-c"])
+        .arg(format!(
+            "ip link set lo up && ip link set lo multicast on && \
+             ip route add 224.0.0.0/4 dev lo && {script}"
+        ))
+        .args(args)
+        .env_remove("ROS_DOMAIN_ID");
+    c
+}
+
+/// A test's scratch directory under the system's temporary directory:
+/// created empty, removed when the test passes, kept (and its path printed)
+/// when it fails, for a look at what the test wrote.
+pub struct Scratch(PathBuf);
+
+impl Scratch {
+    /// `garment_sim_NAME_PID`, emptied and created.
+    pub fn new(name: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("garment_sim_{name}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d)
+            .unwrap_or_else(|e| panic!("cannot create {}: {e}", d.display()));
+        Scratch(d)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for Scratch {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("test output kept in {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// Fails unless `python3 -c "import MODULES"` works.
+pub fn require_python(modules: &str) {
+    let probe = Command::new("python3")
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .expect("python3 is needed for the interoperability tests");
+    assert!(
+        probe.status.success(),
+        "needs Python packages ({modules}): python3 -m pip install -r tests/requirements.txt\n{}",
+        String::from_utf8_lossy(&probe.stderr)
+    );
+}
+
+/// Runs `python3 -m pytest FILE` (in a loopback-only network namespace if
+/// `netns`) with `envs`, prints its output and asserts that it passed with
+/// `expect` (e.g. "5 passed") in its output and nothing skipped.
+pub fn pytest(file: &str, modules: &str, netns: bool, envs: &[(&str, &OsStr)], expect: &str) {
+    require_python(modules);
+    let mut cmd = if netns {
+        in_loopback_namespace(&format!("exec python3 -m pytest -q -s -rs {file}"), &[])
+    } else {
+        let mut c = Command::new("python3");
+        c.args(["-m", "pytest", "-q", "-s", "-rs", file]);
+        c
+    };
+    for (k, v) in envs {
+        cmd.env(k, v);
+    }
+    let out = cmd
+        .env_remove("ROS_DOMAIN_ID")
+        .output()
+        .expect("python3 (and for network tests unshare and ip) are needed");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains(expect) && !text.contains("skipped"), "{text}");
+}
