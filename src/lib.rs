@@ -7,7 +7,7 @@
 //! which [`collision`] constrains; [`scene`] builds it all from YAML;
 //! [`run`] writes shapes, curves and summaries; [`capture`] reads and
 //! writes motion captures (C3D, CSV), [`lab`] runs the thesis experiments
-//! and [`plot`] draws their curves as PNG.
+//! and [`plot`] draws their curves as PNG; [`live`] shows a run in Foxglove.
 
 pub mod bag;
 pub mod capture;
@@ -15,6 +15,7 @@ pub mod cloth;
 pub mod collision;
 pub mod fabric;
 pub mod lab;
+pub mod live;
 pub mod plot;
 pub mod ros;
 pub mod run;

@@ -2,7 +2,10 @@
 //! holds, and the concatenated `ros2msg` schema text of a type with its
 //! dependencies, as rosbag2 writes it into MCAP schemas: the type's own
 //! definition, then for each dependency (depth first, in order of first use)
-//! a line of 80 `=`, a line `MSG: pkg/msg/Type` and that type's definition.
+//! a line of 80 `=`, a line `MSG: pkg/Type` and that type's definition. The
+//! dependency is named as the fields name it (`std_msgs/Header`, without
+//! `msg/`), as rosbag2's definition source does; Foxglove's `ros2msg` parser
+//! (`@foxglove/rosmsg`) resolves a field's type by that exact name.
 //!
 //! The texts are those of ros2/common_interfaces, rcl_interfaces and
 //! ros2/geometry2 on Jazzy with comments left out (constants kept); they are
@@ -137,7 +140,7 @@ pub fn dependencies_of(name: &str, text: &str) -> Vec<String> {
 }
 
 /// The full `ros2msg` schema text of `name`: its definition and, depth first,
-/// every dependency's, each after a line of 80 `=` and `MSG: pkg/msg/Type`.
+/// every dependency's, each after a line of 80 `=` and `MSG: pkg/Type`.
 /// `None` if the type or one of its dependencies is unknown.
 pub fn schema_text(name: &str) -> Option<String> {
     let mut order: Vec<String> = Vec::new();
@@ -156,7 +159,7 @@ pub fn schema_text(name: &str) -> Option<String> {
     for d in order.iter().filter(|d| d.as_str() != name) {
         text.push_str(SEPARATOR);
         text.push_str("\nMSG: ");
-        text.push_str(d);
+        text.push_str(&d.replacen("/msg/", "/", 1));
         text.push('\n');
         text.push_str(definition(d)?);
     }
@@ -179,9 +182,9 @@ mod tests {
         let s = schema_text("sensor_msgs/msg/PointCloud2").unwrap();
         assert!(s.starts_with("std_msgs/Header header\n"));
         for dep in [
-            "std_msgs/msg/Header",
-            "builtin_interfaces/msg/Time",
-            "sensor_msgs/msg/PointField",
+            "std_msgs/Header",
+            "builtin_interfaces/Time",
+            "sensor_msgs/PointField",
         ] {
             assert_eq!(s.matches(&format!("MSG: {dep}\n")).count(), 1, "{dep}\n{s}");
         }
@@ -190,7 +193,8 @@ mod tests {
         // Duration, CompressedImage, UVCoordinate, MeshFile
         let m = schema_text("visualization_msgs/msg/MarkerArray").unwrap();
         assert_eq!(m.matches(SEPARATOR).count(), 12, "{m}");
-        assert!(m.contains("MSG: geometry_msgs/msg/Quaternion\nfloat64 x 0"));
+        assert!(m.contains("MSG: geometry_msgs/Quaternion\nfloat64 x 0"));
+        assert!(!m.contains("/msg/"), "{m}");
     }
 
     #[test]
