@@ -3,7 +3,9 @@
 //! loopback to every channel the drape advertises and decodes each message
 //! from the advertised `ros2msg` schema with Foxglove's ROS 2 message parser
 //! and CDR reader (`tests/live/client.js`). The cloud of the last frame must
-//! be `final.ply`'s vertices, the mesh its triangles.
+//! be `final.ply`'s vertices, the mesh its triangles. A bag's channels
+//! decode with the same parser and reader, as the Foxglove app reads them
+//! (`tests/live/decode.js`).
 //!
 //! Needs the client's packages: `npm ci --prefix tests/live`.
 
@@ -58,16 +60,22 @@ fn ns(v: &Value) -> u64 {
     v.as_str().unwrap().parse().unwrap()
 }
 
-#[test]
-fn foxglove_client_decodes_the_drape_live() {
+/// `tests/live`, failing unless its Node packages are installed.
+fn live_dir() -> std::path::PathBuf {
     let live_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/live");
     assert!(
         live_dir.join("node_modules/@foxglove/ws-protocol").is_dir()
             && live_dir
                 .join("node_modules/@foxglove/rosmsg2-serialization")
                 .is_dir(),
-        "the live view test needs its Node packages: npm ci --prefix tests/live"
+        "the live view tests need their Node packages: npm ci --prefix tests/live"
     );
+    live_dir
+}
+
+#[test]
+fn foxglove_client_decodes_the_drape_live() {
+    let live_dir = live_dir();
     let out = scratch::Scratch::new("live_view");
     // port 0: the system picks a free port on loopback; the drape prints its URL
     let mut drape = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
@@ -346,4 +354,119 @@ fn foxglove_client_decodes_the_drape_live() {
     assert_eq!(d["values"]["sim_time_s"], "0.500000");
     assert_eq!(d["values"]["obstacles"], "1");
     assert_eq!(d["values"]["steps"], summary["steps"].to_string());
+}
+
+#[test]
+fn bag_channels_decode_as_foxglove_reads_them() {
+    let live_dir = live_dir();
+    let out = scratch::Scratch::new("live_bag");
+    let bag = out.join("bag");
+    let o = Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+        .args([
+            "drape",
+            "config/scenes/table_drape.yaml",
+            "--spacing",
+            "0.05",
+            "--duration",
+            "0.1",
+            "--bag",
+        ])
+        .arg(&bag)
+        .arg("--out")
+        .arg(&*out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // the last message of each channel, with its schema, read by the mcap crate
+    let file = bag.join("bag_0.mcap");
+    let bytes = std::fs::read(&file).unwrap();
+    let mut last: std::collections::BTreeMap<String, (Value, u64)> = Default::default();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let sc = m
+            .channel
+            .schema
+            .as_ref()
+            .expect("every channel has a schema");
+        assert_eq!(
+            (sc.encoding.as_str(), m.channel.message_encoding.as_str()),
+            ("ros2msg", "cdr")
+        );
+        let entry = serde_json::json!({
+            "topic": m.channel.topic,
+            "schema_name": sc.name,
+            "schema": String::from_utf8(sc.data.to_vec()).unwrap(),
+            "data": m.data.to_vec(),
+        });
+        last.insert(m.channel.topic.clone(), (entry, m.log_time));
+    }
+    assert_eq!(last.len(), 6, "{:?}", last.keys());
+    let input = out.join("channels.json");
+    let list: Vec<&Value> = last.values().map(|(v, _)| v).collect();
+    std::fs::write(&input, serde_json::to_vec(&list).unwrap()).unwrap();
+    let d = Command::new("node")
+        .arg(live_dir.join("decode.js"))
+        .arg(&input)
+        .output()
+        .expect("node (20 or later) is needed for the live view tests");
+    assert!(d.status.success(), "{}", String::from_utf8_lossy(&d.stderr));
+    let decoded: Vec<Value> = serde_json::from_slice(&d.stdout).unwrap();
+    let by_topic: std::collections::BTreeMap<&str, &Value> = decoded
+        .iter()
+        .map(|v| (v["topic"].as_str().unwrap(), v))
+        .collect();
+    for (topic, v) in &by_topic {
+        assert!(v.get("error").is_none(), "{topic}: {}", v["error"]);
+        assert_eq!(v["trailing_bytes"], false, "{topic}");
+    }
+    let msg = |t: &str| &by_topic[t]["message"];
+    let stamp =
+        |h: &Value| h["sec"].as_u64().unwrap() * 1_000_000_000 + h["nanosec"].as_u64().unwrap();
+    // stamps: the simulated time, = log time
+    for t in ["/cloth/points", "/cloth/mesh", "/diagnostics"] {
+        assert_eq!(stamp(&msg(t)["header"]["stamp"]), last[t].1, "{t}");
+        assert_eq!(last[t].1, 100_000_000, "{t}");
+    }
+    assert_eq!(stamp(&msg("/clock")["clock"]), last["/clock"].1);
+    // the last cloud, read by its own field table, is final.ply (float32)
+    let c = msg("/cloth/points");
+    let (verts, faces) = read_ply(&out.join("final.ply"));
+    assert_eq!(c["width"].as_u64(), Some(verts.len() as u64));
+    let step = c["point_step"].as_u64().unwrap() as usize;
+    let data: Vec<u8> = c["data"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b.as_u64().unwrap() as u8)
+        .collect();
+    let offset = |name: &str| {
+        let f = c["fields"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|f| f["name"] == name)
+            .unwrap();
+        assert_eq!(f["datatype"], 7); // FLOAT32
+        f["offset"].as_u64().unwrap() as usize
+    };
+    let offs = [offset("x"), offset("y"), offset("z")];
+    for (i, v) in verts.iter().enumerate() {
+        for k in 0..3 {
+            let at = i * step + offs[k];
+            let x = f32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+            assert_eq!(x, v[k] as f32, "vertex {i}");
+        }
+    }
+    let mk = msg("/cloth/mesh");
+    assert_eq!(mk["points"].as_array().unwrap().len(), 3 * faces.len());
+    let obs = msg("/obstacles/markers")["markers"].as_array().unwrap();
+    assert_eq!((obs.len(), &obs[1]["text"]), (2, &Value::from("board")));
+    assert_eq!(
+        msg("/diagnostics")["status"][0]["name"],
+        "garment_sim: solver"
+    );
+    assert!(msg("/scene_description")["data"]
+        .as_str()
+        .unwrap()
+        .contains("garment_sim/scene_description/1"));
 }
