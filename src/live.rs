@@ -218,6 +218,15 @@ impl LiveView {
         log(&self.clock, t, f.clock);
     }
 
+    /// The simulation restarted from t = 0 (the node's `~/reset`): clients
+    /// are told the session changed, drop the messages they hold and follow
+    /// the new run's time.
+    pub fn restart(&self) {
+        if let Some(s) = &self.server {
+            s.clear_session(None);
+        }
+    }
+
     /// Waits until a client subscribes to a channel, then `settle` more (so
     /// that a viewer's other subscriptions arrive before the first frame).
     /// Gives up after `timeout` (`None`: no limit) or when `stop` is set.
