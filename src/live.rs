@@ -288,7 +288,7 @@ pub struct LiveOptions {
     /// Frames per simulated second (the scene's `output_rate`).
     pub rate_hz: f64,
     /// Simulated seconds per wall-clock second the run is held to (1: real
-    /// time); 0 runs as fast as the solver goes.
+    /// time; at least 0.001); 0 runs as fast as the solver goes.
     pub pace: f64,
     /// Simulated time of the run's end: the state then is always published.
     pub end_time: f64,
@@ -322,8 +322,11 @@ impl<'a> LiveRun<'a> {
                 opts.rate_hz
             );
         }
-        if !(opts.pace.is_finite() && opts.pace >= 0.0) {
-            bail!("pace {}: must be a finite number ≥ 0", opts.pace);
+        if !(opts.pace == 0.0 || (opts.pace.is_finite() && opts.pace >= 1e-3)) {
+            bail!(
+                "pace {}: must be 0 (no pacing) or at least 0.001",
+                opts.pace
+            );
         }
         Ok(LiveRun {
             live,

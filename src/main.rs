@@ -316,8 +316,8 @@ fn start_live_view(
         );
     }
     anyhow::ensure!(
-        args.pace.is_finite() && args.pace >= 0.0,
-        "--pace {}: must be ≥ 0 (0: as fast as possible)",
+        args.pace == 0.0 || (args.pace.is_finite() && args.pace >= 1e-3),
+        "--pace {}: must be 0 (as fast as possible) or at least 0.001",
         args.pace
     );
     let view = garment_sim::live::LiveView::start(addr, "world")?;
