@@ -10,7 +10,8 @@
 //! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
 //! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
 //! experiments and [`plot`] draws their curves as PNG; [`bag`] records
-//! rosbag2 bags and [`ros`] is the ROS 2 node.
+//! rosbag2 bags, [`ros`] is the ROS 2 node and [`live`] shows a run in
+//! Foxglove over its WebSocket protocol.
 
 pub use garment_core::{cloth, collision, fabric, solver};
 
@@ -18,6 +19,7 @@ pub mod bag;
 pub mod capture;
 pub mod io;
 pub mod lab;
+pub mod live;
 pub mod plot;
 pub mod ros;
 pub mod run;

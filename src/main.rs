@@ -64,6 +64,8 @@ enum Cmd {
         threads: Option<usize>,
         #[command(flatten)]
         bag: BagArgs,
+        #[command(flatten)]
+        live: LiveArgs,
     },
     /// Read rosbag2 (MCAP) bags: info, export a cloth shape, repair after a crash.
     Bag {
@@ -151,6 +153,26 @@ struct BagArgs {
     /// Chunk size, bytes (a crash loses at most the chunk being filled).
     #[arg(long, default_value_t = 1 << 20)]
     bag_chunk_size: u64,
+}
+
+/// Showing a drape live in Foxglove.
+#[derive(clap::Args)]
+struct LiveArgs {
+    /// Serve a live view for Foxglove (Open connection → Foxglove WebSocket) on ADDR:PORT
+    /// (without a value 127.0.0.1:8765; a bare PORT is on 127.0.0.1; put it after the scene).
+    /// Waits for a viewer before the first step, paces the run and keeps serving the final
+    /// state while a viewer stays connected (Ctrl-C ends it).
+    #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1,
+          default_missing_value = "127.0.0.1:8765", value_parser = garment_sim::live::parse_addr)]
+    foxglove: Option<std::net::SocketAddr>,
+    /// With --foxglove: simulated seconds per wall-clock second (1: real time; 0: as fast as
+    /// the solver goes).
+    #[arg(long, default_value_t = 1.0, requires = "foxglove")]
+    pace: f64,
+    /// With --foxglove: seconds to wait for a viewer to subscribe before the first step
+    /// (default: until one does; 0: start at once).
+    #[arg(long, value_name = "SECONDS", requires = "foxglove")]
+    foxglove_wait: Option<f64>,
 }
 
 #[derive(Subcommand)]
@@ -280,6 +302,55 @@ fn progress_printer(label: String) -> impl FnMut(f64, f64) {
     }
 }
 
+/// Starts the live view of `drape --foxglove`, tells how to open it and
+/// waits for a viewer as `args` says.
+fn start_live_view(
+    addr: std::net::SocketAddr,
+    args: &LiveArgs,
+) -> Result<garment_sim::live::LiveView> {
+    use std::time::Duration;
+    if let Some(w) = args.foxglove_wait {
+        anyhow::ensure!(
+            w.is_finite() && w >= 0.0,
+            "--foxglove-wait {w}: must be ≥ 0 s"
+        );
+    }
+    anyhow::ensure!(
+        args.pace == 0.0 || (args.pace.is_finite() && args.pace >= 1e-3),
+        "--pace {}: must be 0 (as fast as possible) or at least 0.001",
+        args.pace
+    );
+    let view = garment_sim::live::LiveView::start(addr, "world")?;
+    eprintln!("live view: {}", view.url());
+    eprintln!(
+        "  in Foxglove: Open connection → Foxglove WebSocket → {}, then a 3D panel showing /cloth/mesh (fixed frame: world)",
+        view.url()
+    );
+    eprintln!("  or in a browser: {}", view.app_url());
+    if !view.addr().ip().is_loopback() {
+        eprintln!(
+            "  warning: {} is reachable from the network and has no authentication",
+            view.addr()
+        );
+    }
+    if args.foxglove_wait != Some(0.0) {
+        match args.foxglove_wait {
+            Some(w) => eprintln!("waiting up to {w} s for a viewer to subscribe (Ctrl-C to stop)"),
+            None => eprintln!("waiting for a viewer to subscribe (Ctrl-C to stop)"),
+        }
+        let stop = garment_sim::run::stop_flag()?;
+        let timeout = args.foxglove_wait.map(Duration::from_secs_f64);
+        if view.wait_for_subscriber(timeout, Duration::from_millis(500), &stop) {
+            eprintln!("viewer subscribed: running");
+        } else if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            anyhow::bail!("stopped by a signal before the run started");
+        } else {
+            eprintln!("no viewer subscribed: running anyway");
+        }
+    }
+    Ok(view)
+}
+
 fn real_main(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Node { ros_args } => garment_sim::ros::node::run(&ros_args),
@@ -294,6 +365,7 @@ fn real_main(cli: Cli) -> Result<()> {
             cg_tolerance,
             threads,
             bag,
+            live,
         } => {
             let sc = Scene::load(&scene)?;
             let ov = Overrides {
@@ -305,17 +377,50 @@ fn real_main(cli: Cli) -> Result<()> {
                 cg_tolerance,
                 threads,
             };
+            let view = live
+                .foxglove
+                .map(|a| start_live_view(a, &live))
+                .transpose()?;
+            let stop = match bag.bag.is_some() || view.is_some() {
+                true => Some(garment_sim::run::stop_flag()?),
+                false => None,
+            };
+            let no_stop = std::sync::atomic::AtomicBool::new(false);
+            let stop_ref = stop.as_deref().unwrap_or(&no_stop);
+            let mut live_run = match &view {
+                Some(v) => {
+                    let opts = garment_sim::live::LiveOptions {
+                        rate_hz: sc.file.output_rate,
+                        pace: live.pace,
+                        end_time: sc.duration(&ov),
+                    };
+                    Some(garment_sim::live::LiveRun::new(v, opts, stop_ref)?)
+                }
+                None => None,
+            };
+            let mut also = |s: &garment_sim::solver::Simulation| match live_run.as_mut() {
+                Some(r) => r.observe(s),
+                None => Ok(run::Control::Continue),
+            };
             let mut pr = progress_printer(format!("drape {}", scene.display()));
             let (s, recorded) = match &bag.bag {
-                None => (run::drape(&sc, &ov, &out, &mut pr)?.1, None),
+                None if view.is_none() => (run::drape(&sc, &ov, &out, &mut pr)?.1, None),
+                None => {
+                    let sim = sc.build(&ov)?;
+                    (
+                        run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
+                        None,
+                    )
+                }
                 Some(dir) => {
                     use garment_sim::bag as gb;
                     let mut rec = gb::DrapeBag::new(dir);
                     rec.rate_hz = bag.bag_rate;
                     rec.options.compression = bag.bag_compression;
                     rec.options.chunk_size = bag.bag_chunk_size;
-                    let stop = garment_sim::run::stop_flag()?;
-                    let r = gb::drape_recorded(&sc, &ov, &out, &mut pr, &rec, &stop)?;
+                    let r = gb::drape_recorded_with(
+                        &sc, &ov, &out, &mut pr, &rec, stop_ref, &mut also,
+                    )?;
                     (r.summary.clone(), Some(r))
                 }
             };
@@ -395,6 +500,22 @@ fn real_main(cli: Cli) -> Result<()> {
                         "stopped by a signal at t = {:.4} s; the bag is complete",
                         s.simulated_s
                     );
+                }
+            }
+            if let (Some(v), Some(r)) = (&view, &live_run) {
+                println!(
+                    "live view        {} ({} frames published)",
+                    v.url(),
+                    r.frames
+                );
+                if bag.bag.is_none() && stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+                    eprintln!("stopped by a signal at t = {:.4} s", s.simulated_s);
+                }
+                if v.clients() > 0 && !stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+                    eprintln!(
+                        "live view: the run is over; serving its final state while a viewer is connected (Ctrl-C to end)"
+                    );
+                    v.linger(stop_ref);
                 }
             }
             Ok(())

@@ -95,6 +95,23 @@ pub fn drape_recorded(
     bag: &DrapeBag,
     stop: &AtomicBool,
 ) -> Result<DrapeRecorded> {
+    drape_recorded_with(scene, ov, out, progress, bag, stop, &mut |_| {
+        Ok(Control::Continue)
+    })
+}
+
+/// As [`drape_recorded`], calling `also` (e.g. a live view) after the
+/// recorder before the first step and after each step; the run stops when
+/// either says so.
+pub fn drape_recorded_with(
+    scene: &Scene,
+    ov: &Overrides,
+    out: &Path,
+    progress: Progress,
+    bag: &DrapeBag,
+    stop: &AtomicBool,
+    also: run::Observer,
+) -> Result<DrapeRecorded> {
     let sim = scene.build(ov)?;
     if !(bag.rate_hz.is_finite() && bag.rate_hz > 0.0) {
         bail!("bag rate {} Hz: must be a finite number > 0", bag.rate_hz);
@@ -122,11 +139,12 @@ pub fn drape_recorded(
             last = (Instant::now(), s.steps, s.time);
             last_recorded = Some(s.time);
         }
+        let next = also(s)?;
         if stop.load(Ordering::Relaxed) {
             stopped = true;
             return Ok(Control::Stop);
         }
-        Ok(Control::Continue)
+        Ok(next)
     };
     let (sim, summary) = run::drape_with(scene, ov, sim, out, progress, &mut observer)?;
     let t_rec = Instant::now();
