@@ -1,7 +1,6 @@
 //! The command line a newcomer runs: outputs exist and say what they should.
 
 mod support;
-use std::process::Command;
 
 fn tmp(name: &str) -> support::Scratch {
     support::Scratch::new(&format!("cli_{name}"))

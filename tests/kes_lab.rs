@@ -8,7 +8,6 @@ use garment_sim::fabric::{Fabric, Family};
 use garment_sim::lab::fit_kes::{curve_set, fit_fabric, FitMeta};
 use garment_sim::lab::kes_lab::*;
 use std::path::Path;
-use std::process::Command;
 
 fn shipped() -> Vec<std::path::PathBuf> {
     let mut v: Vec<_> = std::fs::read_dir("config/fabrics")

@@ -59,7 +59,7 @@ fn ns(v: &Value) -> u64 {
     v.as_str().unwrap().parse().unwrap()
 }
 
-/// `tests/live`, failing unless its Node packages are installed.
+/// `tests/foxglove`, failing unless its Node packages are installed.
 fn live_dir() -> std::path::PathBuf {
     let live_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/foxglove");
     assert!(
@@ -353,4 +353,86 @@ fn foxglove_client_decodes_the_drape_live() {
     assert_eq!(d["values"]["sim_time_s"], "0.500000");
     assert_eq!(d["values"]["obstacles"], "1");
     assert_eq!(d["values"]["steps"], summary["steps"].to_string());
+}
+
+/// The node's `foxglove` parameter: Foxglove's client, in the node's own
+/// loopback-only network namespace, sees the node's topics live with the
+/// node's frame, and decodes every message.
+#[test]
+fn foxglove_client_sees_the_node_live() {
+    let dir = live_dir();
+    let out = support::Scratch::new("live_node");
+    let json = out.join("client.json");
+    let log = out.join("node.log");
+    let script = "\"$0\" node --ros-args -p spacing:=0.05 -p real_time_factor:=1.0 \
+                  -p duration:=2.0 -p frame_id:=map -p foxglove:=8765 \
+                  2> \"$3\" & \
+                  for i in $(seq 300); do grep -q 'live view on' \"$3\" 2>/dev/null && break; sleep 0.1; done; \
+                  node \"$1\" ws://127.0.0.1:8765 1.0 30 > \"$2\"; c=$?; wait; exit $c";
+    let client = dir.join("live_client.cjs");
+    let o = support::in_loopback_namespace(
+        script,
+        &[
+            support::garment_sim_path().as_ref(),
+            client.as_os_str(),
+            json.as_os_str(),
+            log.as_os_str(),
+        ],
+    )
+    .output()
+    .expect("unshare (util-linux), ip (iproute2) and node are needed");
+    let node_log = std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(
+        o.status.success(),
+        "client or node failed: {}\n{node_log}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        node_log.contains("Foxglove live view on ws://127.0.0.1:8765"),
+        "{node_log}"
+    );
+    let seen: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let mut topics: Vec<&str> = seen["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["topic"].as_str().unwrap())
+        .collect();
+    topics.sort();
+    assert_eq!(
+        topics,
+        [
+            "/clock",
+            "/cloth/mesh",
+            "/cloth/points",
+            "/diagnostics",
+            "/obstacles/markers"
+        ]
+    );
+    assert_eq!(seen["trailing_bytes"], 0);
+    let clouds = seen["clouds"].as_array().unwrap();
+    assert!(clouds.len() >= 10, "{} clouds", clouds.len());
+    let stamps: Vec<u64> = clouds.iter().map(|c| ns(&c["stamp_ns"])).collect();
+    assert!(stamps.windows(2).all(|w| w[0] < w[1]), "{stamps:?}");
+    for c in clouds {
+        assert_eq!(c["frame_id"], "map");
+        assert_eq!(c["width"].as_u64(), Some(121));
+    }
+    let last: Vec<[f64; 3]> = seen["last_cloud"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(triple)
+        .collect();
+    assert_eq!(last.len(), 121);
+    // the table drape's cloth: 50 cm across, near the board at 0.75 m
+    assert!(last.iter().flatten().all(|c| c.is_finite()));
+    let zs: Vec<f64> = last.iter().map(|p| p[2]).collect();
+    assert!(zs.iter().all(|&z| (0.3..0.9).contains(&z)), "{zs:?}");
+    let xs: Vec<f64> = last.iter().map(|p| p[0]).collect();
+    let span =
+        xs.iter().cloned().fold(f64::MIN, f64::max) - xs.iter().cloned().fold(f64::MAX, f64::min);
+    assert!((0.3..0.55).contains(&span), "x span {span}");
+    assert!(seen["meshes"].as_array().is_some_and(|m| !m.is_empty()));
+    assert!(seen["diagnostics"].is_array());
 }

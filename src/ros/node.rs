@@ -297,6 +297,8 @@ struct Node {
     settings: Settings,
     loaded: Loaded,
     recorder: Option<SimRecorder>,
+    /// The Foxglove live view (parameter `foxglove`).
+    live: Option<crate::live::LiveView>,
     /// Simulated time of the last state recorded in the bag.
     last_recorded: Option<f64>,
     stop: Arc<AtomicBool>,
@@ -350,17 +352,17 @@ impl Node {
         let _ = io.scene_description.publish(msgs::StringMsg {
             data: loaded.description.clone(),
         });
+        let topics = crate::bag::TopicNames {
+            points: names.points.clone(),
+            mesh: names.mesh.clone(),
+            obstacles: names.obstacle_markers.clone(),
+            diagnostics: names.diagnostics.clone(),
+            clock: names.clock.clone(),
+            scene_description: names.scene_description.clone(),
+        };
         let recorder = if settings.record_bag.is_empty() {
             None
         } else {
-            let topics = crate::bag::TopicNames {
-                points: names.points.clone(),
-                mesh: names.mesh.clone(),
-                obstacles: names.obstacle_markers.clone(),
-                diagnostics: names.diagnostics.clone(),
-                clock: names.clock.clone(),
-                scene_description: names.scene_description.clone(),
-            };
             let dir = PathBuf::from(&settings.record_bag);
             let rec = SimRecorder::create(
                 &dir,
@@ -370,6 +372,14 @@ impl Node {
             )
             .with_context(|| format!("parameter record_bag = {:?}", settings.record_bag))?;
             Some(rec)
+        };
+        let live = if settings.foxglove.is_empty() {
+            None
+        } else {
+            let addr = crate::live::parse_addr(&settings.foxglove)?;
+            let view = crate::live::LiveView::start_with(addr, &settings.frame_id, &topics)
+                .with_context(|| format!("parameter foxglove = {:?}", settings.foxglove))?;
+            Some(view)
         };
         let spinner = ros
             .spinner()
@@ -388,6 +398,7 @@ impl Node {
             io,
             fq,
             recorder,
+            live,
             last_recorded: None,
             stop,
             counters: Counters {
@@ -415,6 +426,12 @@ impl Node {
             settings,
             loaded,
         };
+        if let Some(l) = &node.live {
+            node.info(&format!(
+                "Foxglove live view on {} (Foxglove: Open connection → Foxglove WebSocket)",
+                l.url()
+            ));
+        }
         node.info(&format!(
             "node {}: scene {} ({} vertices, dt = {} s), frame {:?}, publishing {} and {} at {} Hz",
             node.fq,
@@ -623,6 +640,9 @@ impl Node {
                 self.frames = publish::FrameClock::new(self.loaded.sim.time);
                 self.pace_origin = (Instant::now(), self.loaded.sim.time);
                 self.pending_steps = 0;
+                if let Some(l) = &self.live {
+                    l.restart();
+                }
                 if let Some(rec) = self.recorder.as_mut() {
                     // frames of the new run follow the old ones in the bag
                     let gap = (1e9 / self.settings.publish_rate) as u64;
@@ -738,25 +758,26 @@ impl Node {
         // the bag gets what is published, once per simulated state (not
         // the repeats published while paused) unless an obstacle changed
         let new_state = self.last_recorded != Some(sim.time) || self.publish_now;
+        let frame = crate::bag::Frame {
+            cloud: &cloud,
+            mesh: &mesh,
+            obstacles: &obstacles,
+            diagnostics: &diag,
+            clock: &clock,
+        };
+        if let Some(l) = &self.live {
+            l.publish_frame(&frame);
+        }
         let failed = self
             .recorder
             .as_mut()
             .filter(|_| new_state)
-            .and_then(|rec| {
-                let frame = crate::bag::Frame {
-                    cloud: &cloud,
-                    mesh: &mesh,
-                    obstacles: &obstacles,
-                    diagnostics: &diag,
-                    clock: &clock,
-                };
-                match rec.record_frame(&frame) {
-                    Ok(()) => {
-                        self.last_recorded = Some(sim.time);
-                        None
-                    }
-                    Err(e) => Some(e),
+            .and_then(|rec| match rec.record_frame(&frame) {
+                Ok(()) => {
+                    self.last_recorded = Some(sim.time);
+                    None
                 }
+                Err(e) => Some(e),
             });
         if let Some(e) = failed {
             let bag = &self.settings.record_bag;

@@ -25,6 +25,7 @@ pub struct Settings {
     pub solver: String,
     pub threads: i64,
     pub record_bag: String,
+    pub foxglove: String,
     pub max_messages_per_step: i64,
     pub max_mesh_triangles: i64,
 }
@@ -43,6 +44,7 @@ impl Default for Settings {
             solver: String::new(),
             threads: 0,
             record_bag: String::new(),
+            foxglove: String::new(),
             max_messages_per_step: 100,
             max_mesh_triangles: 200_000,
         }
@@ -104,7 +106,7 @@ impl Parameter {
     }
 
     /// Sets it in `s` from a value of any type that converts to its own (an
-    /// integer where a double is expected); wrong types and out-of-range
+    /// integer where a double or a string is expected); wrong types and out-of-range
     /// values are errors that name the parameter.
     pub fn set(&self, s: &mut Settings, v: &Value) -> Result<()> {
         let name = self.name;
@@ -114,6 +116,8 @@ impl Parameter {
             | (Kind::Double, Value::Double(_))
             | (Kind::String, Value::Str(_)) => v.clone(),
             (Kind::Double, Value::Int(i)) => Value::Double(*i as f64),
+            // `-p foxglove:=8765` reads as a YAML integer
+            (Kind::String, Value::Int(i)) => Value::Str(i.to_string()),
             (k, other) => bail!("parameter {name}: {other:?} is not a {}", k.name()),
         };
         let shown = match &v {
@@ -310,6 +314,23 @@ pub const PARAMETERS: &[Parameter] = &[
         get: |s| Value::Str(s.record_bag.clone()),
         put: |s, v| {
             s.record_bag = text(v);
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "foxglove",
+        kind: Kind::String,
+        runtime: false,
+        description: "serves what the node publishes to Foxglove over its WebSocket protocol \
+                      on `ADDR:PORT`, or `PORT` on 127.0.0.1 (empty: no live view; \
+                      [drape.md](drape.md#live-view-in-foxglove))",
+        get: |s| Value::Str(s.foxglove.clone()),
+        put: |s, v| {
+            let a = text(v);
+            if !a.is_empty() {
+                crate::live::parse_addr(&a).map_err(|e| e.to_string())?;
+            }
+            s.foxglove = a;
             Ok(())
         },
     },
