@@ -7,7 +7,8 @@
 //! which [`collision`] constrains; [`scene`] builds it all from YAML;
 //! [`run`] writes shapes, curves and summaries; [`capture`] reads and
 //! writes motion captures (C3D, CSV), [`lab`] runs the thesis experiments
-//! and [`plot`] draws their curves as PNG.
+//! and [`plot`] draws their curves as PNG; [`render`] draws pictures of a
+//! drape.
 
 pub mod bag;
 pub mod capture;
@@ -16,6 +17,7 @@ pub mod collision;
 pub mod fabric;
 pub mod lab;
 pub mod plot;
+pub mod render;
 pub mod ros;
 pub mod run;
 pub mod scene;
