@@ -1138,6 +1138,42 @@ mod tests {
     }
 
     #[test]
+    fn a_floor_far_larger_than_the_cloth_does_not_shrink_it() {
+        let cloth = Surface {
+            vertices: vec![[0.0, 0.0, 0.1], [0.5, 0.0, 0.1], [0.0, 0.5, 0.1]],
+            triangles: vec![[0, 1, 2]],
+        };
+        let floor = Obstacle::new(
+            "floor",
+            crate::collision::ShapeSpec::Box {
+                size: [10.0, 10.0, 0.1],
+            },
+            nalgebra::Isometry3::translation(0.0, 0.0, -0.05),
+            0.0,
+            0.0,
+            Path::new("."),
+        )
+        .unwrap();
+        let mut p = Picture::new("t", cloth);
+        p.obstacles = vec![Surface::from_obstacle(&floor)];
+        let v = p.views();
+        let Projection::Orthographic { px_per_m } = v.top.camera.projection else {
+            panic!("top view is orthographic")
+        };
+        // framed on the cloth grown on each side by a quarter of its
+        // bounding box's diagonal (the flat cloth: 0.5 √2 m)
+        let size = 0.5 * 2f64.sqrt();
+        let framed = 0.5 + 2.0 * 0.25 * size;
+        let width = (v.top.rect.w - 32 - LEGEND_W) as f64;
+        assert!((px_per_m - width / framed).abs() < 1e-9, "{px_per_m}");
+        // the floor is drawn beside the cloth
+        let img = p.render();
+        let c = v.top.camera.project([0.4, 0.4, 0.0]).unwrap();
+        let px = img.get(v.top.rect.x + c[0] as usize, v.top.rect.y + c[1] as usize);
+        assert!(px[0] == px[1] && px[0] < 250, "{px:?}");
+    }
+
+    #[test]
     fn triangle_lists_merge_equal_points() {
         let s = Surface::from_triangle_list(&[
             [0.0, 0.0, 0.0],
