@@ -8,7 +8,8 @@
 //! one colour (its underside a lighter shade), the obstacles grey; the top
 //! view colours the cloth by strain, with a legend, when strains are given.
 //! Labels give the scene, the grid and the time; the orthographic views
-//! carry a scale bar in centimetres.
+//! carry a scale bar in centimetres. Obstacles far larger than the cloth
+//! (a floor) are framed only near the cloth.
 //!
 //! Conventions: world z is up; the front view looks along +y (x to the
 //! right, z up); the top view looks down −z (x to the right, y up).
@@ -296,7 +297,8 @@ pub const CLOTH: Rgb = [70, 135, 210];
 pub const CLOTH_BACK: Rgb = [150, 185, 225];
 /// The obstacle colour.
 pub const OBSTACLE: Rgb = [170, 170, 166];
-/// Strain at which the legend of the top view starts and its colour map.
+/// The strain colour map (stops of viridis), from zero strain to the
+/// legend's full scale.
 const STRAIN_MAP: [Rgb; 5] = [
     [68, 1, 84],
     [59, 82, 139],
@@ -322,7 +324,7 @@ pub struct Picture {
     /// Per-vertex strain of the cloth (l/l0 − 1); colours the top view.
     pub strain: Option<Vec<f64>>,
     pub obstacles: Vec<Surface>,
-    /// Width and height, pixels.
+    /// Width and height, pixels (at least 300 × 200 are drawn).
     pub size: (usize, usize),
 }
 
@@ -394,9 +396,14 @@ impl Picture {
         pts
     }
 
+    /// Width and height drawn.
+    fn dims(&self) -> (usize, usize) {
+        (self.size.0.max(300), self.size.1.max(200))
+    }
+
     /// Where the views are and how they are framed.
     pub fn views(&self) -> Views {
-        let (w, h) = self.size;
+        let (w, h) = self.dims();
         let side = w / 3;
         let main_rect = Rect {
             x: 0,
@@ -498,7 +505,7 @@ impl Picture {
 
     /// Draws the picture.
     pub fn render(&self) -> Image {
-        let (w, h) = self.size;
+        let (w, h) = self.dims();
         let mut img = Image::new(w, h, plot::WHITE);
         let views = self.views();
         let full = self.strain_full_scale();
@@ -552,7 +559,7 @@ impl Picture {
 
     /// Labels, frames, scale bars, axes and the strain legend.
     fn decorate(&self, img: &mut Image, views: &Views, strain_full: Option<f64>) {
-        let (w, _) = self.size;
+        let w = img.width;
         // title bar
         img.text(14, 14, &self.title, 2, plot::BLACK);
         let info = self.info.join("   ");
