@@ -294,7 +294,7 @@ pub struct Views {
 /// The cloth colour (upper side).
 pub const CLOTH: Rgb = [70, 135, 210];
 /// The cloth colour (underside).
-pub const CLOTH_BACK: Rgb = [150, 185, 225];
+pub const CLOTH_BACK: Rgb = [110, 160, 220];
 /// The obstacle colour.
 pub const OBSTACLE: Rgb = [170, 170, 166];
 /// The strain colour map (stops of viridis), from zero strain to the
@@ -436,7 +436,7 @@ impl Picture {
                 24.0,
                 28.0,
                 r.w as f64 - right_margin,
-                r.h as f64 - 44.0,
+                r.h as f64 - 50.0,
             )
         };
         let (el, az) = (30f64.to_radians(), 35f64.to_radians());
@@ -479,9 +479,9 @@ impl Picture {
             },
             triad: Rect {
                 x: main_rect.x,
-                y: main_rect.y + main_rect.h - 100,
-                w: 100,
-                h: 100,
+                y: main_rect.y + main_rect.h - 80,
+                w: 80,
+                h: 80,
             },
         }
     }
@@ -695,16 +695,16 @@ fn scale_bar(img: &mut Image, r: &Rect, px_per_m: f64) {
 
 /// Small axis arrows at the bottom right of an orthographic view.
 fn axes_2d(img: &mut Image, r: &Rect, names: (&str, &str)) {
-    let (ox, oy) = ((r.x + r.w) as f64 - 56.0, (r.y + r.h) as f64 - 14.0);
-    let c = [90, 90, 90];
-    img.line((ox, oy), (ox + 30.0, oy), c, 1);
-    img.line((ox + 30.0, oy), (ox + 25.0, oy - 3.0), c, 1);
-    img.line((ox + 30.0, oy), (ox + 25.0, oy + 3.0), c, 1);
-    img.line((ox, oy), (ox, oy - 30.0), c, 1);
-    img.line((ox, oy - 30.0), (ox - 3.0, oy - 25.0), c, 1);
-    img.line((ox, oy - 30.0), (ox + 3.0, oy - 25.0), c, 1);
-    img.text(ox as i64 + 34, oy as i64 - 4, names.0, 1, c);
-    img.text(ox as i64 - 3, oy as i64 - 42, names.1, 1, c);
+    let (ox, oy) = ((r.x + r.w) as f64 - 44.0, (r.y + r.h) as f64 - 10.0);
+    let (c, l) = ([90, 90, 90], 20.0);
+    img.line((ox, oy), (ox + l, oy), c, 1);
+    img.line((ox + l, oy), (ox + l - 4.0, oy - 3.0), c, 1);
+    img.line((ox + l, oy), (ox + l - 4.0, oy + 3.0), c, 1);
+    img.line((ox, oy), (ox, oy - l), c, 1);
+    img.line((ox, oy - l), (ox - 3.0, oy - l + 4.0), c, 1);
+    img.line((ox, oy - l), (ox + 3.0, oy - l + 4.0), c, 1);
+    img.text((ox + l) as i64 + 4, oy as i64 - 4, names.0, 1, c);
+    img.text(ox as i64 + 6, (oy - l) as i64 - 4, names.1, 1, c);
 }
 
 /// The world axes as seen by a camera, centred in `r`.
@@ -716,11 +716,11 @@ fn triad(img: &mut Image, cam: &Camera, r: &Rect) {
         (V3::z(), "z", [40, 70, 200]),
     ] {
         let (dx, dy) = (axis.dot(&V3::from(cam.right)), -axis.dot(&V3::from(cam.up)));
-        let e = (ox + 32.0 * dx, oy + 32.0 * dy);
+        let e = (ox + 24.0 * dx, oy + 24.0 * dy);
         img.line((ox, oy), e, c, 2);
         img.text(
-            (ox + 42.0 * dx) as i64 - 4,
-            (oy + 42.0 * dy) as i64 - 4,
+            (ox + 32.0 * dx) as i64 - 4,
+            (oy + 32.0 * dy) as i64 - 4,
             name,
             1,
             c,
