@@ -330,29 +330,36 @@ pub fn shape_at(
         }
     }
     let strain = cloud_strain(&cloud);
+    // obstacles and scene name only label and decorate a picture: a topic
+    // of another type or a message that does not decode leaves them out
+    // rather than failing the export of the cloth
     let obstacles_topic = resolve("/obstacles/markers", MarkerArray::NAME);
     let mut obstacles = Vec::new();
-    if r.channels.values().any(|c| c.topic == obstacles_topic) {
+    if r.channels
+        .values()
+        .any(|c| c.topic == obstacles_topic && c.type_name == MarkerArray::NAME)
+    {
         let times = r.log_times(&obstacles_topic)?;
         if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
             let b = r
                 .message_at(&obstacles_topic, times[k])?
                 .expect("the message was just listed");
-            let m: MarkerArray = from_cdr(&b).with_context(|| {
-                format!("{obstacles_topic} at {} ns: not a MarkerArray", times[k])
-            })?;
-            obstacles = obstacle_surfaces(&m);
+            if let Ok(m) = from_cdr::<MarkerArray>(&b) {
+                obstacles = obstacle_surfaces(&m);
+            }
         }
     }
     let description_topic = resolve("/scene_description", StringMsg::NAME);
     let mut scene = None;
-    if r.channels.values().any(|c| c.topic == description_topic) {
+    if r.channels
+        .values()
+        .any(|c| c.topic == description_topic && c.type_name == StringMsg::NAME)
+    {
         let times = r.log_times(&description_topic)?;
         if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
             let b = r
                 .message_at(&description_topic, times[k])?
                 .expect("the message was just listed");
-            // a description that does not parse only costs the picture its title
             let d: Option<SceneDescription> = from_cdr::<StringMsg>(&b)
                 .ok()
                 .and_then(|m| serde_yaml::from_str(&m.data).ok());
