@@ -9,9 +9,9 @@
 //! fabric files, KES curves and OBJ meshes, [`scene`] builds a simulation
 //! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
 //! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
-//! experiments and [`plot`] draws their curves as PNG; [`bag`] records
-//! rosbag2 bags, [`ros`] is the ROS 2 node and [`live`] shows a run in
-//! Foxglove over its WebSocket protocol.
+//! experiments, [`plot`] draws their curves as PNG and [`render`] pictures
+//! of a drape; [`bag`] records rosbag2 bags, [`ros`] is the ROS 2 node and
+//! [`live`] shows a run in Foxglove over its WebSocket protocol.
 
 pub use garment_core::{cloth, collision, fabric, solver};
 
@@ -21,6 +21,7 @@ pub mod io;
 pub mod lab;
 pub mod live;
 pub mod plot;
+pub mod render;
 pub mod ros;
 pub mod run;
 pub mod scene;

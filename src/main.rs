@@ -182,7 +182,7 @@ enum BagCmd {
         /// Bag directory (or its .mcap file).
         bag: PathBuf,
     },
-    /// Write the cloth shape of one frame as PLY or OBJ.
+    /// Write the cloth shape of one frame as PLY or OBJ, or a picture of it (PNG).
     Export {
         /// Bag directory (or its .mcap file).
         bag: PathBuf,
@@ -192,7 +192,7 @@ enum BagCmd {
         /// The last frame.
         #[arg(long)]
         last: bool,
-        /// ply or obj.
+        /// ply, obj or png (the cloth and the obstacles drawn from three views).
         #[arg(long, default_value = "ply")]
         format: garment_sim::bag::ShapeFormat,
         /// Output file.
@@ -477,7 +477,7 @@ fn real_main(cli: Cli) -> Result<()> {
                 e.kinetic, e.tension, e.shear, e.bending, e.dissipated
             );
             println!(
-                "wrote            {}/final.ply, energy.csv, summary.json",
+                "wrote            {}/final.ply, final.png, energy.csv, summary.json",
                 out.display()
             );
             if let Some(r) = recorded {

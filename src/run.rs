@@ -1,5 +1,6 @@
 //! Headless runs: advance a scene for its duration, record energies, detect
-//! settling, and write `final.ply`, `energy.csv` and `summary.json`.
+//! settling, and write `final.ply`, `final.png` (a picture of the end
+//! state), `energy.csv` and `summary.json`.
 
 use crate::scene::{Overrides, Scene};
 use crate::solver::Simulation;
@@ -238,6 +239,15 @@ pub fn drape_with(
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create output directory {}", out.display()))?;
     write_ply(&sim, &out.join("final.ply"))?;
+    let name = match scene.file.name.as_str() {
+        "" => scene
+            .path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        n => n.to_string(),
+    };
+    crate::render::Picture::from_simulation(&sim, &name).save_png(&out.join("final.png"))?;
     write_energy_csv(&rows, &out.join("energy.csv"))?;
     let js = serde_json::to_string_pretty(&summary)?;
     std::fs::write(out.join("summary.json"), js)

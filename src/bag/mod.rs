@@ -34,7 +34,8 @@ pub use metadata::{BagInformation, Qos};
 pub use reader::{Ending, Reader};
 pub use recorder::{scene_description, Frame, SimRecorder, TopicNames};
 pub use tools::{
-    info, repair, shape_at, write_shape, BagInfo, ExportTime, RepairReport, Shape, ShapeFormat,
+    info, repair, shape_at, shape_picture, write_shape, BagInfo, ExportTime, RepairReport, Shape,
+    ShapeFormat,
 };
 pub use writer::{BagOptions, BagSummary, Compression, Writer};
 

@@ -3,8 +3,12 @@
 
 use super::metadata::{BagInformation, TopicCount};
 use super::reader::{Ending, Reader};
+use super::recorder::SceneDescription;
 use super::writer::{BagOptions, BagSummary, Compression, Writer};
-use crate::ros::msgs::{from_cdr, Marker, PointCloud2, RosType};
+use crate::render::{Picture, Surface};
+use crate::ros::msgs::{
+    from_cdr, Marker, MarkerArray, PointCloud2, PointField, RosType, StringMsg,
+};
 use crate::ros::publish;
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
@@ -179,11 +183,12 @@ pub enum ExportTime {
     Last,
 }
 
-/// Shape file formats.
+/// Shape file formats (PNG: a picture of the frame, see [`crate::render`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ShapeFormat {
     Ply,
     Obj,
+    Png,
 }
 
 impl std::str::FromStr for ShapeFormat {
@@ -192,7 +197,8 @@ impl std::str::FromStr for ShapeFormat {
         match s.to_ascii_lowercase().as_str() {
             "ply" => Ok(ShapeFormat::Ply),
             "obj" => Ok(ShapeFormat::Obj),
-            _ => bail!("format {s:?}: expected ply or obj"),
+            "png" => Ok(ShapeFormat::Png),
+            _ => bail!("format {s:?}: expected ply, obj or png"),
         }
     }
 }
@@ -206,12 +212,21 @@ pub struct Shape {
     pub vertices: Vec<[f64; 3]>,
     /// Triangles (vertex indices), from the mesh marker of the same stamp.
     pub faces: Vec<[usize; 3]>,
+    /// Per-vertex strain, from the cloud's `strain` field if it has one.
+    pub strain: Option<Vec<f64>>,
+    /// The obstacles, from the last obstacle markers (TRIANGLE_LIST) at or
+    /// before the frame, world coordinates.
+    pub obstacles: Vec<Surface>,
+    /// Scene name and grid, from the bag's scene description if it has one.
+    pub scene: Option<(String, [usize; 2])>,
 }
 
 /// Reads the cloth shape at `when` from a bag: the point cloud on
-/// `points_topic` gives the vertices (in its order); the TRIANGLE_LIST marker
-/// of the same stamp on `mesh_topic`, if there is one, gives the triangles and
-/// the positions at full (float64) precision.
+/// `points_topic` gives the vertices (in its order) and their strains; the
+/// TRIANGLE_LIST marker of the same stamp on `mesh_topic`, if there is one,
+/// gives the triangles and the positions at full (float64) precision. The
+/// obstacles come from `/obstacles/markers` and the scene's name from
+/// `/scene_description` (or the bag's only topics ending in those names).
 pub fn shape_at(
     path: &Path,
     when: ExportTime,
@@ -314,11 +329,127 @@ pub fn shape_at(
             }
         }
     }
+    let strain = cloud_strain(&cloud);
+    // obstacles and scene name only label and decorate a picture: a topic
+    // of another type or a message that does not decode leaves them out
+    // rather than failing the export of the cloth
+    let obstacles_topic = resolve("/obstacles/markers", MarkerArray::NAME);
+    let mut obstacles = Vec::new();
+    if r.channels
+        .values()
+        .any(|c| c.topic == obstacles_topic && c.type_name == MarkerArray::NAME)
+    {
+        let times = r.log_times(&obstacles_topic)?;
+        if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
+            let b = r
+                .message_at(&obstacles_topic, times[k])?
+                .expect("the message was just listed");
+            if let Ok(m) = from_cdr::<MarkerArray>(&b) {
+                obstacles = obstacle_surfaces(&m);
+            }
+        }
+    }
+    let description_topic = resolve("/scene_description", StringMsg::NAME);
+    let mut scene = None;
+    if r.channels
+        .values()
+        .any(|c| c.topic == description_topic && c.type_name == StringMsg::NAME)
+    {
+        let times = r.log_times(&description_topic)?;
+        if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
+            let b = r
+                .message_at(&description_topic, times[k])?
+                .expect("the message was just listed");
+            let d: Option<SceneDescription> = from_cdr::<StringMsg>(&b)
+                .ok()
+                .and_then(|m| serde_yaml::from_str(&m.data).ok());
+            scene = d.map(|d| {
+                let name = serde_yaml::from_str::<serde_yaml::Value>(&d.scene_yaml)
+                    .ok()
+                    .and_then(|v| v.get("name").and_then(|n| n.as_str()).map(String::from))
+                    .filter(|n| !n.is_empty())
+                    .unwrap_or(d.scene_file);
+                (name, d.grid)
+            });
+        }
+    }
     Ok(Shape {
         time_s: *stamp as f64 * 1e-9,
         vertices,
         faces,
+        strain,
+        obstacles,
+        scene,
     })
+}
+
+/// The `strain` field of a little-endian cloud, if it has a float32 one.
+fn cloud_strain(c: &PointCloud2) -> Option<Vec<f64>> {
+    let f = c
+        .fields
+        .iter()
+        .find(|f| f.name == "strain" && f.datatype == PointField::FLOAT32)?;
+    let (n, step, off) = (
+        (c.width * c.height) as usize,
+        c.point_step as usize,
+        f.offset as usize,
+    );
+    if c.is_bigendian || off + 4 > step || c.data.len() < n * step {
+        return None;
+    }
+    Some(
+        (0..n)
+            .map(|i| {
+                let k = i * step + off;
+                f32::from_le_bytes(c.data[k..k + 4].try_into().unwrap()) as f64
+            })
+            .collect(),
+    )
+}
+
+/// The TRIANGLE_LIST markers added by a marker array, moved to their poses.
+fn obstacle_surfaces(m: &MarkerArray) -> Vec<Surface> {
+    m.markers
+        .iter()
+        .filter(|k| k.action == Marker::ADD && k.type_ == Marker::TRIANGLE_LIST)
+        .filter_map(|k| {
+            let pose = k.pose.to_isometry().ok()?;
+            let pts: Vec<[f64; 3]> = k
+                .points
+                .iter()
+                .map(|p| {
+                    let q = pose * nalgebra::Point3::new(p.x, p.y, p.z);
+                    [q.x, q.y, q.z]
+                })
+                .collect();
+            Some(Surface::from_triangle_list(&pts))
+        })
+        .collect()
+}
+
+/// A picture of a shape read from a bag, labelled with the scene and the time.
+pub fn shape_picture(shape: &Shape) -> Picture {
+    let (title, grid) = match &shape.scene {
+        Some((name, g)) => (name.clone(), Some(*g)),
+        None => ("bag frame".to_string(), None),
+    };
+    let mut p = Picture::new(
+        &title,
+        Surface {
+            vertices: shape.vertices.clone(),
+            triangles: shape.faces.clone(),
+        },
+    );
+    p.strain = shape.strain.clone();
+    p.obstacles = shape.obstacles.clone();
+    p.info = vec![
+        match grid {
+            Some(g) => format!("grid {} x {}", g[0], g[1]),
+            None => format!("{} vertices", shape.vertices.len()),
+        },
+        format!("t = {:.2} s", shape.time_s),
+    ];
+    p
 }
 
 /// Writes a shape as ASCII PLY (double x y z, triangle faces) or OBJ.
@@ -326,10 +457,14 @@ pub fn write_shape(shape: &Shape, format: ShapeFormat, out: &Path) -> Result<()>
     if let Some(d) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
     }
+    if format == ShapeFormat::Png {
+        return shape_picture(shape).save_png(out);
+    }
     let mut w = std::io::BufWriter::new(
         std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?,
     );
     match format {
+        ShapeFormat::Png => unreachable!("drawn above"),
         ShapeFormat::Ply => {
             writeln!(
                 w,
