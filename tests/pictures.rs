@@ -8,7 +8,6 @@
 mod support;
 use garment_sim::render::{Picture, Projection, Rect, Surface, View, Views};
 use std::path::Path;
-use std::process::Command;
 
 /// A 40 cm square of cloth falling onto a ball, and a block beside it.
 const SCENE: &str = "name: ball_and_block
