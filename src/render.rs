@@ -1110,7 +1110,6 @@ mod tests {
             nalgebra::Isometry3::identity(),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         let s = Surface::from_obstacle(&o);
@@ -1158,7 +1157,6 @@ mod tests {
             nalgebra::Isometry3::translation(0.0, 0.0, -0.05),
             0.0,
             0.0,
-            Path::new("."),
         )
         .unwrap();
         let mut p = Picture::new("t", cloth);
