@@ -82,15 +82,25 @@ impl Drop for Scratch {
 
 /// Fails unless `python3 -c "import MODULES"` works.
 pub fn require_python(modules: &str) {
-    let probe = Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .expect("python3 is needed for the interoperability tests");
-    assert!(
-        probe.status.success(),
-        "needs Python packages ({modules}): python3 -m pip install -r tests/requirements.txt\n{}",
-        String::from_utf8_lossy(&probe.stderr)
+    require_python_in(
+        "python3",
+        modules,
+        "python3 -m pip install -r tests/requirements.txt",
     );
+}
+
+/// Fails unless `PYTHON -c "import MODULES"` works, saying `install` (the
+/// command that installs them) if not.
+pub fn require_python_in(python: &str, modules: &str, install: &str) {
+    let probe = Command::new(python)
+        .args(["-c", &format!("import {modules}")])
+        .output();
+    let err = match probe {
+        Ok(p) if p.status.success() => return,
+        Ok(p) => String::from_utf8_lossy(&p.stderr).into_owned(),
+        Err(e) => format!("{python}: {e}"),
+    };
+    panic!("needs Python packages ({modules}) in {python}: {install}\n{err}");
 }
 
 /// Runs `python3 -m pytest FILE` (in a loopback-only network namespace if
@@ -98,10 +108,19 @@ pub fn require_python(modules: &str) {
 /// `expect` (e.g. "5 passed") in its output and nothing skipped.
 pub fn pytest(file: &str, modules: &str, netns: bool, envs: &[(&str, &OsStr)], expect: &str) {
     require_python(modules);
+    pytest_in("python3", file, netns, envs, expect);
+}
+
+/// [`pytest`] with the interpreter `python` (e.g. a venv's), whose packages
+/// the caller has checked.
+pub fn pytest_in(python: &str, file: &str, netns: bool, envs: &[(&str, &OsStr)], expect: &str) {
     let mut cmd = if netns {
-        in_loopback_namespace(&format!("exec python3 -m pytest -q -s -rs {file}"), &[])
+        in_loopback_namespace(
+            &format!("exec \"$0\" -m pytest -q -s -rs {file}"),
+            &[OsStr::new(python)],
+        )
     } else {
-        let mut c = Command::new("python3");
+        let mut c = Command::new(python);
         c.args(["-m", "pytest", "-q", "-s", "-rs", file]);
         c
     };
