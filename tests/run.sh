@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
 # The whole test suite, on a fresh machine as on CI (.ci/run calls this): it
 # installs what the tests check against (the Python packages of
-# tests/requirements.txt, Foxglove's own decoders from npm), builds the physics core on its own (the
-# garment_core crate must build without ROS, bags, the command line and
-# PNG), then runs every test of the workspace.
+# tests/requirements.txt, Foxglove's own decoders from npm, ROS 2 Jazzy's
+# rclpy on Fast DDS from PyPI in a venv with garment_sim_msgs built for it),
+# builds the physics core on its own (the garment_core crate must build
+# without ROS, bags, the command line and PNG), then runs every test of the
+# workspace.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 python3 -m pip install --quiet --disable-pip-version-check -r tests/requirements.txt
 npm ci --prefix tests/foxglove --no-audit --no-fund --loglevel=error
+bash tests/ros2_venv.sh
 cargo build --release -p garment_core
 forbidden=$(cargo tree -p garment_core -e normal --prefix none \
     | grep -E '^(ros2-client|rustdds|mcap|clap|indicatif|png|serde_yaml|serde_json) ' || true)
