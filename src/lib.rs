@@ -10,8 +10,10 @@
 //! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
 //! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
 //! experiments, [`plot`] draws their curves as PNG and [`render`] pictures
-//! of a drape; [`bag`] records rosbag2 bags, [`ros`] is the ROS 2 node and
-//! [`live`] shows a run in Foxglove over its WebSocket protocol.
+//! of a drape; [`msgs`] are the ROS 2 messages (types, schemas, built from a
+//! simulation) that [`bag`] records as rosbag2 bags, [`ros`] (the ROS 2
+//! node) publishes and [`live`] serves to Foxglove over its WebSocket
+//! protocol.
 
 pub use garment_core::{cloth, collision, fabric, solver};
 
@@ -20,6 +22,7 @@ pub mod capture;
 pub mod io;
 pub mod lab;
 pub mod live;
+pub mod msgs;
 pub mod plot;
 pub mod render;
 pub mod ros;

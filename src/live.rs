@@ -9,9 +9,9 @@
 //! (diagnostic_msgs/msg/DiagnosticArray) and `/clock`
 //! (rosgraph_msgs/msg/Clock) by default ([`TopicNames`]), each with schema
 //! encoding `ros2msg` (the full definition with its dependencies, as in our
-//! bags: [`crate::bag::definitions`]) and message encoding `cdr` (CDR with
-//! its 4-byte encapsulation header, [`crate::ros::msgs::to_cdr`]). The
-//! messages are built by [`crate::ros::publish`], the same functions the node
+//! bags: [`crate::msgs::definitions`]) and message encoding `cdr` (CDR with
+//! its 4-byte encapsulation header, [`crate::msgs::to_cdr`]). The
+//! messages are built by [`crate::msgs::publish`], the same functions the node
 //! and the bag recorder use. A message is logged with the simulated time as
 //! its time (nanoseconds, the header stamp), and the server offers the `time`
 //! capability and broadcasts the simulated time with each frame, as a ROS
@@ -24,10 +24,10 @@
 //! handshake). It has no authentication: bind it to loopback (the default)
 //! unless the network is trusted.
 
-use crate::bag::definitions::schema_text;
 use crate::bag::{Frame, TopicNames};
-use crate::ros::msgs::{to_cdr, Clock, DiagnosticArray, Marker, MarkerArray, PointCloud2, RosType};
-use crate::ros::publish::{self, DiagnosticFigures, FrameClock};
+use crate::msgs::definitions::schema_text;
+use crate::msgs::publish::{self, DiagnosticFigures, FrameClock};
+use crate::msgs::{to_cdr, Clock, DiagnosticArray, Marker, MarkerArray, PointCloud2, RosType};
 use crate::run::Control;
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
@@ -164,7 +164,7 @@ impl LiveView {
     /// Tells the clients the simulated time `t` (s).
     pub fn broadcast_time(&self, t: f64) {
         if let Some(s) = &self.server {
-            s.broadcast_time(crate::ros::msgs::Time::from_secs(t).nanos() as u64);
+            s.broadcast_time(crate::msgs::Time::from_secs(t).nanos() as u64);
         }
     }
 

@@ -351,7 +351,7 @@ impl Picture {
                 triangles: c.triangles.clone(),
             },
         );
-        p.strain = Some(crate::ros::publish::vertex_strain(sim));
+        p.strain = Some(crate::msgs::publish::vertex_strain(sim));
         p.obstacles = sim.obstacles.iter().map(Surface::from_obstacle).collect();
         p.info = vec![
             format!("fabric {}", sim.fabric.name),

@@ -10,7 +10,7 @@
 
 mod support;
 
-use garment_sim::ros::publish::FrameClock;
+use garment_sim::msgs::publish::FrameClock;
 use garment_sim::scene::{Overrides, Scene};
 use std::path::Path;
 

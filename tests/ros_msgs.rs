@@ -5,8 +5,8 @@
 
 mod support;
 
-use garment_sim::ros::msgs::*;
-use garment_sim::ros::publish;
+use garment_sim::msgs::publish;
+use garment_sim::msgs::*;
 use garment_sim::scene::{Overrides, Scene};
 use serde::Serialize;
 use std::path::Path;

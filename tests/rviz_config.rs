@@ -5,11 +5,11 @@
 //! point cloud is coloured by a channel the node's clouds carry.
 
 use garment_sim::bag::Qos;
+use garment_sim::msgs::publish;
+use garment_sim::msgs::{Marker, MarkerArray, PointCloud2, RosType};
 use garment_sim::ros::args::RosArgs;
-use garment_sim::ros::msgs::{Marker, MarkerArray, PointCloud2, RosType};
 use garment_sim::ros::node::Names;
 use garment_sim::ros::params::Settings;
-use garment_sim::ros::publish;
 use garment_sim::scene::{Overrides, Scene};
 use serde_yaml::Value;
 use std::path::Path;

@@ -6,7 +6,7 @@
 //! A bag is a directory holding `<dir name>_0.mcap` and `metadata.yaml`
 //! (format version 9). In the MCAP file: profile `ros2`; one schema per type,
 //! encoding `ros2msg`, holding the full definition with its dependencies
-//! ([`definitions`]); one channel per topic, message encoding `cdr`, with the
+//! ([`crate::msgs::definitions`]); one channel per topic, message encoding `cdr`, with the
 //! offered QoS profiles in its `offered_qos_profiles` metadata (the same
 //! profiles as in `metadata.yaml`); messages as CDR with the 4-byte
 //! encapsulation header, **log time = publish time = the header stamp, i.e.
@@ -23,7 +23,6 @@
 //!
 //! The physics modules never depend on this one.
 
-pub mod definitions;
 pub mod metadata;
 pub mod reader;
 pub mod recorder;
@@ -39,7 +38,7 @@ pub use tools::{
 };
 pub use writer::{BagOptions, BagSummary, Compression, Writer};
 
-use crate::ros::publish::{DiagnosticFigures, FrameClock};
+use crate::msgs::publish::{DiagnosticFigures, FrameClock};
 use crate::run::{self, Control, Progress};
 use crate::scene::{Overrides, Scene};
 use anyhow::{bail, Result};

@@ -1,14 +1,12 @@
 //! Records a [`Simulation`] as the node publishes it: the same messages
-//! (built by [`crate::ros::publish`]) on the same topics, plus `/clock` and a
+//! (built by [`crate::msgs::publish`]) on the same topics, plus `/clock` and a
 //! latched description of the scene. Used by `garment_sim drape --bag` and by
 //! the node (`record_bag`), so both write the same bag for the same scene.
 
 use super::metadata::Qos;
 use super::writer::{BagOptions, BagSummary, Writer};
-use crate::ros::msgs::{
-    Clock, DiagnosticArray, Marker, MarkerArray, PointCloud2, RosType, StringMsg,
-};
-use crate::ros::publish::{self, DiagnosticFigures};
+use crate::msgs::publish::{self, DiagnosticFigures};
+use crate::msgs::{Clock, DiagnosticArray, Marker, MarkerArray, PointCloud2, RosType, StringMsg};
 use crate::scene::{Overrides, Scene};
 use crate::solver::Simulation;
 use anyhow::{Context, Result};

@@ -5,11 +5,9 @@ use super::metadata::{BagInformation, TopicCount};
 use super::reader::{Ending, Reader};
 use super::recorder::SceneDescription;
 use super::writer::{BagOptions, BagSummary, Compression, Writer};
+use crate::msgs::publish;
+use crate::msgs::{from_cdr, Marker, MarkerArray, PointCloud2, PointField, RosType, StringMsg};
 use crate::render::{Picture, Surface};
-use crate::ros::msgs::{
-    from_cdr, Marker, MarkerArray, PointCloud2, PointField, RosType, StringMsg,
-};
-use crate::ros::publish;
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
 use std::io::Write;

@@ -4,9 +4,9 @@
 //! `metadata.yaml` rewritten after every chunk so that the directory stays a
 //! readable bag whatever happens to the process.
 
-use super::definitions;
 use super::metadata::{qos_string, BagInformation, Qos, TopicCount};
-use crate::ros::msgs::{to_cdr, RosType};
+use crate::msgs::definitions;
+use crate::msgs::{to_cdr, RosType};
 use anyhow::{anyhow, bail, Context, Result};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};

@@ -3,8 +3,8 @@
 //! refused with an error naming the field and index, and the scene is left
 //! as it was.
 
-use super::msgs;
 use crate::collision::{Obstacle, ShapeSpec, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS};
+use crate::msgs;
 use crate::solver::{Pin, PinPath, Simulation};
 use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;

@@ -1,12 +1,10 @@
-//! The ROS 2 side: message types laid out as their ROS 2 definitions
-//! ([`msgs`]), the messages built from a simulation ([`publish`]), ROS
-//! command-line arguments ([`args`]), the node's parameters ([`params`])
-//! and the node itself ([`node`]).
-//! The physics modules never depend on this one.
+//! The ROS 2 node (ros2-client on RustDDS): ROS command-line arguments
+//! ([`args`]), the node's parameters ([`params`]), obstacles and pins from
+//! messages ([`control`]) and the node itself ([`node`]). The messages it
+//! exchanges, and what it publishes, are built by [`crate::msgs`], which the
+//! bags share. The physics never depends on this module.
 
 pub mod args;
 pub mod control;
-pub mod msgs;
 pub mod node;
 pub mod params;
-pub mod publish;

@@ -23,10 +23,10 @@
 
 use super::args::{self, RosArgs, Value};
 use super::control::{self, ObstacleRegistry};
-use super::msgs::{self, RosType};
 use super::params::{self, Settings, PARAMETERS};
-use super::publish;
 use crate::bag::SimRecorder;
+use crate::msgs::publish;
+use crate::msgs::{self, RosType};
 use crate::scene::Scene;
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
@@ -697,7 +697,7 @@ impl Node {
         }
         self.pending_steps = self.pending_steps.saturating_sub(1);
         let sim = &self.loaded.sim;
-        if sim.steps % clock_every == 0 {
+        if sim.steps.is_multiple_of(clock_every) {
             let _ = self.io.clock.publish(msgs::Clock {
                 clock: msgs::Time::from_secs(sim.time),
             });

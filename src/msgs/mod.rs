@@ -1,9 +1,15 @@
-//! ROS 2 message types the node and the bag recorder exchange, laid out field
-//! for field as their ROS 2 Jazzy definitions so that serde + CDR gives the
-//! bytes every ROS 2 implementation reads (checked against the independent
-//! `rosbags` CDR codec in `tests/ros_msgs.py`).
+//! The message layer, shared by the node, the bags and the live view: ROS 2
+//! message types laid out field for field as their ROS 2 Jazzy definitions so
+//! that serde + CDR gives the bytes every ROS 2 implementation reads (checked
+//! against the independent `rosbags` CDR codec in `tests/ros_msgs.py`), their
+//! `ros2msg` schema texts ([`definitions`]), and the messages built from a
+//! simulation ([`publish`]). No DDS here: [`crate::ros`] sends them,
+//! [`crate::bag`] records them, [`crate::live`] serves them.
 //!
 //! Each type knows its ROS name (`pkg/msg/Type`) through [`RosType`].
+
+pub mod definitions;
+pub mod publish;
 
 use serde::{Deserialize, Serialize};
 

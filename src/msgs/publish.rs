@@ -4,7 +4,7 @@
 //! simulation state, shared by the node and the headless recorder so both
 //! write the same messages.
 
-use super::msgs::*;
+use super::*;
 use crate::solver::Simulation;
 
 /// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
