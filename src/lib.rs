@@ -12,7 +12,7 @@
 //! experiments and [`plot`] draws their curves as PNG; [`bag`] records
 //! rosbag2 bags and [`ros`] is the ROS 2 node.
 
-pub use garment_core::{cloth, collision, fabric, solver};
+pub use garment_core::{cloth, collision, fabric, limits, solver};
 
 pub mod bag;
 pub mod capture;

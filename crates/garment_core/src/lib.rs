@@ -12,4 +12,5 @@
 pub mod cloth;
 pub mod collision;
 pub mod fabric;
+pub mod limits;
 pub mod solver;

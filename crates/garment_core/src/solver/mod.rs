@@ -87,6 +87,15 @@ pub enum PinPath {
     /// Piecewise-linear path through (time, position) waypoints; held at the
     /// first before it and at the last after it.
     Waypoints(Vec<(f64, Vector3<f64>)>),
+    /// Travels in a straight line at constant speed from `from` (at time
+    /// `t0`) to where `then` is at time `t1`, then follows `then`: how a pin
+    /// reaches a far target at a bounded speed ([`crate::limits::travel_to`]).
+    Travel {
+        from: Vector3<f64>,
+        t0: f64,
+        t1: f64,
+        then: Box<PinPath>,
+    },
 }
 
 impl PinPath {
@@ -115,6 +124,14 @@ impl PinPath {
                     }
                 }
                 (w[w.len() - 1].1, Vector3::zeros())
+            }
+            PinPath::Travel { from, t0, t1, then } => {
+                if t >= *t1 {
+                    return then.at(t);
+                }
+                let (to, _) = then.at(*t1);
+                let v = (to - from) / (t1 - t0);
+                (from + v * (t - t0).max(0.0), v)
             }
         }
     }
@@ -378,10 +395,23 @@ impl Simulation {
             LinearSolverKind::Auto => self.solve_auto()?,
         };
         let solve_s = t_solve.elapsed().as_secs_f64();
+        // nothing is changed yet: a failed step leaves the state as it was
         for i in 0..n {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
                 bail!(
                     "the step diverged at vertex {i} (non-finite velocity) at t = {:.4} s",
+                    self.time
+                );
+            }
+            if !self.y[i].iter().all(|c| c.is_finite()) {
+                bail!(
+                    "the step diverged at vertex {i} (non-finite position correction{}) \
+                     at t = {:.4} s",
+                    if self.pinned[i].is_some() {
+                        ", pinned"
+                    } else {
+                        ""
+                    },
                     self.time
                 );
             }
