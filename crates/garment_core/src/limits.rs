@@ -60,6 +60,48 @@ pub const MAX_ANGULAR_SPEED: f64 = 100.0;
 /// (a sphere put around it sends it metres away).
 pub const MAX_OVERLAP: f64 = 0.01;
 
+/// Longest time step, s. The step is linearised once: the thesis runs 1 to
+/// 10 ms, the lab's quasi-static tests 10 ms, and a motion capture's frame
+/// (25 Hz and faster) is the longest step `identify` takes. Longer steps
+/// give numbers that look like results (a KES resilience of 1e12 %, a
+/// drapemeter specimen hanging far below its table).
+pub const MAX_DT: f64 = 0.04;
+
+/// A time step in (0, [`MAX_DT`]] s.
+pub fn check_dt(what: &str, v: f64) -> Result<()> {
+    if !(v.is_finite() && v > 0.0 && v <= MAX_DT) {
+        bail!("{what} = {v}: must lie in (0, {MAX_DT}] s (MAX_DT: the step is linearised once)");
+    }
+    Ok(())
+}
+
+/// A duration: finite and ≥ 0 s.
+pub fn check_duration(what: &str, v: f64) -> Result<()> {
+    if !(v.is_finite() && v >= 0.0) {
+        bail!("{what} = {v}: must be a finite number ≥ 0 s");
+    }
+    Ok(())
+}
+
+/// KES-FB1 extension at the maximum load EMT, %: woven fabrics extend 1 to
+/// 30 %, knits up to about 100 % under 500 gf/cm; more is a unit slip.
+pub const KES_EMT: (f64, f64) = (0.0, 100.0);
+
+/// KES-FB1 shear rigidity G, gf/(cm·deg): fabrics lie between 0.2 and 10.
+pub const KES_G: (f64, f64) = (0.0, 50.0);
+
+/// KES-FB2 bending rigidity B, gf·cm²/cm: fabrics lie between 0.005 and 2
+/// (a heavy denim); 50 is a board.
+pub const KES_B: (f64, f64) = (0.0, 50.0);
+
+/// A KES summary value in `(lo, hi]`.
+pub fn check_kes(what: &str, v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<()> {
+    if !(v.is_finite() && v > lo && v <= hi) {
+        bail!("{what} = {v}: must lie in ({lo}, {hi}] {unit} (the range of measured fabrics)");
+    }
+    Ok(())
+}
+
 /// Relative tolerance of the conjugate gradients: in (0, 1) exclusive; 0
 /// cannot be reached in floating point and 1 or more accepts the first
 /// guess (the cloth frozen in place).

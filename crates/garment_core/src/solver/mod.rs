@@ -238,9 +238,22 @@ pub struct Simulation {
 
 impl Simulation {
     pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
-        if !(params.dt.is_finite() && params.dt > 0.0) {
-            bail!("dt = {}: must be > 0 s", params.dt);
+        crate::limits::check_dt("dt", params.dt)?;
+        crate::limits::check_cg_tolerance("cg_tolerance", params.cg_tolerance)?;
+        if params.cg_max_iterations == 0 {
+            bail!("cg_max_iterations = 0: must be ≥ 1");
         }
+        if !params.gravity.iter().all(|g| g.is_finite()) {
+            bail!("gravity = {:?}: must be finite", params.gravity);
+        }
+        crate::limits::check_range(
+            "cloth thickness",
+            params.cloth_thickness,
+            crate::limits::CLOTH_THICKNESS.0,
+            crate::limits::CLOTH_THICKNESS.1,
+            "m",
+            "CLOTH_THICKNESS: a film to a quilt",
+        )?;
         if params.threads > MAX_THREADS {
             bail!(
                 "threads = {}: at most {MAX_THREADS} (0: one per core)",

@@ -1,0 +1,271 @@
+//! Bad and extreme inputs (issue 19): each is refused with exit code 1 and
+//! an error naming the input and the bound, never a panic, never a result
+//! with exit code 0. The bounds are those of `garment_sim::limits`.
+
+mod scratch;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_garment_sim"))
+}
+
+fn acrylic() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/fabrics/acrylic.yaml")
+}
+
+/// Runs `args` and checks the refusal: exit code 1, every `needles` in the
+/// error, no panic.
+fn refused(args: &[&str], needles: &[&str]) {
+    let o = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.code() == Some(1) || o.status.code() == Some(2),
+        "{args:?}: exit {:?}, expected a refusal\n{err}",
+        o.status.code()
+    );
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: error lacks {n:?}: {err}");
+    }
+}
+
+/// A scene: a 0.5 m cloth of 5 cm spacing at (-0.25, -0.25, 1) plus `rest`.
+fn scene(dir: &Path, name: &str, cloth_extra: &str, rest: &str) -> String {
+    let p = dir.join(format!("{name}.yaml"));
+    std::fs::write(
+        &p,
+        format!(
+            "cloth:\n  fabric: {}\n  size: [0.5, 0.5]\n  spacing: 0.05\n  \
+             pose: {{ position: [-0.25, -0.25, 1.0] }}\n{cloth_extra}\
+             dt: 0.001\nduration: 0.05\n{rest}",
+            acrylic().display()
+        ),
+    )
+    .unwrap();
+    p.display().to_string()
+}
+
+#[test]
+fn implausible_scene_fields_are_refused_with_the_field_named() {
+    let d = scratch::Scratch::new("bad_scenes");
+    let out = d.join("out");
+    let out = out.to_str().unwrap();
+    let cases: Vec<(&str, &str, &str, Vec<&str>)> = vec![
+        (
+            "nan_target",
+            "",
+            "pins: [ { grid: [0, 0], target: [.nan, 0, 1] } ]\n",
+            vec!["pins[0].target", "not finite"],
+        ),
+        (
+            "mm_target",
+            "",
+            "pins: [ { grid: [0, 0], target: [500, 0, 1000] } ]\n",
+            vec!["pins[0].target", "MAX_REACH"],
+        ),
+        (
+            "fast_pin",
+            "",
+            "pins: [ { grid: [0, 0], velocity: [100000, 0, 0] } ]\n",
+            vec!["pins[0].velocity", "10 m/s"],
+        ),
+        (
+            "fast_path",
+            "",
+            "pins: [ { grid: [0, 0], path: [ { t: 0, position: [-0.25, -0.25, 1] }, \
+             { t: 0.01, position: [0.75, -0.25, 1] } ] } ]\n",
+            vec!["pins[0].path[0..1] speed"],
+        ),
+        (
+            "huge_sphere",
+            "",
+            "obstacles: [ { id: ball, shape: { type: sphere, radius: 1e300 }, \
+             pose: { position: [0, 0, -2] } } ]\n",
+            vec!["\"ball\"", "radius", "MAX_OBSTACLE_SIZE"],
+        ),
+        (
+            "nan_velocity",
+            "",
+            "obstacles: [ { id: b, shape: { type: box, size: [1, 1, 0.1] }, \
+             pose: { position: [0, 0, 0.5] }, linear_velocity: [.nan, 0, 0] } ]\n",
+            vec!["obstacles[0].linear_velocity", "not finite"],
+        ),
+        (
+            "inside_box",
+            "",
+            "obstacles: [ { id: table, shape: { type: box, size: [1, 1, 0.2] }, \
+             pose: { position: [0, 0, 1.0] } } ]\n",
+            vec!["\"table\"", "overlaps the cloth", "inside it"],
+        ),
+        (
+            "inside_sphere",
+            "",
+            "obstacles: [ { id: ball, shape: { type: sphere, radius: 0.3 }, \
+             pose: { position: [0, 0, 1.0] } } ]\n",
+            vec!["\"ball\"", "overlaps the cloth", "0.3000 m inside"],
+        ),
+        (
+            "thick_cloth",
+            "  thickness: 1.0\n",
+            "",
+            vec!["cloth.thickness = 1", "0.02"],
+        ),
+    ];
+    for (name, extra, rest, needles) in cases {
+        let p = scene(&d, name, extra, rest);
+        let mut want = needles.clone();
+        want.push(name);
+        refused(&["drape", &p, "--out", out], &want);
+    }
+    // a scene's dt above MAX_DT
+    let p = scene(&d, "long_step", "", "");
+    std::fs::write(
+        &p,
+        std::fs::read_to_string(&p)
+            .unwrap()
+            .replace("dt: 0.001", "dt: 1"),
+    )
+    .unwrap();
+    refused(&["drape", &p, "--out", out], &["dt = 1", "0.04"]);
+    assert!(!Path::new(out).join("final.ply").exists());
+}
+
+#[test]
+fn implausible_command_line_values_are_refused() {
+    let d = scratch::Scratch::new("bad_cli");
+    let out = d.join("out");
+    let out = out.to_str().unwrap();
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let fabric = acrylic();
+    let fabric = fabric.to_str().unwrap();
+    let drape = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = vec!["drape".into(), ff.into(), "--out".into(), out.into()];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
+        (drape(&["--duration", "-1"]), vec!["--duration = -1"]),
+        (drape(&["--duration", "NaN"]), vec!["--duration = NaN"]),
+        (drape(&["--duration", "inf"]), vec!["--duration = inf"]),
+        (
+            drape(&["--cg-tolerance", "NaN"]),
+            vec!["--cg-tolerance = NaN"],
+        ),
+        (drape(&["--cg-tolerance=-1"]), vec!["--cg-tolerance = -1"]),
+        (
+            drape(&["--cg-tolerance", "1"]),
+            vec!["--cg-tolerance = 1", "(0, 1)"],
+        ),
+        (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.04"]),
+        (drape(&["--spacing", "-0.1"]), vec!["--spacing = -0.1"]),
+        (
+            [
+                "kes", fabric, "--test", "tensile", "--dt", "1000", "--out", out,
+            ]
+            .map(String::from)
+            .to_vec(),
+            vec!["dt = 1000", "0.04"],
+        ),
+        (
+            ["drapemeter", fabric, "--dt", "1", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["dt = 1", "0.04"],
+        ),
+        (
+            ["drapemeter", fabric, "--diameter", "-0.3", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["diameter = -0.3"],
+        ),
+        (
+            ["drapemeter", fabric, "--duration", "NaN", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["--duration", "NaN"],
+        ),
+        (
+            ["bench", "--steps", "0"].map(String::from).to_vec(),
+            vec!["--steps", "'0'"],
+        ),
+        (
+            ["bench", "--warmup", "NaN"].map(String::from).to_vec(),
+            vec!["--warmup", "NaN"],
+        ),
+        (
+            ["bench", "--repeat", "0"].map(String::from).to_vec(),
+            vec!["--repeat", "≥ 1"],
+        ),
+        (
+            ["bag", "export", out, "--time", "-1", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["--time", "-1"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&a, &needles);
+    }
+    assert!(!Path::new(out).join("final.ply").exists());
+}
+
+#[test]
+fn implausible_kes_values_are_refused_with_the_range() {
+    let d = scratch::Scratch::new("bad_kes");
+    let text = std::fs::read_to_string(acrylic()).unwrap();
+    let out = d.join("out");
+    for (field, value, needle) in [
+        ("EMT", "1000000", "tensile.EMT = 1000000"),
+        ("G", "1e6", "shear.G = 1000000"),
+        ("B", "1e6", "bending.B = 1000000"),
+    ] {
+        // the first occurrence of `field: ` (the warp direction)
+        let at = text
+            .find(&format!("{field}: "))
+            .unwrap_or_else(|| panic!("{field} not in acrylic.yaml"));
+        let end = at + text[at..].find([',', '}', '\n']).unwrap();
+        let bad = format!("{}{field}: {value}{}", &text[..at], &text[end..]);
+        let p = d.join(format!("{field}.yaml"));
+        std::fs::write(&p, bad).unwrap();
+        refused(
+            &[
+                "kes",
+                p.to_str().unwrap(),
+                "--test",
+                "tensile",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[needle, "must lie in (0,", "measured fabrics"],
+        );
+    }
+}
+
+/// Output into a pipe closed by the reader ends the program quietly.
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    let d = scratch::Scratch::new("pipe");
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let mut child = bin()
+        .args(["drape", ff, "--duration", "0.01", "--out"])
+        .arg(d.join("out"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before any output
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!err.contains("Broken pipe"), "{err}");
+    // ended by SIGPIPE, as any command-line tool (or done, if it printed
+    // nothing before exiting)
+    use std::os::unix::process::ExitStatusExt;
+    assert!(
+        o.status.signal() == Some(13) || o.status.success(),
+        "{:?} {err}",
+        o.status
+    );
+}
