@@ -95,3 +95,31 @@ pub fn load_obj(path: &Path) -> Result<MeshData> {
     }
     Ok((v, tris))
 }
+
+/// Writes a file whole or not at all: `fill` writes into a temporary file
+/// beside `path` (same folder, so the rename cannot cross file systems),
+/// which is flushed and renamed onto `path`. Any failure (a full disk)
+/// removes the temporary file, leaves no truncated `path`, and names `path`
+/// in the error.
+pub fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let written = (|| -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        fill(&mut w)?;
+        let f = w.into_inner().map_err(|e| e.into_error())?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::Error::new(e).context(format!("cannot write {}", path.display())));
+    }
+    Ok(())
+}

@@ -269,3 +269,41 @@ fn a_closed_pipe_ends_quietly() {
         o.status
     );
 }
+
+/// A full disk under `drape --out`: the error names the file, and no
+/// truncated output is left (a tmpfs of 8 KiB in a mount namespace of the
+/// test's own, `unshare -rm`).
+#[test]
+fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let script = format!(
+        "set -e; d=$(mktemp -d); mount -t tmpfs -o size=8k tmpfs \"$d\"; \
+         if {bin} drape {ff} --duration 0.01 --out \"$d/out\"; then echo EXIT=0; \
+         else echo EXIT=$?; fi; ls -A \"$d/out\" | sed 's/^/FILE /'",
+        bin = env!("CARGO_BIN_EXE_garment_sim")
+    );
+    let o = Command::new("unshare")
+        .args(["-rm", "sh", "-c", &script])
+        .output()
+        .expect("unshare (util-linux) runs");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(out.contains("EXIT=1"), "{out}\n{err}");
+    assert!(
+        err.contains("cannot write") && err.contains("out/final.ply") && err.contains("No space"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // what the run left: nothing, or whole files only (no final.ply, no
+    // temporary file)
+    let files: Vec<&str> = out
+        .lines()
+        .filter_map(|l| l.strip_prefix("FILE "))
+        .collect();
+    assert!(
+        !files
+            .iter()
+            .any(|f| *f == "final.ply" || f.ends_with(".tmp")),
+        "{files:?}"
+    );
+}
