@@ -369,7 +369,7 @@ pub fn identify(
         });
     }
     let fastest = speed.iter().cloned().fold(0.0, f64::max);
-    if !(fastest >= MIN_CAPTURE_SPEED) {
+    if fastest.is_nan() || fastest < MIN_CAPTURE_SPEED {
         bail!(
             "the capture shows no motion: the markers' mean speed is at most {fastest:.2e} m/s \
              over its {} frames, below {MIN_CAPTURE_SPEED} m/s (MIN_CAPTURE_SPEED); damping \
