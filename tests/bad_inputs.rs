@@ -307,3 +307,40 @@ fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
         "{files:?}"
     );
 }
+
+/// A step that fails names what drove it: the spring, its vertices and
+/// strain (here a cloth stretched 1e80 times along warp, whose forces
+/// overflow).
+#[test]
+fn a_failed_step_names_the_spring_and_the_strain() {
+    use garment_sim::scene::{Overrides, Scene};
+    use garment_sim::solver::LinearSolverKind;
+    let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
+    let solver = LinearSolverKind::Cholesky;
+    {
+        let mut sim = sc
+            .build(&Overrides {
+                solver: Some(solver),
+                ..Default::default()
+            })
+            .unwrap();
+        sim.fabric.warp.tensile.elastic.c = [100.0, 0.0, 0.0, 100.0];
+        let x0 = sim.cloth.x[0];
+        for p in sim.cloth.x.iter_mut() {
+            p.x = x0.x + (p.x - x0.x) * 1e80;
+        }
+        let before = sim.cloth.x.clone();
+        let e = match sim.step() {
+            Ok(_) => panic!("{solver:?}: the step succeeded"),
+            Err(e) => format!("{e:#}"),
+        };
+        assert!(
+            e.contains("most stretched: tension spring")
+                && e.contains("warp vertices")
+                && e.contains("at strain 1.000e80"),
+            "{solver:?}: {e}"
+        );
+        // nothing changed
+        assert_eq!(sim.cloth.x, before);
+    }
+}
