@@ -231,10 +231,16 @@ fn bag_cmd(cmd: BagCmd) -> Result<()> {
                 if let bag::Ending::Truncated { offset, reason } = &r.ending {
                     println!("{}: cut at byte {offset} ({reason})", r.bag.file.display());
                 }
+                for (offset, why) in &r.dropped_chunks {
+                    println!("dropped the chunk at byte {offset}: {why}");
+                }
                 println!(
                     "repaired: {} messages in {} chunks kept, {} bytes of an incomplete chunk dropped; summary, indexes and metadata.yaml rebuilt",
                     r.bag.message_count, r.bag.chunks, r.bytes_dropped
                 );
+                if let Some(b) = &r.backup {
+                    println!("the damaged file is kept as {}", b.display());
+                }
             }
         }
     }
