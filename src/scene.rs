@@ -323,6 +323,8 @@ impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scene file {}", path.display()))?;
+        crate::io::check_yaml_shape(&text)
+            .with_context(|| format!("scene file {}", path.display()))?;
         let file: SceneFile = serde_yaml::from_str(&text)
             .with_context(|| format!("scene file {}: invalid YAML or field", path.display()))?;
         Scene::from_file(file, path)
@@ -473,6 +475,15 @@ impl Scene {
             spacing,
             pose: cloth_pose,
         };
+        if grid
+            .size
+            .iter()
+            .chain(&grid.spacing)
+            .all(|v| v.is_finite() && *v > 0.0)
+        {
+            let (nx, ny) = grid.dims();
+            limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
+        }
         let cloth = Cloth::grid(&grid, self.fabric.areal_mass).with_context(ctx)?;
         // the cloth must start outside the obstacles (meshes may be open,
         // with no inside: not checked)

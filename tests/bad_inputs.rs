@@ -465,3 +465,90 @@ fn bag_repair_keeps_every_readable_chunk() {
     names.sort();
     assert_eq!(names, ["bag_0.mcap", "bag_0.mcap.damaged", "metadata.yaml"]);
 }
+
+/// A grid larger than the memory available is refused before anything is
+/// allocated, with the estimate (the limit set to 100 MB here; by default
+/// it is the machine's MemAvailable).
+#[test]
+fn a_grid_larger_than_memory_is_refused_with_the_estimate() {
+    let d = scratch::Scratch::new("memory");
+    let td = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/scenes/table_drape.yaml"
+    );
+    let o = bin()
+        .env("GARMENT_SIM_MEMORY_LIMIT", "100000000")
+        .args([
+            "drape",
+            td,
+            "--spacing",
+            "0.0025",
+            "--duration",
+            "0.001",
+            "--out",
+        ])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("201 × 201 = 40401 vertices needs about 0.66 GB")
+            && err.contains("0.10 GB of memory available"),
+        "{err}"
+    );
+    // the estimate lies above what such a run uses: its peak resident size
+    // (the largest of this test process's children, getrusage)
+    let o = bin()
+        .args(["drape", td, "--spacing", "0.005", "--duration", "0.01"])
+        .args(["--solver", "cholesky", "--out"])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage fills the struct it is given
+    assert_eq!(
+        unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut ru) },
+        0
+    );
+    let peak = ru.ru_maxrss as f64 * 1024.0;
+    let est = garment_sim::limits::memory_estimate(101 * 101) as f64;
+    assert!(peak > 0.0 && peak < est, "peak {peak} B, estimate {est} B");
+}
+
+/// A scene of 400 KB of nested brackets is refused at once (before the YAML
+/// parser, which takes minutes on it), naming the file and the line.
+#[test]
+fn deeply_nested_yaml_is_refused_before_parsing() {
+    let d = scratch::Scratch::new("nested");
+    let p = d.join("nested.yaml");
+    std::fs::write(&p, format!("cloth: {}", "[".repeat(400_000))).unwrap();
+    let t = std::time::Instant::now();
+    refused(
+        &["drape", p.to_str().unwrap()],
+        &[
+            "nested.yaml",
+            "line 1: brackets nested deeper than 32 levels",
+        ],
+    );
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    let big = d.join("big.yaml");
+    std::fs::write(
+        &big,
+        format!("name: x\ndescription: \"{}\"\n", "a".repeat(2 << 20)),
+    )
+    .unwrap();
+    refused(
+        &["drape", big.to_str().unwrap()],
+        &["big.yaml", "larger than the 1048576 bytes"],
+    );
+    // the shipped files pass the same check
+    for f in [
+        "config/scenes/table_drape.yaml",
+        "config/fabrics/acrylic.yaml",
+    ] {
+        let text = std::fs::read_to_string(f).unwrap();
+        garment_sim::io::check_yaml_shape(&text).unwrap();
+    }
+}
