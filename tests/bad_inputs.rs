@@ -552,3 +552,149 @@ fn deeply_nested_yaml_is_refused_before_parsing() {
         garment_sim::io::check_yaml_shape(&text).unwrap();
     }
 }
+
+/// Property: whatever `pins` and `obstacles` messages arrive (fields drawn
+/// from extreme values, NaN, infinities and plausible ones, 400 messages
+/// from a fixed seed), each is applied or refused, and the simulation then
+/// steps without an error and with finite positions.
+#[test]
+fn random_extreme_messages_never_break_the_step() {
+    use garment_sim::ros::control::{apply_obstacle, apply_pin, ObstacleRegistry};
+    use garment_sim::ros::msgs;
+    use garment_sim::scene::{Overrides, Scene};
+    use rand::{Rng, SeedableRng};
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let build = || {
+        sc.build(&Overrides {
+            spacing: Some(0.1),
+            ..Default::default()
+        })
+        .unwrap()
+    };
+    let mut sim = build();
+    let mut reg = ObstacleRegistry::from_sim(&sim);
+    let centre = sim.cloth.x[sim.cloth.len() / 2];
+    let pool = [
+        0.0,
+        1e-300,
+        0.01,
+        0.3,
+        -0.5,
+        1.0,
+        3.0,
+        -3.0,
+        500.0,
+        1e5,
+        1e200,
+        1e300,
+        -1e300,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(19);
+    let (mut applied, mut refused) = (0, 0);
+    for case in 0..400 {
+        if case % 40 == 0 {
+            sim = build();
+            reg = ObstacleRegistry::from_sim(&sim);
+        }
+        let n = sim.cloth.len() as u32;
+        let val = |rng: &mut rand::rngs::StdRng, plausible: f64| -> f64 {
+            if rng.random_bool(0.5) {
+                rng.random_range(-plausible..plausible)
+            } else {
+                pool[rng.random_range(0..pool.len())]
+            }
+        };
+        let point = |rng: &mut rand::rngs::StdRng| msgs::Point {
+            x: centre.x + val(rng, 1.0),
+            y: centre.y + val(rng, 1.0),
+            z: centre.z + val(rng, 1.0),
+        };
+        let what = if rng.random_bool(0.6) {
+            let k = rng.random_range(1..4usize);
+            let m = msgs::Pin {
+                operation: rng.random_range(0..4u8),
+                vertices: (0..k).map(|_| rng.random_range(0..n + 2)).collect(),
+                targets: if rng.random_bool(0.7) {
+                    (0..k).map(|_| point(&mut rng)).collect()
+                } else {
+                    vec![]
+                },
+                velocities: if rng.random_bool(0.5) {
+                    (0..k)
+                        .map(|_| msgs::Vector3 {
+                            x: val(&mut rng, 2.0),
+                            y: val(&mut rng, 2.0),
+                            z: val(&mut rng, 2.0),
+                        })
+                        .collect()
+                } else {
+                    vec![]
+                },
+                ..Default::default()
+            };
+            (apply_pin(&mut sim, &m, "world"), format!("{m:?}"))
+        } else {
+            let t = rng.random_range(1..5u8);
+            let dims = match t {
+                1 => 3,
+                2 => 1,
+                _ => 2,
+            };
+            let mut pose = msgs::Pose::default();
+            pose.position = point(&mut rng);
+            let m = msgs::Obstacle {
+                id: ["a", "b", "c"][rng.random_range(0..3)].into(),
+                pose,
+                primitives: vec![msgs::SolidPrimitive {
+                    type_: t,
+                    dimensions: (0..dims)
+                        .map(|_| val(&mut rng, 0.3).abs())
+                        .collect::<Vec<f64>>(),
+                    ..Default::default()
+                }],
+                primitive_poses: vec![msgs::Pose::default()],
+                velocity: msgs::Twist {
+                    linear: msgs::Vector3 {
+                        x: val(&mut rng, 1.0),
+                        y: val(&mut rng, 1.0),
+                        z: val(&mut rng, 1.0),
+                    },
+                    angular: msgs::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: val(&mut rng, 1.0),
+                    },
+                },
+                thickness: val(&mut rng, 0.01).abs(),
+                friction: val(&mut rng, 1.0).abs(),
+                operation: [0u8, 0, 1, 3][rng.random_range(0..4)],
+                ..Default::default()
+            };
+            (
+                apply_obstacle(&mut sim, &mut reg, &m, "world", 1000),
+                format!("{m:?}"),
+            )
+        };
+        match what.0 {
+            Ok(_) => applied += 1,
+            Err(_) => refused += 1,
+        }
+        for k in 0..5 {
+            if let Err(e) = sim.step() {
+                panic!("case {case}, step {k} after {}: {e:#}", what.1);
+            }
+            assert!(
+                sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+                "case {case}: non-finite position after {}",
+                what.1
+            );
+        }
+    }
+    assert!(
+        applied > 40 && refused > 40,
+        "{applied} applied, {refused} refused"
+    );
+}
