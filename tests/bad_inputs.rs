@@ -127,7 +127,7 @@ fn implausible_scene_fields_are_refused_with_the_field_named() {
             .replace("dt: 0.001", "dt: 1"),
     )
     .unwrap();
-    refused(&["drape", &p, "--out", out], &["dt = 1", "0.04"]);
+    refused(&["drape", &p, "--out", out], &["dt = 1", "0.05"]);
     assert!(!Path::new(out).join("final.ply").exists());
 }
 
@@ -157,7 +157,7 @@ fn implausible_command_line_values_are_refused() {
             drape(&["--cg-tolerance", "1"]),
             vec!["--cg-tolerance = 1", "(0, 1)"],
         ),
-        (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.04"]),
+        (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.05"]),
         (drape(&["--spacing", "-0.1"]), vec!["--spacing = -0.1"]),
         (
             [
@@ -165,13 +165,13 @@ fn implausible_command_line_values_are_refused() {
             ]
             .map(String::from)
             .to_vec(),
-            vec!["dt = 1000", "0.04"],
+            vec!["dt = 1000", "0.05"],
         ),
         (
             ["drapemeter", fabric, "--dt", "1", "--out", out]
                 .map(String::from)
                 .to_vec(),
-            vec!["dt = 1", "0.04"],
+            vec!["dt = 1", "0.05"],
         ),
         (
             ["drapemeter", fabric, "--diameter", "-0.3", "--out", out]
