@@ -643,8 +643,10 @@ fn random_extreme_messages_never_break_the_step() {
                 2 => 1,
                 _ => 2,
             };
-            let mut pose = msgs::Pose::default();
-            pose.position = point(&mut rng);
+            let pose = msgs::Pose {
+                position: point(&mut rng),
+                ..Default::default()
+            };
             let m = msgs::Obstacle {
                 id: ["a", "b", "c"][rng.random_range(0..3)].into(),
                 pose,
