@@ -709,7 +709,7 @@ impl Node {
         }
         self.pending_steps = self.pending_steps.saturating_sub(1);
         let sim = &self.loaded.sim;
-        if sim.steps % clock_every == 0 {
+        if sim.steps.is_multiple_of(clock_every) {
             let _ = self.io.clock.publish(msgs::Clock {
                 clock: msgs::Time::from_secs(sim.time),
             });
