@@ -24,16 +24,16 @@ pub struct KesArgs {
     #[arg(long, default_value = "out/kes")]
     pub out: PathBuf,
     /// Grid spacing along the 5 cm gauge of the tensile and shear specimens, m.
-    #[arg(long, default_value_t = LabOptions::default().fb1_spacing)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = LabOptions::default().fb1_spacing)]
     pub spacing: f64,
     /// Grid spacing along the 1 cm gauge of the bending specimen, m.
-    #[arg(long, default_value_t = LabOptions::default().fb2_spacing)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = LabOptions::default().fb2_spacing)]
     pub bending_spacing: f64,
     /// Grid spacing along the 20 cm clamps, m.
-    #[arg(long, default_value_t = LabOptions::default().width_spacing)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = LabOptions::default().width_spacing)]
     pub width_spacing: f64,
     /// Fixed time step, s.
-    #[arg(long, default_value_t = LabOptions::default().dt)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = LabOptions::default().dt)]
     pub dt: f64,
 }
 
@@ -92,19 +92,19 @@ pub struct DrapemeterArgs {
     /// Fabric file, e.g. config/fabrics/wool_tropical.yaml
     pub fabric: PathBuf,
     /// Specimen diameter, m.
-    #[arg(long, default_value_t = 0.30)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.30)]
     pub diameter: f64,
     /// Support disk diameter, m.
-    #[arg(long, default_value_t = 0.18)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.18)]
     pub disk: f64,
     /// Grid spacing, m.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.01)]
     pub spacing: f64,
     /// Fixed time step, s.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1e-3)]
     pub dt: f64,
     /// Longest simulated time (the run stops earlier once settled), s.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, allow_negative_numbers = true, value_parser = seconds, default_value_t = 4.0)]
     pub duration: f64,
     /// Seed of the initial out-of-plane perturbation.
     #[arg(long, default_value_t = 1)]
@@ -254,4 +254,31 @@ pub fn fit_kes(a: FitKesArgs) -> Result<()> {
     println!("(residuals: RMS force error of the fitted law driven along each curve, KES units)");
     println!("wrote            {}", a.out.display());
     Ok(())
+}
+
+/// A finite number of seconds ≥ 0 (a command-line value parser).
+pub fn seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|e| format!("{s:?}: {e}"))?;
+    garment_sim::limits::check_duration("value", v).map_err(|e| e.to_string())?;
+    Ok(v)
+}
+
+/// A count ≥ 1 (a command-line value parser).
+pub fn at_least_one(s: &str) -> Result<usize, String> {
+    let v: usize = s.trim().parse().map_err(|e| format!("{s:?}: {e}"))?;
+    if v == 0 {
+        return Err("0: must be ≥ 1".into());
+    }
+    Ok(v)
+}
+
+/// Output into a pipe that closes early (`garment_sim bag info … | head`)
+/// ends the program quietly, as for any command-line tool, instead of a
+/// panic in `println!`: SIGPIPE is restored to its default action.
+pub fn quiet_broken_pipe() {
+    // SAFETY: resetting a signal to its default action before any thread
+    // starts has no memory effect.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
 }

@@ -12,6 +12,7 @@ use std::path::Path;
 pub fn load_fabric(path: &Path) -> Result<Fabric> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read fabric file {}", path.display()))?;
+    check_yaml_shape(&text).with_context(|| format!("fabric file {}", path.display()))?;
     let file: FabricFile = serde_yaml::from_str(&text)
         .with_context(|| format!("fabric file {}: invalid YAML or field", path.display()))?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -94,4 +95,98 @@ pub fn load_obj(path: &Path) -> Result<MeshData> {
         bail!("{}: no faces", path.display());
     }
     Ok((v, tris))
+}
+
+/// Writes a file whole or not at all: `fill` writes into a temporary file
+/// beside `path` (same folder, so the rename cannot cross file systems),
+/// which is flushed and renamed onto `path`. Any failure (a full disk)
+/// removes the temporary file, leaves no truncated `path`, and names `path`
+/// in the error.
+pub fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let written = (|| -> std::io::Result<()> {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        fill(&mut w)?;
+        let f = w.into_inner().map_err(|e| e.into_error())?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::Error::new(e).context(format!("cannot write {}", path.display())));
+    }
+    Ok(())
+}
+
+/// The memory a new grid may use, bytes: the environment variable
+/// `GARMENT_SIM_MEMORY_LIMIT` (bytes) if set, else `MemAvailable` of
+/// `/proc/meminfo`; none when neither can be read.
+pub fn available_memory() -> Option<u64> {
+    if let Ok(v) = std::env::var("GARMENT_SIM_MEMORY_LIMIT") {
+        return v.trim().parse().ok();
+    }
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    text.lines()
+        .find_map(|l| l.strip_prefix("MemAvailable:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map(|kb| kb * 1024)
+}
+
+/// Largest YAML file (scene, fabric, parameters) read, bytes: the shipped
+/// ones are a few KB; meshes come as OBJ files, not YAML.
+pub const MAX_YAML_BYTES: usize = 1 << 20;
+
+/// Deepest nesting of `[` and `{` in a YAML file read: a scene nests four
+/// levels; deep nesting makes the parser slow (quadratic) long before it
+/// says anything.
+pub const MAX_YAML_DEPTH: usize = 32;
+
+/// Refuses, before parsing, a YAML text larger than [`MAX_YAML_BYTES`] or
+/// nested deeper than [`MAX_YAML_DEPTH`] in flow brackets (quoted strings
+/// and comments are skipped), naming the line.
+pub fn check_yaml_shape(text: &str) -> Result<()> {
+    if text.len() > MAX_YAML_BYTES {
+        bail!(
+            "{} bytes: larger than the {MAX_YAML_BYTES} bytes a YAML file may have",
+            text.len()
+        );
+    }
+    let mut depth = 0usize;
+    for (ln, line) in text.lines().enumerate() {
+        let mut quote: Option<char> = None;
+        let mut prev = ' ';
+        for ch in line.chars() {
+            match quote {
+                Some(q) => {
+                    if ch == q {
+                        quote = None;
+                    }
+                }
+                None => match ch {
+                    '\'' | '"' if " [{,:".contains(prev) => quote = Some(ch),
+                    '#' if prev == ' ' || prev == '\t' => break,
+                    '[' | '{' => {
+                        depth += 1;
+                        if depth > MAX_YAML_DEPTH {
+                            bail!(
+                                "line {}: brackets nested deeper than {MAX_YAML_DEPTH} levels",
+                                ln + 1
+                            );
+                        }
+                    }
+                    ']' | '}' => depth = depth.saturating_sub(1),
+                    _ => {}
+                },
+            }
+            prev = ch;
+        }
+    }
+    Ok(())
 }

@@ -15,7 +15,7 @@
 //! node) publishes and [`live`] serves to Foxglove over its WebSocket
 //! protocol.
 
-pub use garment_core::{cloth, collision, fabric, solver};
+pub use garment_core::{cloth, collision, fabric, limits, solver};
 
 pub mod bag;
 pub mod capture;

@@ -39,13 +39,13 @@ enum Cmd {
         #[arg(long, default_value = "out")]
         out: PathBuf,
         /// Grid spacing (both directions), m.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         spacing: Option<f64>,
         /// Fixed time step, s.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         dt: Option<f64>,
         /// Simulated duration, s.
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
         /// Linear solver: auto (default: PCG while it converges in fewer iterations than the
         /// break-even count, else a single-precision Cholesky factor as its preconditioner),
@@ -55,8 +55,8 @@ enum Cmd {
         /// Turn the hysteretic parts of the laws off.
         #[arg(long)]
         no_hysteresis: bool,
-        /// Relative tolerance of the PCG.
-        #[arg(long)]
+        /// Relative tolerance of the PCG, in (0, 1).
+        #[arg(long, allow_negative_numbers = true)]
         cg_tolerance: Option<f64>,
         /// Threads of the assembly, the PCG and the contacts (default: one per core
         /// from 500 vertices; 1 for one core).
@@ -117,13 +117,15 @@ enum Cmd {
         #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky", "auto"])]
         solver: Vec<LinearSolverKind>,
         /// Steps per measurement (after the warm-up of the same count).
-        #[arg(long, default_value_t = 200)]
+        #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
         steps: u64,
         /// Repetitions; the median is reported.
-        #[arg(long, default_value_t = 3)]
+        #[arg(long, default_value_t = 3, value_parser = cli_lab::at_least_one)]
         repeat: usize,
-        /// Simulated time before measuring (the cloth is mid-drape), s.
-        #[arg(long, default_value_t = 0.2)]
+        /// Simulated time before measuring (the cloth is mid-drape; at most
+        /// 3 × steps are run), s.
+        #[arg(long, default_value_t = 0.2, allow_negative_numbers = true,
+              value_parser = cli_lab::seconds)]
         warmup: f64,
         /// Threads of the assembly, the PCG and the contacts (default: one per core
         /// from 500 vertices; 1 for one core).
@@ -187,7 +189,8 @@ enum BagCmd {
         /// Bag directory (or its .mcap file).
         bag: PathBuf,
         /// Simulated time, s: the last frame at or before it.
-        #[arg(long, conflicts_with = "last", required_unless_present = "last")]
+        #[arg(long, conflicts_with = "last", required_unless_present = "last",
+              allow_negative_numbers = true, value_parser = cli_lab::seconds)]
         time: Option<f64>,
         /// The last frame.
         #[arg(long)]
@@ -250,10 +253,16 @@ fn bag_cmd(cmd: BagCmd) -> Result<()> {
                 if let bag::Ending::Truncated { offset, reason } = &r.ending {
                     println!("{}: cut at byte {offset} ({reason})", r.bag.file.display());
                 }
+                for (offset, why) in &r.dropped_chunks {
+                    println!("dropped the chunk at byte {offset}: {why}");
+                }
                 println!(
                     "repaired: {} messages in {} chunks kept, {} bytes of an incomplete chunk dropped; summary, indexes and metadata.yaml rebuilt",
                     r.bag.message_count, r.bag.chunks, r.bytes_dropped
                 );
+                if let Some(b) = &r.backup {
+                    println!("the damaged file is kept as {}", b.display());
+                }
             }
         }
     }
@@ -261,6 +270,7 @@ fn bag_cmd(cmd: BagCmd) -> Result<()> {
 }
 
 fn main() {
+    cli_lab::quiet_broken_pipe();
     let cli = Cli::parse();
     if let Err(e) = real_main(cli) {
         eprintln!("error: {e:#}");

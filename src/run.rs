@@ -6,7 +6,6 @@ use crate::scene::{Overrides, Scene};
 use crate::solver::Simulation;
 use anyhow::{Context, Result};
 use serde::Serialize;
-use std::io::Write;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -250,59 +249,54 @@ pub fn drape_with(
     crate::render::Picture::from_simulation(&sim, &name).save_png(&out.join("final.png"))?;
     write_energy_csv(&rows, &out.join("energy.csv"))?;
     let js = serde_json::to_string_pretty(&summary)?;
-    std::fs::write(out.join("summary.json"), js)
-        .with_context(|| format!("cannot write {}", out.display()))?;
+    crate::io::write_atomic(&out.join("summary.json"), |w| w.write_all(js.as_bytes()))?;
     Ok((sim, summary))
 }
 
 /// ASCII PLY: vertices in grid order (x y z, u v material coordinates), faces.
 pub fn write_ply(sim: &Simulation, path: &Path) -> Result<()> {
     let c = &sim.cloth;
-    let mut w = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
-    );
-    writeln!(w, "ply\nformat ascii 1.0\ncomment garment_sim cloth, vertices in grid order (index = j*nx + i), nx = {}, ny = {}, metres", c.nx, c.ny)?;
-    writeln!(w, "element vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty double u\nproperty double v", c.len())?;
-    writeln!(
-        w,
-        "element face {}\nproperty list uchar int vertex_indices\nend_header",
-        c.triangles.len()
-    )?;
-    for (p, m) in c.x.iter().zip(&c.material) {
-        writeln!(w, "{} {} {} {} {}", p.x, p.y, p.z, m[0], m[1])?;
-    }
-    for t in &c.triangles {
-        writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
-    }
-    w.flush()?;
-    Ok(())
+    crate::io::write_atomic(path, |w| {
+        writeln!(w, "ply\nformat ascii 1.0\ncomment garment_sim cloth, vertices in grid order (index = j*nx + i), nx = {}, ny = {}, metres", c.nx, c.ny)?;
+        writeln!(w, "element vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty double u\nproperty double v", c.len())?;
+        writeln!(
+            w,
+            "element face {}\nproperty list uchar int vertex_indices\nend_header",
+            c.triangles.len()
+        )?;
+        for (p, m) in c.x.iter().zip(&c.material) {
+            writeln!(w, "{} {} {} {} {}", p.x, p.y, p.z, m[0], m[1])?;
+        }
+        for t in &c.triangles {
+            writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
+        }
+        Ok(())
+    })
 }
 
 pub fn write_energy_csv(rows: &[EnergyRow], path: &Path) -> Result<()> {
-    let mut w = std::io::BufWriter::new(
-        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?,
-    );
-    writeln!(
-        w,
-        "time_s,kinetic_J,gravity_J,tension_J,shear_J,bending_J,dissipated_damping_J,lost_total_J,rms_speed_m_s"
-    )?;
-    for r in rows {
+    crate::io::write_atomic(path, |w| {
         writeln!(
             w,
-            "{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
-            r.time,
-            r.kinetic,
-            r.gravity,
-            r.tension,
-            r.shear,
-            r.bending,
-            r.dissipated,
-            r.lost,
-            r.rms_speed
+            "time_s,kinetic_J,gravity_J,tension_J,shear_J,bending_J,dissipated_damping_J,lost_total_J,rms_speed_m_s"
         )?;
-    }
-    w.flush()?;
-    Ok(())
+        for r in rows {
+            writeln!(
+                w,
+                "{},{:e},{:e},{:e},{:e},{:e},{:e},{:e},{:e}",
+                r.time,
+                r.kinetic,
+                r.gravity,
+                r.tension,
+                r.shear,
+                r.bending,
+                r.dissipated,
+                r.lost,
+                r.rms_speed
+            )?;
+        }
+        Ok(())
+    })
 }
 
 static STOP: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);

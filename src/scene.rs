@@ -7,6 +7,7 @@ use crate::collision::{
     Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS,
 };
 use crate::fabric::Fabric;
+use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -298,10 +299,32 @@ pub struct Overrides {
     pub threads: Option<usize>,
 }
 
+impl Overrides {
+    /// Each value checked as the scene file's field it replaces (the
+    /// command line's `--spacing`, `--dt`, `--duration`, `--cg-tolerance`).
+    pub fn check(&self) -> Result<()> {
+        if let Some(s) = self.spacing {
+            limits::check_positive("--spacing", s, "m")?;
+        }
+        if let Some(dt) = self.dt {
+            limits::check_dt("--dt", dt)?;
+        }
+        if let Some(d) = self.duration {
+            limits::check_duration("--duration", d)?;
+        }
+        if let Some(t) = self.cg_tolerance {
+            limits::check_cg_tolerance("--cg-tolerance", t)?;
+        }
+        Ok(())
+    }
+}
+
 impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scene file {}", path.display()))?;
+        crate::io::check_yaml_shape(&text)
+            .with_context(|| format!("scene file {}", path.display()))?;
         let file: SceneFile = serde_yaml::from_str(&text)
             .with_context(|| format!("scene file {}: invalid YAML or field", path.display()))?;
         Scene::from_file(file, path)
@@ -343,12 +366,22 @@ impl Scene {
             Ok(())
         };
         pos("dt", f.dt)?;
+        limits::check_dt("dt", f.dt)?;
         if !(f.duration.is_finite() && f.duration >= 0.0) {
             bail!("duration = {}: must be ≥ 0 s", f.duration);
         }
         pos("output_rate", f.output_rate)?;
         pos("settle_speed", f.settle_speed)?;
         pos("cloth.thickness", f.cloth.thickness)?;
+        let (lo, hi) = limits::CLOTH_THICKNESS;
+        limits::check_range(
+            "cloth.thickness",
+            f.cloth.thickness,
+            lo,
+            hi,
+            "m",
+            "CLOTH_THICKNESS: a film to a quilt",
+        )?;
         if f.gravity.iter().any(|g| !g.is_finite()) {
             bail!("gravity = {:?}: must be finite", f.gravity);
         }
@@ -357,6 +390,18 @@ impl Scene {
             if !ids.insert(o.id.as_str()) {
                 bail!("obstacles[{k}].id = {:?}: duplicate id", o.id);
             }
+            limits::check_speed(
+                &format!("obstacles[{k}].linear_velocity"),
+                &Vector3::from(o.linear_velocity),
+                MAX_OBSTACLE_SPEED,
+                "m/s",
+            )?;
+            limits::check_speed(
+                &format!("obstacles[{k}].angular_velocity"),
+                &Vector3::from(o.angular_velocity),
+                MAX_ANGULAR_SPEED,
+                "rad/s",
+            )?;
         }
         for (k, p) in f.pins.iter().enumerate() {
             if p.grid.is_some() == p.vertex.is_some() {
@@ -377,6 +422,7 @@ impl Scene {
 
     /// Builds the simulation (applying command-line overrides).
     pub fn build(&self, ov: &Overrides) -> Result<Simulation> {
+        ov.check()?;
         let f = &self.file;
         let base = self
             .path
@@ -429,7 +475,25 @@ impl Scene {
             spacing,
             pose: cloth_pose,
         };
+        if grid
+            .size
+            .iter()
+            .chain(&grid.spacing)
+            .all(|v| v.is_finite() && *v > 0.0)
+        {
+            let (nx, ny) = grid.dims();
+            limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
+        }
         let cloth = Cloth::grid(&grid, self.fabric.areal_mass).with_context(ctx)?;
+        // the cloth must start outside the obstacles (meshes may be open,
+        // with no inside: not checked)
+        for (k, ob) in obstacles.iter().enumerate() {
+            if !matches!(ob.spec, ShapeSpec::Triangles { .. }) {
+                limits::check_overlap(ob, &cloth.x)
+                    .with_context(|| format!("obstacles[{k}]"))
+                    .with_context(ctx)?;
+            }
+        }
         let params = Params {
             dt: ov.dt.unwrap_or(f.dt),
             gravity: Vector3::from(f.gravity),
@@ -463,15 +527,46 @@ impl Scene {
                 _ => unreachable!("validated"),
             };
             let start = p.target.map(Vector3::from).unwrap_or(cloth.x[vertex]);
+            limits::check_reach(&format!("pins[{k}].target"), &start, &cloth.x)
+                .with_context(ctx)?;
+            if let Some(v) = p.velocity {
+                limits::check_speed(
+                    &format!("pins[{k}].velocity"),
+                    &Vector3::from(v),
+                    MAX_PIN_SPEED,
+                    "m/s",
+                )
+                .with_context(ctx)?;
+            }
             let path = match (&p.path, p.velocity) {
                 (Some(w), _) => {
                     if w.is_empty() {
                         bail!("{}: pins[{k}].path is empty", ctx());
                     }
-                    for pair in w.windows(2) {
+                    for (q, w) in w.iter().enumerate() {
+                        if !w.t.is_finite() {
+                            bail!("{}: pins[{k}].path[{q}].t = {}: must be finite", ctx(), w.t);
+                        }
+                        limits::check_reach(
+                            &format!("pins[{k}].path[{q}].position"),
+                            &Vector3::from(w.position),
+                            &cloth.x,
+                        )
+                        .with_context(ctx)?;
+                    }
+                    for (q, pair) in w.windows(2).enumerate() {
                         if pair[1].t <= pair[0].t {
                             bail!("{}: pins[{k}].path: waypoint times must increase", ctx());
                         }
+                        let v = (Vector3::from(pair[1].position) - Vector3::from(pair[0].position))
+                            / (pair[1].t - pair[0].t);
+                        limits::check_speed(
+                            &format!("pins[{k}].path[{q}..{}] speed", q + 1),
+                            &v,
+                            MAX_PIN_SPEED,
+                            "m/s",
+                        )
+                        .with_context(ctx)?;
                     }
                     PinPath::Waypoints(w.iter().map(|w| (w.t, Vector3::from(w.position))).collect())
                 }

@@ -98,6 +98,27 @@ fn bad_captures_are_clear_errors() {
     assert!(format!("{e}").contains("frame 2 has 120 markers"), "{e}");
 }
 
+/// A capture where nothing moves (a cloth lying still, or a file of copies
+/// of one frame) holds no damping to measure: refused, saying why, instead
+/// of α = 0 written into a fabric file.
+#[test]
+fn a_capture_with_no_motion_is_refused() {
+    let (frames, fabric) = capture();
+    let still = vec![frames[0].clone(); 60];
+    let e = identify(&still, 120.0, &fabric, &IdentifyOptions::default()).unwrap_err();
+    let e = format!("{e}");
+    assert!(e.contains("no motion") && e.contains("m/s"), "{e}");
+    // markers jittering by 10 µm: still no motion to speak of
+    let mut jitter = still;
+    for (k, f) in jitter.iter_mut().enumerate() {
+        for (m, p) in f.iter_mut().enumerate() {
+            p.x += 1e-5 * (((k * 31 + m * 17) % 7) as f64 - 3.0) / 3.0;
+        }
+    }
+    let e = identify(&jitter, 120.0, &fabric, &IdentifyOptions::default()).unwrap_err();
+    assert!(format!("{e}").contains("no motion"), "{e}");
+}
+
 /// The whole tool on a C3D file: 0.5 mm noise, 5 % of markers missing at
 /// random, the capture tilted by a known rotation and a ball drop captured in
 /// the same tilted frame; `garment_sim identify` fills the gaps (Algorithm 1),

@@ -84,6 +84,10 @@ pub struct Reader {
     /// First and last log time, ns.
     pub bounds: Option<(u64, u64)>,
     pub ending: Ending,
+    /// Chunks skipped because they cannot be read (CRC mismatch, bad
+    /// compressed data): byte offset and why. The records after them are
+    /// read as usual.
+    pub damaged: Vec<(u64, String)>,
     /// Whether the data section holds the `rosbag2` metadata record.
     pub has_rosbag2_record: bool,
 }
@@ -143,6 +147,7 @@ impl Reader {
             message_count: 0,
             bounds: None,
             ending: Ending::Complete,
+            damaged: Vec::new(),
             has_rosbag2_record: false,
         };
         r.scan()?;
@@ -224,8 +229,10 @@ impl Reader {
                         Ok(())
                     })();
                     if let Err(e) = ok {
-                        self.ending = truncated(format!("damaged chunk: {e:#}"));
-                        break;
+                        // the record's own length is intact: skip it, read on
+                        self.damaged.push((at, format!("damaged chunk: {e:#}")));
+                        pos = end;
+                        continue;
                     }
                     for rec in inner {
                         match rec {
@@ -307,7 +314,7 @@ impl Reader {
 
     /// Whether the file is finished (summary, footer, closing magic).
     pub fn is_complete(&self) -> bool {
-        self.ending == Ending::Complete
+        self.ending == Ending::Complete && self.damaged.is_empty()
     }
 
     /// The channel of a topic, or an error listing the bag's topics.

@@ -514,13 +514,21 @@ pub struct RepairReport {
     pub ending: Ending,
     /// Bytes of the damaged file after the last complete record (dropped).
     pub bytes_dropped: u64,
+    /// Unreadable chunks dropped (byte offset in the damaged file, why);
+    /// every chunk before and after them that reads is kept.
+    pub dropped_chunks: Vec<(u64, String)>,
+    /// Where the damaged file was kept (beside it, `NAME.damaged`).
+    pub backup: Option<std::path::PathBuf>,
     pub bag: BagSummary,
 }
 
-/// Rebuilds a bag cut short by a crash: every message of the complete chunks
-/// is rewritten into a new, finished MCAP file (same topics, schemas, QoS and
-/// compression) that replaces the old one, and `metadata.yaml` is rewritten
-/// from it. A complete bag only gets its `metadata.yaml` rewritten.
+/// Rebuilds a bag cut short by a crash or with damaged chunks: every message
+/// of every chunk that reads (its CRC holds), before and after the damage,
+/// is rewritten into a new, finished MCAP file (same topics, schemas, QoS
+/// and compression); the damaged file is kept beside it as `NAME.damaged`
+/// and the new one takes its name; `metadata.yaml` is rewritten from it. A
+/// failure leaves the bag as it was and no temporary file. A complete bag
+/// only gets its `metadata.yaml` rewritten.
 pub fn repair(path: &Path) -> Result<RepairReport> {
     let r = Reader::open(path)?;
     let file_name = r
@@ -535,6 +543,8 @@ pub fn repair(path: &Path) -> Result<RepairReport> {
             was_complete: true,
             ending: Ending::Complete,
             bytes_dropped: 0,
+            dropped_chunks: Vec::new(),
+            backup: None,
             bag: BagSummary {
                 dir: r.dir.clone(),
                 file: r.path.clone(),
@@ -560,23 +570,51 @@ pub fn repair(path: &Path) -> Result<RepairReport> {
         ..BagOptions::default()
     };
     let tmp = r.dir.join(format!(".{file_name}.repair"));
-    let mut w = Writer::create_file(&r.dir, &tmp, &file_name, &opts)?;
-    for c in r.channels.values() {
-        let schema = &r.schemas[&c.schema_id];
-        w.add_topic_with_schema(&c.topic, &c.type_name, &schema.text, &c.qos()?)?;
+    let written = (|| -> Result<BagSummary> {
+        let mut w = Writer::create_file(&r.dir, &tmp, &file_name, &opts)?;
+        for c in r.channels.values() {
+            let schema = &r.schemas[&c.schema_id];
+            w.add_topic_with_schema(&c.topic, &c.type_name, &schema.text, &c.qos()?)?;
+        }
+        r.for_each_message(|m| {
+            w.write_raw(&m.channel.topic, m.log_time, m.data)?;
+            Ok(ControlFlow::Continue(()))
+        })?;
+        w.finish()
+    })();
+    let mut bag = match written {
+        Ok(b) => b,
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(e.context(format!(
+                "repair of {} failed: the bag is left as it was",
+                r.path.display()
+            )));
+        }
+    };
+    // keep the damaged file beside the repaired one
+    let mut backup = r.dir.join(format!("{file_name}.damaged"));
+    let mut k = 1;
+    while backup.exists() {
+        backup = r.dir.join(format!("{file_name}.damaged.{k}"));
+        k += 1;
     }
-    r.for_each_message(|m| {
-        w.write_raw(&m.channel.topic, m.log_time, m.data)?;
-        Ok(ControlFlow::Continue(()))
-    })?;
-    let mut bag = w.finish()?;
-    std::fs::rename(&tmp, &r.path).with_context(|| {
-        format!(
-            "cannot replace {} with the repaired {}",
+    if let Err(e) = std::fs::rename(&r.path, &backup) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::Error::new(e).context(format!(
+            "cannot keep the damaged {} as {}: the bag is left as it was",
             r.path.display(),
-            tmp.display()
-        )
-    })?;
+            backup.display()
+        )));
+    }
+    if let Err(e) = std::fs::rename(&tmp, &r.path) {
+        let _ = std::fs::rename(&backup, &r.path);
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::Error::new(e).context(format!(
+            "cannot replace {} with the repaired file: the bag is left as it was",
+            r.path.display()
+        )));
+    }
     bag.file = r.path.clone();
     let valid = match &r.ending {
         Ending::Truncated { offset, .. } => *offset,
@@ -586,6 +624,8 @@ pub fn repair(path: &Path) -> Result<RepairReport> {
         was_complete: false,
         ending: r.ending.clone(),
         bytes_dropped: r.file_size() - valid,
+        dropped_chunks: r.damaged.clone(),
+        backup: Some(backup),
         bag,
     })
 }

@@ -263,6 +263,14 @@ fn joint_fit(
     Some((theta.iter().copied().collect(), se))
 }
 
+/// Slowest peak of the markers' mean speed a capture may have, m/s: a
+/// damping force is proportional to velocity, so a capture of a still cloth
+/// (or one frame copied, or markers jittering by noise) holds no damping to
+/// measure, and its fit would write α = 0 or NaN into a fabric file. A
+/// free fall reaches metres per second; 1 cm/s is ten times the speed of
+/// 0.1 mm of marker noise at 100 Hz.
+pub const MIN_CAPTURE_SPEED: f64 = 0.01;
+
 pub fn identify(
     frames: &[Vec<Vector3<f64>>],
     rate_hz: f64,
@@ -359,6 +367,15 @@ pub fn identify(
             zm,
             zk,
         });
+    }
+    let fastest = speed.iter().cloned().fold(0.0, f64::max);
+    if fastest.is_nan() || fastest < MIN_CAPTURE_SPEED {
+        bail!(
+            "the capture shows no motion: the markers' mean speed is at most {fastest:.2e} m/s \
+             over its {} frames, below {MIN_CAPTURE_SPEED} m/s (MIN_CAPTURE_SPEED); damping \
+             is measured on a moving cloth (a free fall reaches metres per second)",
+            frames.len()
+        );
     }
     let (window, auto) = match opts.window {
         Some((a, b)) => {

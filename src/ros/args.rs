@@ -137,6 +137,8 @@ pub fn parse(args: &[String]) -> Result<(Vec<String>, RosArgs)> {
 pub fn read_params_file(path: &Path, fq_name: &str) -> Result<Vec<(String, Value)>> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read params file {}", path.display()))?;
+    crate::io::check_yaml_shape(&text)
+        .with_context(|| format!("params file {}", path.display()))?;
     let doc: serde_yaml::Value = serde_yaml::from_str(&text)
         .with_context(|| format!("params file {}: not valid YAML", path.display()))?;
     let map = doc.as_mapping().ok_or_else(|| {

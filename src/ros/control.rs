@@ -4,6 +4,7 @@
 //! as it was.
 
 use crate::collision::{Obstacle, ShapeSpec, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS};
+use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
 use crate::msgs;
 use crate::solver::{Pin, PinPath, Simulation};
 use nalgebra::{Isometry3, Vector3};
@@ -66,6 +67,10 @@ fn shape(p: &msgs::SolidPrimitive, k: usize) -> Result<ShapeSpec, String> {
         }
         if !finite(d) || d.iter().any(|x| *x <= 0.0) {
             return Err(format!("primitives[{k}]: dimensions {d:?} must be > 0 m"));
+        }
+        for (j, x) in d.iter().enumerate() {
+            limits::check_size(&format!("primitives[{k}].dimensions[{j}]"), *x)
+                .map_err(|e| e.to_string())?;
         }
         Ok(())
     };
@@ -130,6 +135,13 @@ pub fn apply_obstacle(
     }
     let lin = m.velocity.linear.vector();
     let ang = m.velocity.angular.vector();
+    limits::check_speed("velocity.linear", &lin, MAX_OBSTACLE_SPEED, "m/s")
+        .and_then(|_| limits::check_speed("velocity.angular", &ang, MAX_ANGULAR_SPEED, "rad/s"))
+        .map_err(|e| fail(e.to_string()))?;
+    let reach = |frame: &Isometry3<f64>| -> Result<(), String> {
+        limits::check_reach("pose.position", &frame.translation.vector, &sim.cloth.x)
+            .map_err(|e| fail(e.to_string()))
+    };
     match m.operation {
         msgs::Obstacle::REMOVE => {
             let parts = reg
@@ -142,19 +154,29 @@ pub fn apply_obstacle(
         }
         msgs::Obstacle::MOVE => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
+            reach(&frame)?;
             let parts = reg
                 .parts
                 .get(id)
                 .ok_or_else(|| fail("no such obstacle to move (ADD it first)".into()))?;
+            // every part checked where it would go before any moves
+            let mut moved = Vec::new();
             for (pid, sub) in parts {
-                if let Some(o) = sim.obstacles.iter_mut().find(|o| &o.id == pid) {
-                    set_motion(o, &frame, sub, &lin, &ang);
+                if let Some(k) = sim.obstacles.iter().position(|o| &o.id == pid) {
+                    let mut o = sim.obstacles[k].clone();
+                    set_motion(&mut o, &frame, sub, &lin, &ang);
+                    overlap(&o, &sim.cloth.x).map_err(fail)?;
+                    moved.push((k, o));
                 }
+            }
+            for (k, o) in moved {
+                sim.obstacles[k] = o;
             }
             Ok(format!("moved obstacle {id:?}"))
         }
         msgs::Obstacle::ADD => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
+            reach(&frame)?;
             let thickness = if m.thickness.is_nan() {
                 DEFAULT_OBSTACLE_THICKNESS
             } else {
@@ -219,6 +241,7 @@ pub fn apply_obstacle(
                 let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
                     .map_err(|e| format!("{e:#}"))?;
                 set_motion(&mut o, &frame, &sub, &lin, &ang);
+                overlap(&o, &sim.cloth.x).map_err(fail)?;
                 built.push(o);
                 parts.push((pid, sub));
             }
@@ -242,6 +265,15 @@ pub fn apply_obstacle(
             "operation {op} unknown (ADD=0, REMOVE=1, MOVE=3)"
         ))),
     }
+}
+
+/// Refuses an obstacle (a primitive; meshes may be open, with no inside)
+/// placed deeper than [`limits::MAX_OVERLAP`] into the cloth.
+fn overlap(o: &Obstacle, x: &[Vector3<f64>]) -> Result<(), String> {
+    if matches!(o.spec, ShapeSpec::Triangles { .. }) {
+        return Ok(());
+    }
+    limits::check_overlap(o, x).map_err(|e| e.to_string())
 }
 
 fn set_motion(
@@ -314,36 +346,33 @@ pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<
     check_len("targets", m.targets.len())?;
     check_len("velocities", m.velocities.len())?;
     for (k, p) in m.targets.iter().enumerate() {
-        if !finite(&[p.x, p.y, p.z]) {
-            return Err(fail(format!(
-                "targets[{k}] = ({}, {}, {}) is not finite",
-                p.x, p.y, p.z
-            )));
-        }
+        limits::check_reach(&format!("targets[{k}]"), &p.vector(), &sim.cloth.x)
+            .map_err(|e| fail(e.to_string()))?;
     }
     for (k, p) in m.velocities.iter().enumerate() {
-        if !finite(&[p.x, p.y, p.z]) {
-            return Err(fail(format!(
-                "velocities[{k}] = ({}, {}, {}) is not finite",
-                p.x, p.y, p.z
-            )));
-        }
+        limits::check_speed(
+            &format!("velocities[{k}]"),
+            &p.vector(),
+            MAX_PIN_SPEED,
+            "m/s",
+        )
+        .map_err(|e| fail(e.to_string()))?;
     }
     let mut pins = sim.pins.clone();
+    // a target farther than one step at PIN_TRAVEL_SPEED is travelled to
+    // at that speed (limits::travel_to)
     let at = |k: usize| -> PinPath {
-        let target = m
-            .targets
-            .get(k)
-            .map(|p| p.vector())
-            .unwrap_or(sim.cloth.x[vertices[k]]);
-        match m.velocities.get(k) {
+        let here = sim.cloth.x[vertices[k]];
+        let target = m.targets.get(k).map(|p| p.vector()).unwrap_or(here);
+        let path = match m.velocities.get(k) {
             Some(v) if v.vector() != Vector3::zeros() => PinPath::Velocity {
                 start: target,
                 velocity: v.vector(),
                 t0: sim.time,
             },
             _ => PinPath::Fixed(target),
-        }
+        };
+        limits::travel_to(here, sim.time, sim.params.dt, path)
     };
     let verb = match m.operation {
         msgs::Pin::PIN => {
@@ -392,12 +421,16 @@ mod tests {
     use crate::scene::{Overrides, Scene};
 
     fn sim() -> Simulation {
+        sim_at(0.1)
+    }
+
+    fn sim_at(spacing: f64) -> Simulation {
         let p =
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/scenes/table_drape.yaml");
         Scene::load(&p)
             .unwrap()
             .build(&Overrides {
-                spacing: Some(0.1),
+                spacing: Some(spacing),
                 ..Default::default()
             })
             .unwrap()
@@ -527,7 +560,11 @@ mod tests {
             z: 0.1,
         }];
         apply_pin(&mut s, &m, "world").unwrap();
-        let (p, v) = s.pins.last().unwrap().path.at(s.time + 1.0);
+        // the target is far: the pin travels there at PIN_TRAVEL_SPEED, then
+        // moves on with the velocity
+        let d = (Vector3::new(0.0, 0.0, 2.0) - s.cloth.x[corner]).norm();
+        let arrive = s.time + d / limits::PIN_TRAVEL_SPEED;
+        let (p, v) = s.pins.last().unwrap().path.at(arrive + 1.0);
         assert!((p - Vector3::new(0.0, 0.0, 2.1)).norm() < 1e-12 && v.z == 0.1);
         let pinned = s.pins.len();
         // errors: vertex out of range, unpinned MOVE, length mismatch, NaN
@@ -570,5 +607,182 @@ mod tests {
         m.operation = msgs::Pin::RELEASE;
         apply_pin(&mut s, &m, "world").unwrap();
         assert_eq!(s.pins.len(), pinned - 1);
+    }
+
+    /// Steps `n` times; every step succeeds and leaves finite positions.
+    fn steps_ok(s: &mut Simulation, n: usize) {
+        for k in 0..n {
+            if let Err(e) = s.step() {
+                panic!("step {k} failed: {e:#}");
+            }
+            assert!(
+                s.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+                "non-finite position after step {k}"
+            );
+        }
+    }
+
+    fn pin_msg(op: u8, v: u32, target: Option<[f64; 3]>, vel: Option<[f64; 3]>) -> msgs::Pin {
+        msgs::Pin {
+            operation: op,
+            vertices: vec![v],
+            targets: target
+                .map(|[x, y, z]| vec![msgs::Point { x, y, z }])
+                .unwrap_or_default(),
+            velocities: vel
+                .map(|[x, y, z]| vec![msgs::Vector3 { x, y, z }])
+                .unwrap_or_default(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn implausible_pins_are_refused_and_far_targets_travelled() {
+        // refused: millimetres sent as metres, 1e200, 1e5 m/s, 1e300 m/s;
+        // the simulation then steps on unchanged
+        let mut s = sim();
+        let n_pins = s.pins.len();
+        for (m, why) in [
+            (
+                pin_msg(msgs::Pin::PIN, 0, Some([500.0, 0.0, 1000.0]), None),
+                "targets[0]",
+            ),
+            (
+                pin_msg(msgs::Pin::PIN, 0, Some([1e200, 0.0, 0.0]), None),
+                "targets[0]",
+            ),
+            (
+                pin_msg(msgs::Pin::PIN, 0, None, Some([1e5, 0.0, 0.0])),
+                "velocities[0]",
+            ),
+            (
+                pin_msg(msgs::Pin::PIN, 0, None, Some([0.0, 1e300, 0.0])),
+                "velocities[0]",
+            ),
+        ] {
+            let e = apply_pin(&mut s, &m, "world").unwrap_err();
+            assert!(e.contains(why), "{e}");
+            assert_eq!(s.pins.len(), n_pins);
+        }
+        steps_ok(&mut s, 20);
+        // a target 1.5 m above a corner held by another pin on the opposite
+        // corner: accepted, reached at a bounded speed, every step succeeds
+        let mut s = sim();
+        let a = s.cloth.index(0, 0).unwrap();
+        let b = s.cloth.index(s.cloth.nx - 1, s.cloth.ny - 1).unwrap();
+        apply_pin(
+            &mut s,
+            &pin_msg(msgs::Pin::PIN, b as u32, None, None),
+            "world",
+        )
+        .unwrap();
+        let x0 = s.cloth.x[a];
+        let goal = x0 + Vector3::new(0.0, 0.0, 1.5);
+        let target = Some([goal.x, goal.y, goal.z]);
+        apply_pin(
+            &mut s,
+            &pin_msg(msgs::Pin::PIN, a as u32, target, None),
+            "world",
+        )
+        .unwrap();
+        let dt = s.params.dt;
+        let mut fastest: f64 = 0.0;
+        let mut last = s.cloth.x[a];
+        let steps = (1.5 / 2.0 / dt).ceil() as usize + 50;
+        for k in 0..steps {
+            if let Err(e) = s.step() {
+                panic!("step {k} failed: {e:#}");
+            }
+            assert!(s.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+            fastest = fastest.max((s.cloth.x[a] - last).norm() / dt);
+            last = s.cloth.x[a];
+        }
+        assert!((s.cloth.x[a] - goal).norm() < 1e-9, "{:?}", s.cloth.x[a]);
+        assert!(fastest <= 2.0 + 1e-9, "pin moved at {fastest} m/s");
+    }
+
+    #[test]
+    fn pin_at_a_far_target_with_velocity_steps() {
+        // 3 m from the vertex (within reach of the cloth's box), moving,
+        // while the opposite corner is held (the node's default spacing)
+        let mut s = sim_at(0.05);
+        let a = s.cloth.index(0, 0).unwrap();
+        let b = s.cloth.index(s.cloth.nx - 1, s.cloth.ny - 1).unwrap();
+        apply_pin(
+            &mut s,
+            &pin_msg(msgs::Pin::PIN, b as u32, None, None),
+            "world",
+        )
+        .unwrap();
+        let g = s.cloth.x[a] + Vector3::new(2.0, 2.0, 1.0);
+        let m = pin_msg(
+            msgs::Pin::PIN,
+            a as u32,
+            Some([g.x, g.y, g.z]),
+            Some([0.5, 0.0, 0.0]),
+        );
+        apply_pin(&mut s, &m, "world").unwrap();
+        steps_ok(&mut s, 1700);
+        let (p, v) = s.pins.last().unwrap().path.at(s.time);
+        assert!(
+            (s.cloth.x[a] - p).norm() < 1e-9 && v.x == 0.5,
+            "{p:?} {v:?}"
+        );
+    }
+
+    fn sphere(id: &str, r: f64, at: Vector3<f64>) -> msgs::Obstacle {
+        msgs::Obstacle {
+            id: id.into(),
+            pose: pose_at(at.x, at.y, at.z),
+            primitives: vec![msgs::SolidPrimitive {
+                type_: msgs::SolidPrimitive::SPHERE,
+                dimensions: vec![r],
+                ..Default::default()
+            }],
+            primitive_poses: vec![msgs::Pose::default()],
+            thickness: f64::NAN,
+            friction: f64::NAN,
+            operation: msgs::Obstacle::ADD,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn implausible_obstacles_are_refused() {
+        let mut s = sim();
+        let mut reg = ObstacleRegistry::from_sim(&s);
+        let n0 = s.obstacles.len();
+        let c = s.cloth.x[s.cloth.len() / 2];
+        // a 0.3 m sphere around the cloth's middle, a sphere of radius
+        // 1e300, one 1 km away, one moving at 1e5 m/s
+        let around = sphere("around", 0.3, c);
+        let e = apply_obstacle(&mut s, &mut reg, &around, "world", 1000).unwrap_err();
+        assert!(
+            e.contains("overlaps the cloth") && e.contains("\"around\""),
+            "{e}"
+        );
+        let e =
+            apply_obstacle(&mut s, &mut reg, &sphere("big", 1e300, c), "world", 1000).unwrap_err();
+        assert!(e.contains("dimensions[0]"), "{e}");
+        let far = sphere("far", 0.1, c + Vector3::new(1000.0, 0.0, 0.0));
+        let e = apply_obstacle(&mut s, &mut reg, &far, "world", 1000).unwrap_err();
+        assert!(e.contains("pose.position"), "{e}");
+        let mut fast = sphere("fast", 0.1, c + Vector3::new(0.0, 0.0, 0.5));
+        fast.velocity.linear.x = 1e5;
+        let e = apply_obstacle(&mut s, &mut reg, &fast, "world", 1000).unwrap_err();
+        assert!(e.contains("velocity.linear"), "{e}");
+        assert_eq!(s.obstacles.len(), n0);
+        // a sphere beside the cloth, then moved onto it: the MOVE is refused
+        // and the sphere stays where it was
+        let beside = sphere("beside", 0.1, c + Vector3::new(0.0, 0.0, 0.5));
+        apply_obstacle(&mut s, &mut reg, &beside, "world", 1000).unwrap();
+        let mut onto = beside.clone();
+        onto.operation = msgs::Obstacle::MOVE;
+        onto.pose = pose_at(c.x, c.y, c.z);
+        let e = apply_obstacle(&mut s, &mut reg, &onto, "world", 1000).unwrap_err();
+        assert!(e.contains("overlaps the cloth"), "{e}");
+        let o = s.obstacles.iter().find(|o| o.id == "beside").unwrap();
+        assert!((o.pose.translation.vector - (c + Vector3::new(0.0, 0.0, 0.5))).norm() < 1e-12);
+        steps_ok(&mut s, 20);
     }
 }

@@ -141,6 +141,28 @@ fn load(s: &Settings) -> Result<Loaded> {
     })
 }
 
+/// Takes what a subscription holds now: each message, `None` for each one
+/// beyond `cap` (taken and dropped, so a flood cannot stall the steps), and
+/// the errors of those that could not be decoded (the reader moves past
+/// them: one bad message does not hide the good ones after it).
+fn drain<M, E: std::fmt::Display>(
+    mut take: impl FnMut() -> std::result::Result<Option<M>, E>,
+    cap: usize,
+) -> (Vec<Option<M>>, Vec<String>) {
+    let mut got = Vec::new();
+    let mut errors = Vec::new();
+    // a bound on the errors too: a reader that kept failing without
+    // advancing must not hold the loop
+    while errors.len() <= cap {
+        match take() {
+            Ok(Some(m)) => got.push((got.len() < cap).then_some(m)),
+            Ok(None) => break,
+            Err(e) => errors.push(e.to_string()),
+        }
+    }
+    (got, errors)
+}
+
 /// `node --help`.
 fn help() -> String {
     format!(
@@ -512,14 +534,15 @@ impl Node {
     /// and counted); refused ones are logged and counted.
     fn take_messages(&mut self) {
         let cap = self.settings.max_messages_per_step as usize;
-        let mut taken = 0usize;
-        while let Ok(Some((m, _))) = self.io.obstacles.take() {
-            taken += 1;
-            if taken > cap {
+        let obstacles = &self.io.obstacles;
+        let (got, undecodable) = drain(|| obstacles.take().map(|m| m.map(|(m, _)| m)), cap);
+        self.count_undecodable(undecodable, &self.names.obstacles.clone());
+        for m in got {
+            let Some(m) = m else {
                 self.counters.dropped += 1;
                 self.counters.dropped_now += 1;
                 continue;
-            }
+            };
             let applied = control::apply_obstacle(
                 &mut self.loaded.sim,
                 &mut self.loaded.registry,
@@ -531,14 +554,15 @@ impl Node {
             self.report(applied, &topic);
             self.publish_now = true;
         }
-        let mut taken = 0usize;
-        while let Ok(Some((m, _))) = self.io.pins.take() {
-            taken += 1;
-            if taken > cap {
+        let pins = &self.io.pins;
+        let (got, undecodable) = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);
+        self.count_undecodable(undecodable, &self.names.pins.clone());
+        for m in got {
+            let Some(m) = m else {
                 self.counters.dropped += 1;
                 self.counters.dropped_now += 1;
                 continue;
-            }
+            };
             let applied = control::apply_pin(&mut self.loaded.sim, &m, &self.settings.frame_id);
             let topic = self.names.pins.clone();
             self.report(applied, &topic);
@@ -554,6 +578,14 @@ impl Node {
             c.last_drop_log = Instant::now();
             let m = c.last_error.clone();
             self.warn(&m);
+        }
+    }
+
+    /// Counts and logs messages that arrived but could not be decoded (CDR
+    /// of another type or cut short): they count as rejected.
+    fn count_undecodable(&mut self, errors: Vec<String>, topic: &str) {
+        for e in errors {
+            self.report(Err(format!("undecodable message (CDR): {e}")), topic);
         }
     }
 
@@ -863,5 +895,33 @@ impl Node {
             c.publishes,
             1e3 * c.publish_s / c.publishes.max(1) as f64
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::drain;
+
+    #[test]
+    fn undecodable_messages_are_reported_and_do_not_hide_the_next() {
+        // a subscription holding: good, undecodable, good, good (cap 2)
+        let mut queue: Vec<Result<Option<u32>, &str>> = vec![
+            Ok(Some(1)),
+            Err("deserialization: unexpected end of CDR"),
+            Ok(Some(2)),
+            Ok(Some(3)),
+            Ok(None),
+        ];
+        queue.reverse();
+        let (got, errors) = drain(|| queue.pop().unwrap_or(Ok(None)), 2);
+        assert_eq!(got, vec![Some(1), Some(2), None]);
+        assert_eq!(
+            errors,
+            vec!["deserialization: unexpected end of CDR".to_string()]
+        );
+        // a reader that keeps failing: the loop ends after cap + 1 errors
+        let (got, errors) = drain(|| Err::<Option<u32>, _>("bad"), 3);
+        assert!(got.is_empty());
+        assert_eq!(errors.len(), 4);
     }
 }

@@ -51,18 +51,39 @@ impl Default for Settings {
     }
 }
 
-/// The shipped example: `config/scenes/table_drape.yaml` from the working
-/// directory, else from the source tree the binary was built from.
+/// The shipped example `config/scenes/table_drape.yaml`: from the working
+/// directory, else beside the executable or in one of its parent folders
+/// (`target/release/garment_sim` in a checkout), else in `share/garment_sim`
+/// of one of them (an installed binary); the relative path if none has it
+/// (loading it then fails naming that path). Never the folder the binary
+/// was built in: a binary copied elsewhere finds the scene shipped with it.
 fn default_scene() -> String {
-    let rel = "config/scenes/table_drape.yaml";
-    if Path::new(rel).exists() {
-        rel.into()
-    } else {
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join(rel)
-            .display()
-            .to_string()
+    let exe = std::env::current_exe().ok();
+    find_default_scene(Path::new("."), exe.as_deref())
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| DEFAULT_SCENE.into())
+}
+
+const DEFAULT_SCENE: &str = "config/scenes/table_drape.yaml";
+
+fn find_default_scene(cwd: &Path, exe: Option<&Path>) -> Option<std::path::PathBuf> {
+    let here = cwd.join(DEFAULT_SCENE);
+    if here.is_file() {
+        return Some(if cwd == Path::new(".") {
+            DEFAULT_SCENE.into()
+        } else {
+            here
+        });
     }
+    let dir = exe?.parent()?;
+    dir.ancestors().take(4).find_map(|a| {
+        [
+            a.join(DEFAULT_SCENE),
+            a.join("share/garment_sim").join(DEFAULT_SCENE),
+        ]
+        .into_iter()
+        .find(|p| p.is_file())
+    })
 }
 
 /// A parameter's ROS 2 type.
@@ -541,5 +562,40 @@ mod tests {
             s.max_mesh_triangles,
             crate::collision::MAX_MESH_TRIANGLES as i64
         );
+    }
+
+    #[test]
+    fn default_scene_is_found_from_the_working_directory_or_the_executable() {
+        let root =
+            std::env::temp_dir().join(format!("garment_sim_defscene_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let checkout = root.join("checkout");
+        let scene = checkout.join(DEFAULT_SCENE);
+        std::fs::create_dir_all(scene.parent().unwrap()).unwrap();
+        std::fs::write(&scene, "x").unwrap();
+        let exe = checkout.join("target/release/garment_sim");
+        let elsewhere = root.join("elsewhere");
+        std::fs::create_dir_all(&elsewhere).unwrap();
+        // run from elsewhere: found beside the executable's checkout
+        assert_eq!(
+            find_default_scene(&elsewhere, Some(&exe)),
+            Some(scene.clone())
+        );
+        // run from the checkout: found in the working directory
+        assert_eq!(find_default_scene(&checkout, None), Some(scene.clone()));
+        // installed under a prefix: share/garment_sim/config/...
+        let prefix = root.join("usr");
+        let shared = prefix.join("share/garment_sim").join(DEFAULT_SCENE);
+        std::fs::create_dir_all(shared.parent().unwrap()).unwrap();
+        std::fs::write(&shared, "x").unwrap();
+        let installed = prefix.join("bin/garment_sim");
+        assert_eq!(
+            find_default_scene(&elsewhere, Some(&installed)),
+            Some(shared)
+        );
+        // a binary copied where no scene is: none (not the build folder)
+        let lone = root.join("lone/garment_sim");
+        assert_eq!(find_default_scene(&elsewhere, Some(&lone)), None);
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -26,6 +26,15 @@ pub struct GridSpec {
     pub pose: Isometry3<f64>,
 }
 
+impl GridSpec {
+    /// Vertices along warp and weft (the spacing rounded to fit the size);
+    /// the size and spacing are assumed finite and > 0.
+    pub fn dims(&self) -> (usize, usize) {
+        let n = |k: usize| (self.size[k] / self.spacing[k]).round().max(1.0) as usize + 1;
+        (n(0), n(1))
+    }
+}
+
 /// A tension (structure) spring between grid neighbours.
 #[derive(Debug, Clone, Copy)]
 pub struct TensionSpring {
@@ -443,8 +452,7 @@ impl Cloth {
                 bail!("cloth spacing = {}: must be > 0 m", spec.spacing[k]);
             }
         }
-        let nx = (spec.size[0] / spec.spacing[0]).round().max(1.0) as usize + 1;
-        let ny = (spec.size[1] / spec.spacing[1]).round().max(1.0) as usize + 1;
+        let (nx, ny) = spec.dims();
         if nx.saturating_mul(ny) > MAX_VERTICES {
             bail!(
                 "cloth of {nx} × {ny} vertices is larger than the limit of {MAX_VERTICES}; use a coarser spacing"

@@ -105,17 +105,25 @@ impl Obstacle {
         thickness: f64,
         friction: f64,
     ) -> Result<Obstacle> {
-        if !(thickness.is_finite() && thickness >= 0.0) {
-            bail!("obstacle {id:?}: thickness = {thickness}: must be ≥ 0 m");
-        }
-        if !(friction.is_finite() && friction >= 0.0) {
-            bail!("obstacle {id:?}: friction = {friction}: must be ≥ 0");
-        }
+        use crate::limits::{self, MAX_FRICTION, MAX_OBSTACLE_THICKNESS};
+        limits::check_range(
+            &format!("obstacle {id:?}: thickness"),
+            thickness,
+            0.0,
+            MAX_OBSTACLE_THICKNESS,
+            "m",
+            "MAX_OBSTACLE_THICKNESS, the contact layer around the surface",
+        )?;
+        limits::check_range(
+            &format!("obstacle {id:?}: friction"),
+            friction,
+            0.0,
+            MAX_FRICTION,
+            "",
+            "MAX_FRICTION, a Coulomb coefficient",
+        )?;
         let pos = |name: &str, v: f64| -> Result<()> {
-            if !(v.is_finite() && v > 0.0) {
-                bail!("obstacle {id:?}: {name} = {v}: must be > 0 m");
-            }
-            Ok(())
+            limits::check_size(&format!("obstacle {id:?}: {name}"), v)
         };
         // parry's cylinder, cone and capsule are along y; ROS primitives along z.
         let y_to_z = Isometry3::from_parts(
@@ -328,6 +336,14 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
     for (k, p) in v.iter().enumerate() {
         if p.iter().any(|c| !c.is_finite()) {
             bail!("obstacle {id:?}: mesh vertex {k} is not finite: {p:?}");
+        }
+        let r = Vector3::from(*p).norm();
+        if r > crate::limits::MAX_OBSTACLE_SIZE {
+            bail!(
+                "obstacle {id:?}: mesh vertex {k} = {p:?} lies {r:.3e} m from the obstacle's \
+                 origin, more than {} m (MAX_OBSTACLE_SIZE; a mesh in mm?)",
+                crate::limits::MAX_OBSTACLE_SIZE
+            );
         }
     }
     let pts: Vec<Point3<f64>> = v.iter().map(|p| Point3::new(p[0], p[1], p[2])).collect();

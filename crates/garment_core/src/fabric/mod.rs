@@ -283,6 +283,7 @@ fn direction(
             if s.rt > 100.0 {
                 bail!("{tn}.RT = {}: a resilience is a percentage ≤ 100", s.rt);
             }
+            crate::limits::check_kes(&format!("{tn}.EMT"), s.emt, crate::limits::KES_EMT, "%")?;
             let fm = d.tensile.fm_gf_per_cm.unwrap_or(TENSILE_FM_DEFAULT_GF_CM);
             positive(&format!("{tn}.Fm_gf_per_cm"), fm)?;
             tensile_curve(&s, fm)
@@ -293,7 +294,15 @@ fn direction(
         Some(c) => c,
         None => kes::shear_curve(
             &ShearSummary {
-                g: need(&format!("{sn}.G"), d.shear.g)?,
+                g: need(&format!("{sn}.G"), d.shear.g).and_then(|g| {
+                    crate::limits::check_kes(
+                        &format!("{sn}.G"),
+                        g,
+                        crate::limits::KES_G,
+                        "gf/(cm·deg)",
+                    )?;
+                    Ok(g)
+                })?,
                 hg: nonneg(&format!("{sn}.2HG"), d.shear.hg)?,
                 hg5: nonneg(&format!("{sn}.2HG5"), d.shear.hg5)?,
             },
@@ -305,7 +314,15 @@ fn direction(
         Some(c) => c,
         None => kes::bending_curve(
             &BendingSummary {
-                b: need(&format!("{bn}.B"), d.bending.b)?,
+                b: need(&format!("{bn}.B"), d.bending.b).and_then(|b| {
+                    crate::limits::check_kes(
+                        &format!("{bn}.B"),
+                        b,
+                        crate::limits::KES_B,
+                        "gf·cm²/cm",
+                    )?;
+                    Ok(b)
+                })?,
                 hb: nonneg(&format!("{bn}.2HB"), d.bending.hb)?,
             },
             Family::Bending.memory_length(BENDING_MAX_PER_CM * PER_CM),

@@ -87,6 +87,15 @@ pub enum PinPath {
     /// Piecewise-linear path through (time, position) waypoints; held at the
     /// first before it and at the last after it.
     Waypoints(Vec<(f64, Vector3<f64>)>),
+    /// Travels in a straight line at constant speed from `from` (at time
+    /// `t0`) to where `then` is at time `t1`, then follows `then`: how a pin
+    /// reaches a far target at a bounded speed ([`crate::limits::travel_to`]).
+    Travel {
+        from: Vector3<f64>,
+        t0: f64,
+        t1: f64,
+        then: Box<PinPath>,
+    },
 }
 
 impl PinPath {
@@ -115,6 +124,14 @@ impl PinPath {
                     }
                 }
                 (w[w.len() - 1].1, Vector3::zeros())
+            }
+            PinPath::Travel { from, t0, t1, then } => {
+                if t >= *t1 {
+                    return then.at(t);
+                }
+                let (to, _) = then.at(*t1);
+                let v = (to - from) / (t1 - t0);
+                (from + v * (t - t0).max(0.0), v)
             }
         }
     }
@@ -221,9 +238,22 @@ pub struct Simulation {
 
 impl Simulation {
     pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
-        if !(params.dt.is_finite() && params.dt > 0.0) {
-            bail!("dt = {}: must be > 0 s", params.dt);
+        crate::limits::check_dt("dt", params.dt)?;
+        crate::limits::check_cg_tolerance("cg_tolerance", params.cg_tolerance)?;
+        if params.cg_max_iterations == 0 {
+            bail!("cg_max_iterations = 0: must be ≥ 1");
         }
+        if !params.gravity.iter().all(|g| g.is_finite()) {
+            bail!("gravity = {:?}: must be finite", params.gravity);
+        }
+        crate::limits::check_range(
+            "cloth thickness",
+            params.cloth_thickness,
+            crate::limits::CLOTH_THICKNESS.0,
+            crate::limits::CLOTH_THICKNESS.1,
+            "m",
+            "CLOTH_THICKNESS: a film to a quilt",
+        )?;
         if params.threads > MAX_THREADS {
             bail!(
                 "threads = {}: at most {MAX_THREADS} (0: one per core)",
@@ -370,19 +400,35 @@ impl Simulation {
         let assemble_s = t_asm.elapsed().as_secs_f64();
         // 3. solve
         let t_solve = Instant::now();
-        let iterations = match self.params.linear_solver {
+        let solved = match self.params.linear_solver {
             LinearSolverKind::Pcg => {
-                self.solve_pcg(linear::Cap::Hard(self.params.cg_max_iterations))?
+                self.solve_pcg(linear::Cap::Hard(self.params.cg_max_iterations))
             }
-            LinearSolverKind::Cholesky => self.solve_direct()?,
-            LinearSolverKind::Auto => self.solve_auto()?,
+            LinearSolverKind::Cholesky => self.solve_direct(),
+            LinearSolverKind::Auto => self.solve_auto(),
         };
+        let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
         let solve_s = t_solve.elapsed().as_secs_f64();
+        // nothing is changed yet: a failed step leaves the state as it was
         for i in 0..n {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
                 bail!(
-                    "the step diverged at vertex {i} (non-finite velocity) at t = {:.4} s",
-                    self.time
+                    "the step diverged at vertex {i} (non-finite velocity) at t = {:.4} s; {}",
+                    self.time,
+                    self.diagnose()
+                );
+            }
+            if !self.y[i].iter().all(|c| c.is_finite()) {
+                bail!(
+                    "the step diverged at vertex {i} (non-finite position correction{}) \
+                     at t = {:.4} s; {}",
+                    if self.pinned[i].is_some() {
+                        ", pinned"
+                    } else {
+                        ""
+                    },
+                    self.time,
+                    self.diagnose()
                 );
             }
         }
@@ -635,6 +681,70 @@ impl Simulation {
             &mut self.team,
         );
         self.dissipated -= self.params.dt * power;
+    }
+
+    /// What most likely drove a failed step, from the state at its start:
+    /// the most stretched tension spring and the most sheared diagonal
+    /// (vertices, strain, the law's tangent there: a tangent ≤ 0 makes the
+    /// system matrix indefinite), and the vertex the pins or contacts moved
+    /// farthest this step. Computed only when a step fails.
+    pub fn diagnose(&self) -> String {
+        let c = &self.cloth;
+        let f = &self.fabric;
+        let mut parts = Vec::new();
+        let worst = c
+            .tension
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (k, s, (c.x[s.b] - c.x[s.a]).norm() / s.l0 - 1.0))
+            .filter(|(_, _, e)| e.is_finite())
+            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
+        if let Some((k, s, e)) = worst {
+            let (_, tangent) = f.dir(s.weft).tensile.elastic.eval(e);
+            parts.push(format!(
+                "most stretched: tension spring {k} ({} vertices {}–{}) at strain {e:.3e}, \
+                 tensile law tangent {tangent:.3e} N/m{}",
+                if s.weft { "weft" } else { "warp" },
+                s.a,
+                s.b,
+                if tangent <= 0.0 {
+                    " (≤ 0: outside the fabric's measured range)"
+                } else {
+                    ""
+                }
+            ));
+        }
+        let worst = c
+            .shear
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (k, s, s.strain((c.x[s.b] - c.x[s.a]).norm())))
+            .filter(|(_, _, e)| e.is_finite())
+            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
+        if let Some((k, s, e)) = worst {
+            let (_, tangent) = f.shear.elastic.eval(e);
+            parts.push(format!(
+                "most sheared: diagonal {k} (vertices {}–{}) at sin θ = {e:.3e}, shear law \
+                 tangent {tangent:.3e} N/m",
+                s.a, s.b
+            ));
+        }
+        let moved = self
+            .y
+            .iter()
+            .enumerate()
+            .map(|(i, y)| (i, y.norm()))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((i, d)) = moved.filter(|(_, d)| *d > 0.0) {
+            parts.push(format!(
+                "largest move imposed this step: vertex {i} by {d:.3e} m ({})",
+                match self.pinned[i] {
+                    Some(p) => format!("pin {p}"),
+                    None => "a contact".into(),
+                }
+            ));
+        }
+        parts.join("; ")
     }
 
     /// Energies of the current state (elastic parts of the laws).

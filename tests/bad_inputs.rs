@@ -1,0 +1,702 @@
+//! Bad and extreme inputs (issue 19): each is refused with exit code 1 and
+//! an error naming the input and the bound, never a panic, never a result
+//! with exit code 0. The bounds are those of `garment_sim::limits`.
+
+mod support;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+fn bin() -> Command {
+    support::garment_sim()
+}
+
+fn acrylic() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("config/fabrics/acrylic.yaml")
+}
+
+/// Runs `args` and checks the refusal: exit code 1, every `needles` in the
+/// error, no panic.
+fn refused(args: &[&str], needles: &[&str]) {
+    let o = bin().args(args).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.code() == Some(1) || o.status.code() == Some(2),
+        "{args:?}: exit {:?}, expected a refusal\n{err}",
+        o.status.code()
+    );
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    for n in needles {
+        assert!(err.contains(n), "{args:?}: error lacks {n:?}: {err}");
+    }
+}
+
+/// A scene: a 0.5 m cloth of 5 cm spacing at (-0.25, -0.25, 1) plus `rest`.
+fn scene(dir: &Path, name: &str, cloth_extra: &str, rest: &str) -> String {
+    let p = dir.join(format!("{name}.yaml"));
+    std::fs::write(
+        &p,
+        format!(
+            "cloth:\n  fabric: {}\n  size: [0.5, 0.5]\n  spacing: 0.05\n  \
+             pose: {{ position: [-0.25, -0.25, 1.0] }}\n{cloth_extra}\
+             dt: 0.001\nduration: 0.05\n{rest}",
+            acrylic().display()
+        ),
+    )
+    .unwrap();
+    p.display().to_string()
+}
+
+#[test]
+fn implausible_scene_fields_are_refused_with_the_field_named() {
+    let d = support::Scratch::new("bad_scenes");
+    let out = d.join("out");
+    let out = out.to_str().unwrap();
+    let cases: Vec<(&str, &str, &str, Vec<&str>)> = vec![
+        (
+            "nan_target",
+            "",
+            "pins: [ { grid: [0, 0], target: [.nan, 0, 1] } ]\n",
+            vec!["pins[0].target", "not finite"],
+        ),
+        (
+            "mm_target",
+            "",
+            "pins: [ { grid: [0, 0], target: [500, 0, 1000] } ]\n",
+            vec!["pins[0].target", "MAX_REACH"],
+        ),
+        (
+            "fast_pin",
+            "",
+            "pins: [ { grid: [0, 0], velocity: [100000, 0, 0] } ]\n",
+            vec!["pins[0].velocity", "10 m/s"],
+        ),
+        (
+            "fast_path",
+            "",
+            "pins: [ { grid: [0, 0], path: [ { t: 0, position: [-0.25, -0.25, 1] }, \
+             { t: 0.01, position: [0.75, -0.25, 1] } ] } ]\n",
+            vec!["pins[0].path[0..1] speed"],
+        ),
+        (
+            "huge_sphere",
+            "",
+            "obstacles: [ { id: ball, shape: { type: sphere, radius: 1e300 }, \
+             pose: { position: [0, 0, -2] } } ]\n",
+            vec!["\"ball\"", "radius", "MAX_OBSTACLE_SIZE"],
+        ),
+        (
+            "nan_velocity",
+            "",
+            "obstacles: [ { id: b, shape: { type: box, size: [1, 1, 0.1] }, \
+             pose: { position: [0, 0, 0.5] }, linear_velocity: [.nan, 0, 0] } ]\n",
+            vec!["obstacles[0].linear_velocity", "not finite"],
+        ),
+        (
+            "inside_box",
+            "",
+            "obstacles: [ { id: table, shape: { type: box, size: [1, 1, 0.2] }, \
+             pose: { position: [0, 0, 1.0] } } ]\n",
+            vec!["\"table\"", "overlaps the cloth", "inside it"],
+        ),
+        (
+            "inside_sphere",
+            "",
+            "obstacles: [ { id: ball, shape: { type: sphere, radius: 0.3 }, \
+             pose: { position: [0, 0, 1.0] } } ]\n",
+            vec!["\"ball\"", "overlaps the cloth", "0.3000 m inside"],
+        ),
+        (
+            "thick_cloth",
+            "  thickness: 1.0\n",
+            "",
+            vec!["cloth.thickness = 1", "0.02"],
+        ),
+    ];
+    for (name, extra, rest, needles) in cases {
+        let p = scene(&d, name, extra, rest);
+        let mut want = needles.clone();
+        want.push(name);
+        refused(&["drape", &p, "--out", out], &want);
+    }
+    // a scene's dt above MAX_DT
+    let p = scene(&d, "long_step", "", "");
+    std::fs::write(
+        &p,
+        std::fs::read_to_string(&p)
+            .unwrap()
+            .replace("dt: 0.001", "dt: 1"),
+    )
+    .unwrap();
+    refused(&["drape", &p, "--out", out], &["dt = 1", "0.05"]);
+    assert!(!Path::new(out).join("final.ply").exists());
+}
+
+#[test]
+fn implausible_command_line_values_are_refused() {
+    let d = support::Scratch::new("bad_cli");
+    let out = d.join("out");
+    let out = out.to_str().unwrap();
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let fabric = acrylic();
+    let fabric = fabric.to_str().unwrap();
+    let drape = |extra: &[&str]| -> Vec<String> {
+        let mut v: Vec<String> = vec!["drape".into(), ff.into(), "--out".into(), out.into()];
+        v.extend(extra.iter().map(|s| s.to_string()));
+        v
+    };
+    let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
+        (drape(&["--duration", "-1"]), vec!["--duration = -1"]),
+        (drape(&["--duration", "NaN"]), vec!["--duration = NaN"]),
+        (drape(&["--duration", "inf"]), vec!["--duration = inf"]),
+        (
+            drape(&["--cg-tolerance", "NaN"]),
+            vec!["--cg-tolerance = NaN"],
+        ),
+        (drape(&["--cg-tolerance=-1"]), vec!["--cg-tolerance = -1"]),
+        (
+            drape(&["--cg-tolerance", "1"]),
+            vec!["--cg-tolerance = 1", "(0, 1)"],
+        ),
+        (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.05"]),
+        (drape(&["--spacing", "-0.1"]), vec!["--spacing = -0.1"]),
+        (
+            [
+                "kes", fabric, "--test", "tensile", "--dt", "1000", "--out", out,
+            ]
+            .map(String::from)
+            .to_vec(),
+            vec!["dt = 1000", "0.05"],
+        ),
+        (
+            ["drapemeter", fabric, "--dt", "1", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["dt = 1", "0.05"],
+        ),
+        (
+            ["drapemeter", fabric, "--diameter", "-0.3", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["diameter = -0.3"],
+        ),
+        (
+            ["drapemeter", fabric, "--duration", "NaN", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["--duration", "NaN"],
+        ),
+        (
+            ["bench", "--steps", "0"].map(String::from).to_vec(),
+            vec!["--steps", "'0'"],
+        ),
+        (
+            ["bench", "--warmup", "NaN"].map(String::from).to_vec(),
+            vec!["--warmup", "NaN"],
+        ),
+        (
+            ["bench", "--repeat", "0"].map(String::from).to_vec(),
+            vec!["--repeat", "≥ 1"],
+        ),
+        (
+            ["bag", "export", out, "--time", "-1", "--out", out]
+                .map(String::from)
+                .to_vec(),
+            vec!["--time", "-1"],
+        ),
+    ];
+    for (args, needles) in cases {
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        refused(&a, &needles);
+    }
+    assert!(!Path::new(out).join("final.ply").exists());
+}
+
+#[test]
+fn implausible_kes_values_are_refused_with_the_range() {
+    let d = support::Scratch::new("bad_kes");
+    let text = std::fs::read_to_string(acrylic()).unwrap();
+    let out = d.join("out");
+    for (field, value, needle) in [
+        ("EMT", "1000000", "tensile.EMT = 1000000"),
+        ("G", "1e6", "shear.G = 1000000"),
+        ("B", "1e6", "bending.B = 1000000"),
+    ] {
+        // the first occurrence of `field: ` (the warp direction)
+        let at = text
+            .find(&format!("{field}: "))
+            .unwrap_or_else(|| panic!("{field} not in acrylic.yaml"));
+        let end = at + text[at..].find([',', '}', '\n']).unwrap();
+        let bad = format!("{}{field}: {value}{}", &text[..at], &text[end..]);
+        let p = d.join(format!("{field}.yaml"));
+        std::fs::write(&p, bad).unwrap();
+        refused(
+            &[
+                "kes",
+                p.to_str().unwrap(),
+                "--test",
+                "tensile",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[needle, "must lie in (0,", "measured fabrics"],
+        );
+    }
+}
+
+/// Output into a pipe closed by the reader ends the program quietly.
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    let d = support::Scratch::new("pipe");
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let mut child = bin()
+        .args(["drape", ff, "--duration", "0.01", "--out"])
+        .arg(d.join("out"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before any output
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!err.contains("Broken pipe"), "{err}");
+    // ended by SIGPIPE, as any command-line tool (or done, if it printed
+    // nothing before exiting)
+    use std::os::unix::process::ExitStatusExt;
+    assert!(
+        o.status.signal() == Some(13) || o.status.success(),
+        "{:?} {err}",
+        o.status
+    );
+}
+
+/// A full disk under `drape --out`: the error names the file, and no
+/// truncated output is left (a tmpfs of 8 KiB in a mount namespace of the
+/// test's own, `unshare -rm`).
+#[test]
+fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let script = format!(
+        "set -e; d=$(mktemp -d); mount -t tmpfs -o size=8k tmpfs \"$d\"; \
+         if {bin} drape {ff} --duration 0.01 --out \"$d/out\"; then echo EXIT=0; \
+         else echo EXIT=$?; fi; ls -A \"$d/out\" | sed 's/^/FILE /'",
+        bin = support::garment_sim_path()
+    );
+    let o = Command::new("unshare")
+        .args(["-rm", "sh", "-c", &script])
+        .output()
+        .expect("unshare (util-linux) runs");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(out.contains("EXIT=1"), "{out}\n{err}");
+    assert!(
+        err.contains("cannot write") && err.contains("out/final.ply") && err.contains("No space"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    // what the run left: nothing, or whole files only (no final.ply, no
+    // temporary file)
+    let files: Vec<&str> = out
+        .lines()
+        .filter_map(|l| l.strip_prefix("FILE "))
+        .collect();
+    assert!(
+        !files
+            .iter()
+            .any(|f| *f == "final.ply" || f.ends_with(".tmp")),
+        "{files:?}"
+    );
+}
+
+/// A step that fails names what drove it: the spring, its vertices and
+/// strain (here a cloth stretched 1e80 times along warp, whose forces
+/// overflow).
+#[test]
+fn a_failed_step_names_the_spring_and_the_strain() {
+    use garment_sim::scene::{Overrides, Scene};
+    use garment_sim::solver::LinearSolverKind;
+    let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
+    let solver = LinearSolverKind::Cholesky;
+    {
+        let mut sim = sc
+            .build(&Overrides {
+                solver: Some(solver),
+                ..Default::default()
+            })
+            .unwrap();
+        sim.fabric.warp.tensile.elastic.c = [100.0, 0.0, 0.0, 100.0];
+        let x0 = sim.cloth.x[0];
+        for p in sim.cloth.x.iter_mut() {
+            p.x = x0.x + (p.x - x0.x) * 1e80;
+        }
+        let before = sim.cloth.x.clone();
+        let e = match sim.step() {
+            Ok(_) => panic!("{solver:?}: the step succeeded"),
+            Err(e) => format!("{e:#}"),
+        };
+        assert!(
+            e.contains("most stretched: tension spring")
+                && e.contains("warp vertices")
+                && e.contains("at strain 1.000e80"),
+            "{solver:?}: {e}"
+        );
+        // nothing changed
+        assert_eq!(sim.cloth.x, before);
+    }
+}
+
+/// Byte ranges of the chunk records (opcode 0x06) of an MCAP file, walked
+/// from the record headers (opcode, u64 length).
+fn chunk_ranges(data: &[u8]) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let mut pos = 8;
+    while pos + 9 <= data.len() {
+        let op = data[pos];
+        let len = u64::from_le_bytes(data[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        let end = pos + 9 + len;
+        if op == 0x06 {
+            out.push((pos, end));
+        }
+        if op == 0x02 {
+            break; // footer
+        }
+        pos = end;
+    }
+    out
+}
+
+/// Log times of the messages an MCAP reader (the `mcap` crate's, which
+/// checks the chunks' CRCs) reads from `data`.
+fn log_times(data: &[u8]) -> Vec<u64> {
+    mcap::MessageStream::new(data)
+        .unwrap()
+        .map(|m| m.unwrap().log_time)
+        .collect()
+}
+
+/// `bag repair` on a bag with 64 bytes flipped inside its middle chunk: it
+/// keeps every message of the other chunks, before and after, keeps the
+/// damaged file as a backup, reports the dropped chunk, and leaves no
+/// temporary file.
+#[test]
+fn bag_repair_keeps_every_readable_chunk() {
+    let d = support::Scratch::new("repair");
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let bag = d.join("bag");
+    let o = bin()
+        .args([
+            "drape",
+            ff,
+            "--duration",
+            "0.5",
+            "--bag-chunk-size",
+            "20000",
+            "--out",
+        ])
+        .arg(d.join("out"))
+        .arg("--bag")
+        .arg(&bag)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let file = bag.join("bag_0.mcap");
+    let original = std::fs::read(&file).unwrap();
+    let chunks = chunk_ranges(&original);
+    assert!(chunks.len() >= 5, "{} chunks", chunks.len());
+    let (a, b) = chunks[chunks.len() / 2];
+    // the messages of that chunk, from the intact file
+    let lost: Vec<u64> = {
+        let rec = mcap::read::parse_record(original[a], &original[a + 9..b]).unwrap();
+        let mcap::records::Record::Chunk { header, data } = rec else {
+            panic!("not a chunk")
+        };
+        mcap::read::ChunkReader::new(header, &data)
+            .unwrap()
+            .filter_map(|r| match r.unwrap() {
+                mcap::records::Record::Message { header, .. } => Some(header.log_time),
+                _ => None,
+            })
+            .collect()
+    };
+    assert!(!lost.is_empty());
+    let mut expected = log_times(&original);
+    let all = expected.len();
+    for t in &lost {
+        let k = expected.iter().position(|x| x == t).unwrap();
+        expected.remove(k);
+    }
+    let mut damaged = original.clone();
+    let mid = (a + b) / 2;
+    for x in &mut damaged[mid..mid + 64] {
+        *x ^= 0xff;
+    }
+    std::fs::write(&file, &damaged).unwrap();
+    let o = bin().args(["bag", "repair"]).arg(&bag).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        out.contains(&format!("dropped the chunk at byte {a}")),
+        "{out}"
+    );
+    assert!(out.contains("bag_0.mcap.damaged"), "{out}");
+    assert!(
+        out.contains(&format!("repaired: {} messages", all - lost.len())),
+        "{out}"
+    );
+    // the repaired file, read by a CRC-checking reader: every other message
+    let repaired = std::fs::read(&file).unwrap();
+    let mut got = log_times(&repaired);
+    got.sort();
+    expected.sort();
+    assert_eq!(got, expected);
+    // the damaged file kept as it was, and nothing else left behind
+    assert_eq!(
+        std::fs::read(bag.join("bag_0.mcap.damaged")).unwrap(),
+        damaged
+    );
+    let mut names: Vec<String> = std::fs::read_dir(&bag)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["bag_0.mcap", "bag_0.mcap.damaged", "metadata.yaml"]);
+}
+
+/// A grid larger than the memory available is refused before anything is
+/// allocated, with the estimate (the limit set to 100 MB here; by default
+/// it is the machine's MemAvailable).
+#[test]
+fn a_grid_larger_than_memory_is_refused_with_the_estimate() {
+    let d = support::Scratch::new("memory");
+    let td = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/scenes/table_drape.yaml"
+    );
+    let o = bin()
+        .env("GARMENT_SIM_MEMORY_LIMIT", "100000000")
+        .args([
+            "drape",
+            td,
+            "--spacing",
+            "0.0025",
+            "--duration",
+            "0.001",
+            "--out",
+        ])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("201 × 201 = 40401 vertices needs about 0.66 GB")
+            && err.contains("0.10 GB of memory available"),
+        "{err}"
+    );
+    // the estimate lies above what such a run uses: its peak resident size
+    // (the largest of this test process's children, getrusage)
+    let o = bin()
+        .args(["drape", td, "--spacing", "0.005", "--duration", "0.01"])
+        .args(["--solver", "cholesky", "--out"])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: getrusage fills the struct it is given
+    assert_eq!(
+        unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut ru) },
+        0
+    );
+    let peak = ru.ru_maxrss as f64 * 1024.0;
+    let est = garment_sim::limits::memory_estimate(101 * 101) as f64;
+    assert!(peak > 0.0 && peak < est, "peak {peak} B, estimate {est} B");
+}
+
+/// A scene of 400 KB of nested brackets is refused at once (before the YAML
+/// parser, which takes minutes on it), naming the file and the line.
+#[test]
+fn deeply_nested_yaml_is_refused_before_parsing() {
+    let d = support::Scratch::new("nested");
+    let p = d.join("nested.yaml");
+    std::fs::write(&p, format!("cloth: {}", "[".repeat(400_000))).unwrap();
+    let t = std::time::Instant::now();
+    refused(
+        &["drape", p.to_str().unwrap()],
+        &[
+            "nested.yaml",
+            "line 1: brackets nested deeper than 32 levels",
+        ],
+    );
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    let big = d.join("big.yaml");
+    std::fs::write(
+        &big,
+        format!("name: x\ndescription: \"{}\"\n", "a".repeat(2 << 20)),
+    )
+    .unwrap();
+    refused(
+        &["drape", big.to_str().unwrap()],
+        &["big.yaml", "larger than the 1048576 bytes"],
+    );
+    // the shipped files pass the same check
+    for f in [
+        "config/scenes/table_drape.yaml",
+        "config/fabrics/acrylic.yaml",
+    ] {
+        let text = std::fs::read_to_string(f).unwrap();
+        garment_sim::io::check_yaml_shape(&text).unwrap();
+    }
+}
+
+/// Property: whatever `pins` and `obstacles` messages arrive (fields drawn
+/// from extreme values, NaN, infinities and plausible ones, 400 messages
+/// from a fixed seed), each is applied or refused, and the simulation then
+/// steps without an error and with finite positions.
+#[test]
+fn random_extreme_messages_never_break_the_step() {
+    use garment_sim::ros::control::{apply_obstacle, apply_pin, ObstacleRegistry};
+    use garment_sim::msgs;
+    use garment_sim::scene::{Overrides, Scene};
+    use rand::{Rng, SeedableRng};
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let build = || {
+        sc.build(&Overrides {
+            spacing: Some(0.1),
+            ..Default::default()
+        })
+        .unwrap()
+    };
+    let mut sim = build();
+    let mut reg = ObstacleRegistry::from_sim(&sim);
+    let centre = sim.cloth.x[sim.cloth.len() / 2];
+    let pool = [
+        0.0,
+        1e-300,
+        0.01,
+        0.3,
+        -0.5,
+        1.0,
+        3.0,
+        -3.0,
+        500.0,
+        1e5,
+        1e200,
+        1e300,
+        -1e300,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(19);
+    let (mut applied, mut refused) = (0, 0);
+    for case in 0..400 {
+        if case % 40 == 0 {
+            sim = build();
+            reg = ObstacleRegistry::from_sim(&sim);
+        }
+        let n = sim.cloth.len() as u32;
+        let val = |rng: &mut rand::rngs::StdRng, plausible: f64| -> f64 {
+            if rng.random_bool(0.5) {
+                rng.random_range(-plausible..plausible)
+            } else {
+                pool[rng.random_range(0..pool.len())]
+            }
+        };
+        let point = |rng: &mut rand::rngs::StdRng| msgs::Point {
+            x: centre.x + val(rng, 1.0),
+            y: centre.y + val(rng, 1.0),
+            z: centre.z + val(rng, 1.0),
+        };
+        let what = if rng.random_bool(0.6) {
+            let k = rng.random_range(1..4usize);
+            let m = msgs::Pin {
+                operation: rng.random_range(0..4u8),
+                vertices: (0..k).map(|_| rng.random_range(0..n + 2)).collect(),
+                targets: if rng.random_bool(0.7) {
+                    (0..k).map(|_| point(&mut rng)).collect()
+                } else {
+                    vec![]
+                },
+                velocities: if rng.random_bool(0.5) {
+                    (0..k)
+                        .map(|_| msgs::Vector3 {
+                            x: val(&mut rng, 2.0),
+                            y: val(&mut rng, 2.0),
+                            z: val(&mut rng, 2.0),
+                        })
+                        .collect()
+                } else {
+                    vec![]
+                },
+                ..Default::default()
+            };
+            (apply_pin(&mut sim, &m, "world"), format!("{m:?}"))
+        } else {
+            let t = rng.random_range(1..5u8);
+            let dims = match t {
+                1 => 3,
+                2 => 1,
+                _ => 2,
+            };
+            let pose = msgs::Pose {
+                position: point(&mut rng),
+                ..Default::default()
+            };
+            let m = msgs::Obstacle {
+                id: ["a", "b", "c"][rng.random_range(0..3)].into(),
+                pose,
+                primitives: vec![msgs::SolidPrimitive {
+                    type_: t,
+                    dimensions: (0..dims)
+                        .map(|_| val(&mut rng, 0.3).abs())
+                        .collect::<Vec<f64>>(),
+                    ..Default::default()
+                }],
+                primitive_poses: vec![msgs::Pose::default()],
+                velocity: msgs::Twist {
+                    linear: msgs::Vector3 {
+                        x: val(&mut rng, 1.0),
+                        y: val(&mut rng, 1.0),
+                        z: val(&mut rng, 1.0),
+                    },
+                    angular: msgs::Vector3 {
+                        x: 0.0,
+                        y: 0.0,
+                        z: val(&mut rng, 1.0),
+                    },
+                },
+                thickness: val(&mut rng, 0.01).abs(),
+                friction: val(&mut rng, 1.0).abs(),
+                operation: [0u8, 0, 1, 3][rng.random_range(0..4)],
+                ..Default::default()
+            };
+            (
+                apply_obstacle(&mut sim, &mut reg, &m, "world", 1000),
+                format!("{m:?}"),
+            )
+        };
+        match what.0 {
+            Ok(_) => applied += 1,
+            Err(_) => refused += 1,
+        }
+        for k in 0..5 {
+            if let Err(e) = sim.step() {
+                panic!("case {case}, step {k} after {}: {e:#}", what.1);
+            }
+            assert!(
+                sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+                "case {case}: non-finite position after {}",
+                what.1
+            );
+        }
+    }
+    assert!(
+        applied > 40 && refused > 40,
+        "{applied} applied, {refused} refused"
+    );
+}
