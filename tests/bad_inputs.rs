@@ -559,8 +559,8 @@ fn deeply_nested_yaml_is_refused_before_parsing() {
 /// steps without an error and with finite positions.
 #[test]
 fn random_extreme_messages_never_break_the_step() {
-    use garment_sim::ros::control::{apply_obstacle, apply_pin, ObstacleRegistry};
     use garment_sim::msgs;
+    use garment_sim::ros::control::{apply_obstacle, apply_pin, ObstacleRegistry};
     use garment_sim::scene::{Overrides, Scene};
     use rand::{Rng, SeedableRng};
     let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
