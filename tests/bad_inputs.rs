@@ -493,7 +493,7 @@ fn a_grid_larger_than_memory_is_refused_with_the_estimate() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("201 × 201 = 40401 vertices needs about 0.66 GB")
+        err.contains("201 × 201 = 40401 vertices needs about 0.73 GB")
             && err.contains("0.10 GB of memory available"),
         "{err}"
     );
