@@ -384,11 +384,10 @@ def test_obstacles_and_pins(ros):
             c = n.wait("/cloth/points", PointCloud2,
                        lambda c: np.abs(xyz(c)[10] - [0.3, -0.3, 1.1]).max() < 1e-5 and xyz(c)[9, 2] > 1.05)
             assert np.linalg.norm(xyz(c)[9] - xyz(c)[10]) < 0.06
-            pins.publish(Pin(header=world, operation=Pin.RELEASE_ALL))
-            n.wait("/cloth/points", PointCloud2, lambda c: xyz(c)[10, 2] < 1.0)  # falls once let go
             d = n.wait("/diagnostics", DiagnosticArray)
             assert {kv.key: kv.value for kv in d.status[0].values}["rejected_messages"] == "0"
-            # a runtime parameter set through the parameter service: a 2-triangle mesh is now too large
+            # a runtime parameter set through the parameter service: a 2-triangle mesh is now too
+            # large (sent while the cloth hangs within reach of the plate)
             r = n.call(SetParameters, "/garment_sim/set_parameters", SetParameters.Request(parameters=[
                 Parameter(name="max_mesh_triangles",
                           value=ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1))]))
@@ -402,6 +401,8 @@ def test_obstacles_and_pins(ros):
             d = n.wait("/diagnostics", DiagnosticArray,
                        lambda d: {kv.key: kv.value for kv in d.status[0].values}["rejected_messages"] == "1")
             assert "max_mesh_triangles" in d.status[0].message, d.status[0].message
+            pins.publish(Pin(header=world, operation=Pin.RELEASE_ALL))
+            n.wait("/cloth/points", PointCloud2, lambda c: xyz(c)[10, 2] < 1.0)  # falls once let go
         finally:
             ros.destroy_publisher(obstacles)
             ros.destroy_publisher(pins)
