@@ -488,11 +488,9 @@ impl Scene {
         // the cloth must start outside the obstacles (meshes may be open,
         // with no inside: not checked)
         for (k, ob) in obstacles.iter().enumerate() {
-            if !matches!(ob.spec, ShapeSpec::Triangles { .. }) {
-                limits::check_overlap(ob, &cloth.x)
-                    .with_context(|| format!("obstacles[{k}]"))
-                    .with_context(ctx)?;
-            }
+            ob.check_overlap(&cloth.x)
+                .with_context(|| format!("obstacles[{k}]"))
+                .with_context(ctx)?;
         }
         let params = Params {
             dt: ov.dt.unwrap_or(f.dt),

@@ -422,6 +422,16 @@ class Node:
             time.sleep(0.02)
         raise AssertionError(f"no reply from {service} within {timeout} s")
 
+    def measured_rtf(self, seconds):
+        """Simulated seconds per wall second over `seconds`, from the cloud
+        stamps (after half a second for a new pace to settle)."""
+        time.sleep(0.5)
+        a = self.latest("/cloth/points", PointCloud2)
+        wa = time.time()
+        time.sleep(seconds)
+        b = self.latest("/cloth/points", PointCloud2)
+        return (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
+
     def diag(self, d):
         return {kv.key: kv.value for kv in d.status[0].values}
 
@@ -673,12 +683,7 @@ def test_parameter_services():
                    SetParameters_Request(parameters=[
                        Parameter("real_time_factor", ParameterValue(type=3, double_value=0.5))]))
         assert r.results[0].successful
-        time.sleep(0.5)
-        a = n.latest("/cloth/points", PointCloud2)
-        wa = time.time()
-        time.sleep(3.0)
-        b = n.latest("/cloth/points", PointCloud2)
-        ratio = (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
+        ratio = n.measured_rtf(3.0)
         print(f"real-time factor 0.5 asked, {ratio:.3f} measured")
         assert 0.4 < ratio < 0.56, ratio
     finally:
@@ -733,12 +738,7 @@ def test_every_runtime_parameter_is_listed_and_takes_effect():
         checked.add("frame_id")
         # real_time_factor: simulated time follows the wall clock at 1.0
         set_param("real_time_factor", 1.0)
-        time.sleep(0.5)
-        a = n.latest("/cloth/points", PointCloud2)
-        wa = time.time()
-        time.sleep(2.0)
-        b = n.latest("/cloth/points", PointCloud2)
-        ratio = (stamp(b.header) - stamp(a.header)) / (time.time() - wa)
+        ratio = n.measured_rtf(2.0)
         print(f"real-time factor 1 asked, {ratio:.3f} measured")
         assert 0.8 < ratio < 1.1, ratio
         checked.add("real_time_factor")

@@ -165,7 +165,8 @@ pub fn apply_obstacle(
                 if let Some(k) = sim.obstacles.iter().position(|o| &o.id == pid) {
                     let mut o = sim.obstacles[k].clone();
                     set_motion(&mut o, &frame, sub, &lin, &ang);
-                    overlap(&o, &sim.cloth.x).map_err(fail)?;
+                    o.check_overlap(&sim.cloth.x)
+                        .map_err(|e| fail(e.to_string()))?;
                     moved.push((k, o));
                 }
             }
@@ -241,7 +242,8 @@ pub fn apply_obstacle(
                 let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
                     .map_err(|e| format!("{e:#}"))?;
                 set_motion(&mut o, &frame, &sub, &lin, &ang);
-                overlap(&o, &sim.cloth.x).map_err(fail)?;
+                o.check_overlap(&sim.cloth.x)
+                    .map_err(|e| fail(e.to_string()))?;
                 built.push(o);
                 parts.push((pid, sub));
             }
@@ -265,15 +267,6 @@ pub fn apply_obstacle(
             "operation {op} unknown (ADD=0, REMOVE=1, MOVE=3)"
         ))),
     }
-}
-
-/// Refuses an obstacle (a primitive; meshes may be open, with no inside)
-/// placed deeper than [`limits::MAX_OVERLAP`] into the cloth.
-fn overlap(o: &Obstacle, x: &[Vector3<f64>]) -> Result<(), String> {
-    if matches!(o.spec, ShapeSpec::Triangles { .. }) {
-        return Ok(());
-    }
-    limits::check_overlap(o, x).map_err(|e| e.to_string())
 }
 
 fn set_motion(
@@ -360,7 +353,7 @@ pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<
     }
     let mut pins = sim.pins.clone();
     // a target farther than one step at PIN_TRAVEL_SPEED is travelled to
-    // at that speed (limits::travel_to)
+    // at that speed (PinPath::travel)
     let at = |k: usize| -> PinPath {
         let here = sim.cloth.x[vertices[k]];
         let target = m.targets.get(k).map(|p| p.vector()).unwrap_or(here);
@@ -372,7 +365,7 @@ pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<
             },
             _ => PinPath::Fixed(target),
         };
-        limits::travel_to(here, sim.time, sim.params.dt, path)
+        path.travel(here, sim.time, sim.params.dt)
     };
     let verb = match m.operation {
         msgs::Pin::PIN => {

@@ -535,38 +535,26 @@ impl Node {
     fn take_messages(&mut self) {
         let cap = self.settings.max_messages_per_step as usize;
         let obstacles = &self.io.obstacles;
-        let (got, undecodable) = drain(|| obstacles.take().map(|m| m.map(|(m, _)| m)), cap);
-        self.count_undecodable(undecodable, &self.names.obstacles.clone());
-        for m in got {
-            let Some(m) = m else {
-                self.counters.dropped += 1;
-                self.counters.dropped_now += 1;
-                continue;
-            };
-            let applied = control::apply_obstacle(
-                &mut self.loaded.sim,
-                &mut self.loaded.registry,
-                &m,
-                &self.settings.frame_id,
-                self.settings.max_mesh_triangles as usize,
-            );
-            let topic = self.names.obstacles.clone();
-            self.report(applied, &topic);
+        let taken = drain(|| obstacles.take().map(|m| m.map(|(m, _)| m)), cap);
+        let topic = self.names.obstacles.clone();
+        let handled = self.apply_taken(taken, &topic, |node, m| {
+            control::apply_obstacle(
+                &mut node.loaded.sim,
+                &mut node.loaded.registry,
+                m,
+                &node.settings.frame_id,
+                node.settings.max_mesh_triangles as usize,
+            )
+        });
+        if handled > 0 {
             self.publish_now = true;
         }
         let pins = &self.io.pins;
-        let (got, undecodable) = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);
-        self.count_undecodable(undecodable, &self.names.pins.clone());
-        for m in got {
-            let Some(m) = m else {
-                self.counters.dropped += 1;
-                self.counters.dropped_now += 1;
-                continue;
-            };
-            let applied = control::apply_pin(&mut self.loaded.sim, &m, &self.settings.frame_id);
-            let topic = self.names.pins.clone();
-            self.report(applied, &topic);
-        }
+        let taken = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);
+        let topic = self.names.pins.clone();
+        self.apply_taken(taken, &topic, |node, m| {
+            control::apply_pin(&mut node.loaded.sim, m, &node.settings.frame_id)
+        });
         let c = &mut self.counters;
         if c.dropped_now > 0 && c.last_drop_log.elapsed() > Duration::from_secs(1) {
             c.last_error = format!(
@@ -581,12 +569,34 @@ impl Node {
         }
     }
 
-    /// Counts and logs messages that arrived but could not be decoded (CDR
-    /// of another type or cut short): they count as rejected.
-    fn count_undecodable(&mut self, errors: Vec<String>, topic: &str) {
-        for e in errors {
+    /// Applies what [`drain`] took from one topic with `apply`: messages
+    /// beyond the cap are counted as dropped, undecodable ones (CDR of another
+    /// type or cut short) and refused ones are logged and counted as
+    /// rejected. Returns how many were applied or refused.
+    fn apply_taken<M>(
+        &mut self,
+        (got, undecodable): (Vec<Option<M>>, Vec<String>),
+        topic: &str,
+        apply: impl Fn(&mut Self, &M) -> std::result::Result<String, String>,
+    ) -> usize {
+        for e in undecodable {
             self.report(Err(format!("undecodable message (CDR): {e}")), topic);
         }
+        let mut handled = 0;
+        for m in got {
+            match m {
+                Some(m) => {
+                    let applied = apply(self, &m);
+                    self.report(applied, topic);
+                    handled += 1;
+                }
+                None => {
+                    self.counters.dropped += 1;
+                    self.counters.dropped_now += 1;
+                }
+            }
+        }
+        handled
     }
 
     /// Logs what a message did, or counts and logs its refusal.

@@ -189,6 +189,54 @@ impl Obstacle {
         })
     }
 
+    /// The deepest cloth vertex inside this obstacle's shape (not its
+    /// thickened layer): `(vertex, depth in m)`, or `None` if every vertex is
+    /// outside.
+    pub fn deepest_inside(&self, x: &[Vector3<f64>]) -> Option<(usize, f64)> {
+        let (lo, hi) = self.bounds(0.0);
+        let mut worst: Option<(usize, f64)> = None;
+        for (i, p) in x.iter().enumerate() {
+            if (0..3).any(|a| p[a] < lo[a] || p[a] > hi[a]) {
+                continue;
+            }
+            let mut d = -self.proximity(p).distance;
+            if d == 0.0 {
+                // a point at a ball's centre has no closest surface point: the
+                // query reads it as on the surface; a point beside it does not
+                d = -self.proximity(&(p + Vector3::new(1e-9, 0.0, 0.0))).distance;
+            }
+            if d > 0.0 && worst.is_none_or(|(_, w)| d > w) {
+                worst = Some((i, d));
+            }
+        }
+        worst
+    }
+
+    /// Refuses this obstacle where it lies with a cloth vertex deeper than
+    /// [`crate::limits::MAX_OVERLAP`] inside it, naming the obstacle, the
+    /// vertex and the depth. Triangle meshes are not checked: they may be
+    /// open, with no inside.
+    pub fn check_overlap(&self, x: &[Vector3<f64>]) -> Result<()> {
+        use crate::limits::MAX_OVERLAP;
+        if matches!(self.spec, ShapeSpec::Triangles { .. }) {
+            return Ok(());
+        }
+        if let Some((i, d)) = self.deepest_inside(x) {
+            if d > MAX_OVERLAP {
+                bail!(
+                    "obstacle {:?} overlaps the cloth: vertex {i} at ({:.4}, {:.4}, {:.4}) m lies \
+                     {d:.4} m inside it, more than {MAX_OVERLAP} m (MAX_OVERLAP; the contacts \
+                     would throw the cloth out): place the cloth or the obstacle apart",
+                    self.id,
+                    x[i].x,
+                    x[i].y,
+                    x[i].z
+                );
+            }
+        }
+        Ok(())
+    }
+
     /// Signed distance, outward normal and surface velocity at the point
     /// closest to `p`.
     pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {

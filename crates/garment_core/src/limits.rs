@@ -4,10 +4,10 @@
 //! Each bound says its unit and why it is where it is; docs/limits.md lists
 //! them for users. A value outside a bound is refused with the field named,
 //! except a far pin target, which the pin reaches at [`PIN_TRAVEL_SPEED`]
-//! (see [`travel_to`]).
+//! (see [`crate::solver::PinPath::travel`]). The module depends on no other
+//! part of the crate: the obstacles ([`crate::collision::Obstacle::check_overlap`])
+//! and the solver use it.
 
-use crate::collision::Obstacle;
-use crate::solver::PinPath;
 use anyhow::{bail, Result};
 use nalgebra::Vector3;
 
@@ -228,75 +228,4 @@ pub fn check_reach(what: &str, p: &Vector3<f64>, x: &[Vector3<f64>]) -> Result<(
         );
     }
     Ok(())
-}
-
-/// The deepest cloth vertex inside an obstacle's shape (not its thickened
-/// layer): `(vertex, depth in m)`, or `None` if every vertex is outside.
-pub fn deepest_inside(ob: &Obstacle, x: &[Vector3<f64>]) -> Option<(usize, f64)> {
-    let (lo, hi) = ob.bounds(0.0);
-    let mut worst: Option<(usize, f64)> = None;
-    for (i, p) in x.iter().enumerate() {
-        if (0..3).any(|a| p[a] < lo[a] || p[a] > hi[a]) {
-            continue;
-        }
-        let mut d = -ob.proximity(p).distance;
-        if d == 0.0 {
-            // a point at a ball's centre has no closest surface point: the
-            // query reads it as on the surface; a point beside it does not
-            d = -ob.proximity(&(p + Vector3::new(1e-9, 0.0, 0.0))).distance;
-        }
-        if d > 0.0 && worst.is_none_or(|(_, w)| d > w) {
-            worst = Some((i, d));
-        }
-    }
-    worst
-}
-
-/// Refuses an obstacle with a cloth vertex deeper than [`MAX_OVERLAP`]
-/// inside it, naming the obstacle, the vertex and the depth.
-pub fn check_overlap(ob: &Obstacle, x: &[Vector3<f64>]) -> Result<()> {
-    if let Some((i, d)) = deepest_inside(ob, x) {
-        if d > MAX_OVERLAP {
-            bail!(
-                "obstacle {:?} overlaps the cloth: vertex {i} at ({:.4}, {:.4}, {:.4}) m lies \
-                 {d:.4} m inside it, more than {MAX_OVERLAP} m (MAX_OVERLAP; the contacts \
-                 would throw the cloth out): place the cloth or the obstacle apart",
-                ob.id,
-                x[i].x,
-                x[i].y,
-                x[i].z
-            );
-        }
-    }
-    Ok(())
-}
-
-/// The path a pin follows to `path` from its vertex at `from` at time
-/// `now`: `path` itself if its position now is within one step `dt` at
-/// [`PIN_TRAVEL_SPEED`], else a straight travel at that speed to where
-/// `path` will be on arrival, then `path`.
-pub fn travel_to(from: Vector3<f64>, now: f64, dt: f64, path: PinPath) -> PinPath {
-    let (p, _) = path.at(now);
-    let d = (p - from).norm();
-    if d <= PIN_TRAVEL_SPEED * dt {
-        return path;
-    }
-    let arrive = now + d / PIN_TRAVEL_SPEED;
-    // a moving target starts its motion on arrival
-    let then = match path {
-        PinPath::Velocity {
-            start, velocity, ..
-        } => PinPath::Velocity {
-            start,
-            velocity,
-            t0: arrive,
-        },
-        other => other,
-    };
-    PinPath::Travel {
-        from,
-        t0: now,
-        t1: arrive,
-        then: Box::new(then),
-    }
 }

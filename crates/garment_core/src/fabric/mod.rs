@@ -11,6 +11,7 @@
 pub mod kes;
 pub mod law;
 
+use crate::limits::{check_kes, KES_B, KES_EMT, KES_G};
 use anyhow::{bail, Context, Result};
 use kes::*;
 pub use law::{ElasticPoly, Hysteresis, Law, LawState};
@@ -240,6 +241,14 @@ fn need(name: &str, v: Option<f64>) -> Result<f64> {
     Ok(v)
 }
 
+/// A required KES summary value within the range of measured fabrics
+/// ([`crate::limits::check_kes`]).
+fn need_kes(name: &str, v: Option<f64>, range: (f64, f64), unit: &str) -> Result<f64> {
+    let v = need(name, v)?;
+    check_kes(name, v, range, unit)?;
+    Ok(v)
+}
+
 fn nonneg(name: &str, v: Option<f64>) -> Result<f64> {
     let v = v.with_context(|| format!("{name} is missing"))?;
     if !v.is_finite() || v < 0.0 {
@@ -272,7 +281,7 @@ fn direction(
                 lt: need(&format!("{tn}.LT"), d.tensile.lt)?,
                 wt: need(&format!("{tn}.WT"), d.tensile.wt)?,
                 rt: nonneg(&format!("{tn}.RT"), d.tensile.rt)?,
-                emt: need(&format!("{tn}.EMT"), d.tensile.emt)?,
+                emt: need_kes(&format!("{tn}.EMT"), d.tensile.emt, KES_EMT, "%")?,
             };
             if s.lt >= 2.0 {
                 bail!(
@@ -283,7 +292,6 @@ fn direction(
             if s.rt > 100.0 {
                 bail!("{tn}.RT = {}: a resilience is a percentage ≤ 100", s.rt);
             }
-            crate::limits::check_kes(&format!("{tn}.EMT"), s.emt, crate::limits::KES_EMT, "%")?;
             let fm = d.tensile.fm_gf_per_cm.unwrap_or(TENSILE_FM_DEFAULT_GF_CM);
             positive(&format!("{tn}.Fm_gf_per_cm"), fm)?;
             tensile_curve(&s, fm)
@@ -294,15 +302,7 @@ fn direction(
         Some(c) => c,
         None => kes::shear_curve(
             &ShearSummary {
-                g: need(&format!("{sn}.G"), d.shear.g).and_then(|g| {
-                    crate::limits::check_kes(
-                        &format!("{sn}.G"),
-                        g,
-                        crate::limits::KES_G,
-                        "gf/(cm·deg)",
-                    )?;
-                    Ok(g)
-                })?,
+                g: need_kes(&format!("{sn}.G"), d.shear.g, KES_G, "gf/(cm·deg)")?,
                 hg: nonneg(&format!("{sn}.2HG"), d.shear.hg)?,
                 hg5: nonneg(&format!("{sn}.2HG5"), d.shear.hg5)?,
             },
@@ -314,15 +314,7 @@ fn direction(
         Some(c) => c,
         None => kes::bending_curve(
             &BendingSummary {
-                b: need(&format!("{bn}.B"), d.bending.b).and_then(|b| {
-                    crate::limits::check_kes(
-                        &format!("{bn}.B"),
-                        b,
-                        crate::limits::KES_B,
-                        "gf·cm²/cm",
-                    )?;
-                    Ok(b)
-                })?,
+                b: need_kes(&format!("{bn}.B"), d.bending.b, KES_B, "gf·cm²/cm")?,
                 hb: nonneg(&format!("{bn}.2HB"), d.bending.hb)?,
             },
             Family::Bending.memory_length(BENDING_MAX_PER_CM * PER_CM),

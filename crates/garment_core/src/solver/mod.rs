@@ -89,7 +89,7 @@ pub enum PinPath {
     Waypoints(Vec<(f64, Vector3<f64>)>),
     /// Travels in a straight line at constant speed from `from` (at time
     /// `t0`) to where `then` is at time `t1`, then follows `then`: how a pin
-    /// reaches a far target at a bounded speed ([`crate::limits::travel_to`]).
+    /// reaches a far target at a bounded speed ([`PinPath::travel`]).
     Travel {
         from: Vector3<f64>,
         t0: f64,
@@ -133,6 +133,37 @@ impl PinPath {
                 let v = (to - from) / (t1 - t0);
                 (from + v * (t - t0).max(0.0), v)
             }
+        }
+    }
+
+    /// The path a pin follows to `self` from its vertex at `from` at time
+    /// `now`: `self` if its position now is within one step `dt` at
+    /// [`crate::limits::PIN_TRAVEL_SPEED`], else a straight travel at that
+    /// speed to where `self` will be on arrival, then `self` (a moving target
+    /// starts its motion on arrival).
+    pub fn travel(self, from: Vector3<f64>, now: f64, dt: f64) -> PinPath {
+        use crate::limits::PIN_TRAVEL_SPEED;
+        let (p, _) = self.at(now);
+        let d = (p - from).norm();
+        if d <= PIN_TRAVEL_SPEED * dt {
+            return self;
+        }
+        let arrive = now + d / PIN_TRAVEL_SPEED;
+        let then = match self {
+            PinPath::Velocity {
+                start, velocity, ..
+            } => PinPath::Velocity {
+                start,
+                velocity,
+                t0: arrive,
+            },
+            other => other,
+        };
+        PinPath::Travel {
+            from,
+            t0: now,
+            t1: arrive,
+            then: Box::new(then),
         }
     }
 }
