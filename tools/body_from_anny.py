@@ -49,33 +49,6 @@ def read_source(path, member):
                   "obj_sha256": hashlib.sha256(text.encode("utf-8")).hexdigest()}
 
 
-def torso_loop(verts, tris, z):
-    """The section loop at height z that crosses the sagittal plane x = 0
-    (largest such loop), or None."""
-    best = None
-    for loop in bm.slice_loops(verts, tris, z):
-        if loop[:, 0].min() < 0.0 < loop[:, 0].max():
-            if best is None or abs(bm.polygon_area(loop)) > abs(bm.polygon_area(best)):
-                best = loop
-    return best
-
-
-def crotch_height(verts, tris, step=0.002):
-    """Lowest height at which one section loop spans the sagittal plane
-    (below it the two legs are separate)."""
-    z = 0.2 * verts[:, 2].max()
-    while torso_loop(verts, tris, z) is None:
-        z += step
-    lo, hi = z - step, z
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        if torso_loop(verts, tris, mid) is None:
-            lo = mid
-        else:
-            hi = mid
-    return hi
-
-
 def convert(verts):
     rot = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
     return verts @ rot.T
@@ -94,8 +67,8 @@ def main():
     verts = convert(verts)
     shift = np.array([0.0, 0.0, -verts[:, 2].min()])
     verts = verts + shift
-    zc = crotch_height(verts, tris)
-    pelvis = torso_loop(verts, tris, zc + PELVIS_ABOVE_CROTCH)
+    zc = bm.crotch_height(verts, tris)
+    pelvis = bm.torso_loop(verts, tris, zc + PELVIS_ABOVE_CROTCH)
     c = bm.polygon_centroid(pelvis)
     verts[:, 0] -= c[0]
     verts[:, 1] -= c[1]

@@ -210,6 +210,35 @@ def point_in_polygon(pt, poly):
     return bool(np.count_nonzero(cond & (x < xi)) % 2)
 
 
+# ---------------------------------------------------------------- body sections
+
+def torso_loop(verts, tris, z):
+    """The section loop at height z that crosses the sagittal plane x = 0
+    (largest such loop), or None."""
+    best = None
+    for loop in slice_loops(verts, tris, z):
+        if loop[:, 0].min() < 0.0 < loop[:, 0].max():
+            if best is None or abs(polygon_area(loop)) > abs(polygon_area(best)):
+                best = loop
+    return best
+
+
+def crotch_height(verts, tris, step=0.002):
+    """Lowest height at which one section loop spans the sagittal plane
+    (below it the two legs are separate)."""
+    z = 0.2 * verts[:, 2].max()
+    while torso_loop(verts, tris, z) is None:
+        z += step
+    lo, hi = z - step, z
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        if torso_loop(verts, tris, mid) is None:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
 # ---------------------------------------------------------------- 3D queries
 
 def winding_numbers(verts, tris, points):
