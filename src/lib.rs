@@ -13,9 +13,10 @@
 //! of a drape; [`msgs`] are the ROS 2 messages (types, schemas, built from a
 //! simulation) that [`bag`] records as rosbag2 bags, [`ros`] (the ROS 2
 //! node) publishes and [`live`] serves to Foxglove over its WebSocket
-//! protocol.
+//! protocol. [`pattern`] reads garments (GarmentCode patterns and garment
+//! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body.
 
-pub use garment_core::{cloth, collision, fabric, limits, solver};
+pub use garment_core::{cloth, collision, fabric, garment, limits, solver};
 
 pub mod bag;
 pub mod capture;
@@ -23,8 +24,10 @@ pub mod io;
 pub mod lab;
 pub mod live;
 pub mod msgs;
+pub mod pattern;
 pub mod plot;
 pub mod render;
 pub mod ros;
 pub mod run;
 pub mod scene;
+pub mod trial;

@@ -9,6 +9,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 
 mod cli_lab;
+mod cli_trial;
 
 #[derive(Parser)]
 #[command(
@@ -138,6 +139,9 @@ enum Cmd {
     FitKes(cli_lab::FitKesArgs),
     /// Drapemeter: drape coefficient and nodes of a circular specimen on a disk.
     Drapemeter(cli_lab::DrapemeterArgs),
+    /// Virtual garment trial: sew a garment from its pattern onto a body, drape it and
+    /// report the fit (garment.obj, garment.ply, fit.json, fit_strain.png, fit_pressure.png).
+    Trial(cli_trial::TrialArgs),
 }
 
 /// Recording a drape as a rosbag2 bag.
@@ -278,7 +282,7 @@ fn main() {
     }
 }
 
-fn progress_printer(label: String) -> impl FnMut(f64, f64) {
+pub(crate) fn progress_printer(label: String) -> impl FnMut(f64, f64) {
     let tty = std::io::stderr().is_terminal();
     let bar = if tty {
         let b = indicatif::ProgressBar::new(1000);
@@ -547,6 +551,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Kes(a) => cli_lab::kes(a),
         Cmd::FitKes(a) => cli_lab::fit_kes(a),
         Cmd::Drapemeter(a) => cli_lab::drapemeter(a),
+        Cmd::Trial(a) => cli_trial::trial(a),
         Cmd::Bench {
             scene,
             spacing,

@@ -602,6 +602,164 @@ impl Picture {
     }
 }
 
+/// A cloth coloured by a per-vertex field (a garment's strain or pressure
+/// map) on its obstacles (the body), seen orthographically from the front
+/// (looking along +y), the back and the left side (looking along +x), with
+/// a colour bar from 0 to `full` labelled in `unit` × `label_scale`.
+#[derive(Debug, Clone)]
+pub struct FieldPicture {
+    pub title: String,
+    pub info: Vec<String>,
+    pub cloth: Surface,
+    pub field: Vec<f64>,
+    /// The field's value at the top of the colour bar.
+    pub full: f64,
+    /// Name and unit of the colour bar, e.g. ("stretch", "%"), and the
+    /// factor from the field to the unit.
+    pub label: (String, String),
+    pub label_scale: f64,
+    pub obstacles: Vec<Surface>,
+    pub size: (usize, usize),
+}
+
+impl FieldPicture {
+    /// Draws the picture.
+    pub fn render(&self) -> Image {
+        let (w, h) = (self.size.0.max(600), self.size.1.max(300));
+        let mut img = Image::new(w, h, plot::WHITE);
+        let legend_w = 110;
+        let vw = (w - legend_w) / 3;
+        let vh = h - TITLE_H;
+        let mut pts: Vec<V3> = self.cloth.vertices.iter().map(|&p| V3::from(p)).collect();
+        for o in &self.obstacles {
+            pts.extend(o.vertices.iter().map(|&p| V3::from(p)));
+        }
+        let (lo, hi) = bounds(&pts);
+        let centre = (lo + hi) / 2.0;
+        let radius = ((hi - lo).norm() / 2.0).max(1e-3);
+        let colours: Vec<Rgb> = self
+            .field
+            .iter()
+            .map(|&f| colour_map(if self.full > 0.0 { f / self.full } else { 0.0 }))
+            .collect();
+        let views = [
+            ("front", V3::y()),
+            ("back", -V3::y()),
+            ("left side", V3::x()),
+        ];
+        // one scale for the three views: the largest that fits all
+        let mut cams: Vec<Camera> = views
+            .iter()
+            .map(|(_, f)| {
+                let mut c = Camera::looking(centre - f * 2.0 * radius, *f);
+                c.frame(&pts, 20.0, 30.0, vw as f64 - 20.0, vh as f64 - 40.0);
+                c
+            })
+            .collect();
+        let s = cams
+            .iter()
+            .map(|c| match c.projection {
+                Projection::Orthographic { px_per_m } => px_per_m,
+                Projection::Perspective { focal_px } => focal_px,
+            })
+            .fold(f64::INFINITY, f64::min);
+        for (k, cam) in cams.iter_mut().enumerate() {
+            cam.projection = Projection::Orthographic { px_per_m: s };
+            let c = cam.view(&centre);
+            cam.centre_px = [
+                vw as f64 / 2.0 - s * c.x,
+                (vh as f64 + 10.0) / 2.0 + s * c.y,
+            ];
+            let mut r = Raster::new(vw * SS, vh * SS);
+            let mut sc = *cam;
+            sc.centre_px = [sc.centre_px[0] * SS as f64, sc.centre_px[1] * SS as f64];
+            sc.projection = Projection::Orthographic {
+                px_per_m: s * SS as f64,
+            };
+            for (q, o) in self.obstacles.iter().enumerate() {
+                let oc = vec![OBSTACLE; o.vertices.len()];
+                r.draw(&sc, o, &oc, &oc, 0.6, 2 + q as u16);
+            }
+            r.draw(&sc, &self.cloth, &colours, &colours, 1.2, 1);
+            r.outline(&sc, 0.01 * scene_size(&pts));
+            let sub = r.resolve(SS);
+            let x0 = (k * vw) as i64;
+            blit(&mut img, &sub, x0, TITLE_H as i64);
+            img.text(x0 + 10, TITLE_H as i64 + 8, views[k].0, 1, [60, 60, 60]);
+            if k > 0 {
+                img.line(
+                    (x0 as f64, TITLE_H as f64),
+                    (x0 as f64, h as f64),
+                    plot::GREY,
+                    1,
+                );
+            }
+            let rect = Rect {
+                x: k * vw,
+                y: TITLE_H,
+                w: vw,
+                h: vh,
+            };
+            scale_bar(&mut img, &rect, s);
+        }
+        img.text(14, 14, &self.title, 2, plot::BLACK);
+        let x = 14 + plot::text_width(&self.title, 2) + 24;
+        img.text(x, 18, &self.info.join("   "), 1, [60, 60, 60]);
+        img.line(
+            (0.0, (TITLE_H - 1) as f64),
+            (w as f64, (TITLE_H - 1) as f64),
+            plot::GREY,
+            1,
+        );
+        // colour bar
+        let (bx, y0, bh) = ((3 * vw) as i64 + 20, TITLE_H as i64 + 50, 200i64);
+        for k in 0..bh {
+            let c = colour_map(1.0 - k as f64 / (bh - 1) as f64);
+            img.fill_rect(bx, y0 + k, 14, 1, c);
+        }
+        let val = |v: f64| {
+            let s = format!("{:.2}", v * self.label_scale);
+            format!(
+                "{} {}",
+                s.trim_end_matches('0').trim_end_matches('.'),
+                self.label.1
+            )
+        };
+        img.text(bx + 18, y0 - 3, &val(self.full), 1, plot::BLACK);
+        img.text(
+            bx + 18,
+            y0 + bh / 2 - 4,
+            &val(self.full / 2.0),
+            1,
+            plot::BLACK,
+        );
+        img.text(bx + 18, y0 + bh - 6, &val(0.0), 1, plot::BLACK);
+        img.text(bx - 6, y0 - 20, &self.label.0, 1, plot::BLACK);
+        img
+    }
+
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        self.render().save_png(path)
+    }
+}
+
+/// A round full scale (1, 2 or 5 × 10^k) at or above the largest finite
+/// value of `v`, at least `floor`.
+pub fn full_scale(v: &[f64], floor: f64) -> f64 {
+    let m = v
+        .iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max)
+        .max(floor);
+    let mag = 10f64.powf(m.log10().floor());
+    [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|k| k * mag)
+        .find(|x| *x >= m * (1.0 - 1e-12))
+        .unwrap_or(m)
+}
+
 fn bounds(pts: &[V3]) -> (V3, V3) {
     let mut lo = V3::repeat(f64::INFINITY);
     let mut hi = V3::repeat(f64::NEG_INFINITY);

@@ -83,6 +83,30 @@ pub struct Hinge {
     pub h: f64,
 }
 
+/// A seam stitch (MODEL.md §8): a zero-length linear spring between a point
+/// of one panel's edge and the interpolated point of the other panel's edge.
+/// The gap is `g = Σ_k c[k]·x[v[k]]` (`c = [1, −(1−t), −t]` for vertex
+/// `v[0]` sewn to the point at fraction `t` between `v[1]` and `v[2]`); the
+/// energy is `½ k |g|²` and the damping force `−d ġ` on the gap, spread on
+/// the three vertices by `c`. Linear in the positions, so its stiffness
+/// matrix `k c cᵀ ⊗ I₃` is exact and constant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stitch {
+    pub v: [usize; 3],
+    pub c: [f64; 3],
+    /// Stiffness, N/m.
+    pub k: f64,
+    /// Damping, N·s/m.
+    pub d: f64,
+}
+
+impl Stitch {
+    /// The gap vector `Σ c_k x_{v_k}` at positions `x`, m.
+    pub fn gap(&self, x: &[Vector3<f64>]) -> Vector3<f64> {
+        x[self.v[0]] * self.c[0] + x[self.v[1]] * self.c[1] + x[self.v[2]] * self.c[2]
+    }
+}
+
 /// Distance from `p` to the closed polygon and the closest point on it.
 fn closest_on_polygon(poly: &[[f64; 2]], p: [f64; 2]) -> (f64, [f64; 2]) {
     let n = poly.len();
@@ -126,7 +150,8 @@ fn snap_border(
                 continue;
             }
             let (d, q) = closest_on_polygon(poly, node_uv(i, j));
-            if d > 0.5 * h {
+            // (a node half a spacing out, up to round-off, is kept)
+            if d > 0.5 * h * (1.0 + 1e-9) {
                 continue;
             }
             // one of the node's cells overlaps the outline
@@ -201,6 +226,8 @@ pub struct Cloth {
     /// grid node `j·nx + i`, or [`REMOVED`]. Empty for a full rectangular grid,
     /// whose vertex of node (i, j) is `j·nx + i`.
     pub grid_vertex: Vec<usize>,
+    /// Seam stitches joining panels of a garment (empty for a single piece).
+    pub seams: Vec<Stitch>,
 }
 
 /// Marks a grid node that a clipped cloth does not keep.
@@ -573,6 +600,7 @@ impl Cloth {
             hinges,
             triangles,
             grid_vertex: Vec::new(),
+            seams: Vec::new(),
         };
         Ok(cloth)
     }
@@ -881,7 +909,78 @@ impl Cloth {
             hinges,
             triangles,
             grid_vertex,
+            seams: Vec::new(),
         })
+    }
+
+    /// The pieces as one cloth (a garment's panels): vertices, springs,
+    /// hinges, memories, triangles and stitches of piece `k` follow those of
+    /// the pieces before it, their vertex indices shifted by the vertices
+    /// before it. The result has no grid of its own: `nx` is its vertex count
+    /// and `ny` 1, so [`Cloth::index`]`(i, 0)` is vertex `i`; `lc`, `lt` are
+    /// the first piece's.
+    pub fn merge(parts: Vec<Cloth>) -> Result<Cloth> {
+        let Some(first) = parts.first() else {
+            bail!("a cloth needs at least one piece");
+        };
+        let (lc, lt) = (first.lc, first.lt);
+        let mut c = Cloth {
+            nx: 0,
+            ny: 1,
+            lc,
+            lt,
+            material: Vec::new(),
+            x: Vec::new(),
+            v: Vec::new(),
+            mass: Vec::new(),
+            tension: Vec::new(),
+            shear: Vec::new(),
+            hinges: Vec::new(),
+            tension_state: Vec::new(),
+            shear_state: Vec::new(),
+            hinge_state: Vec::new(),
+            triangles: Vec::new(),
+            grid_vertex: Vec::new(),
+            seams: Vec::new(),
+        };
+        for p in parts {
+            let o = c.x.len();
+            c.material.extend(p.material);
+            c.x.extend(p.x);
+            c.v.extend(p.v);
+            c.mass.extend(p.mass);
+            c.tension.extend(p.tension.into_iter().map(|mut s| {
+                s.a += o;
+                s.b += o;
+                s
+            }));
+            c.shear.extend(p.shear.into_iter().map(|mut s| {
+                s.a += o;
+                s.b += o;
+                s
+            }));
+            c.hinges.extend(p.hinges.into_iter().map(|mut h| {
+                h.v.iter_mut().for_each(|v| *v += o);
+                h
+            }));
+            c.tension_state.extend(p.tension_state);
+            c.shear_state.extend(p.shear_state);
+            c.hinge_state.extend(p.hinge_state);
+            c.triangles
+                .extend(p.triangles.into_iter().map(|t| t.map(|v| v + o)));
+            c.seams.extend(p.seams.into_iter().map(|mut s| {
+                s.v.iter_mut().for_each(|v| *v += o);
+                s
+            }));
+        }
+        c.nx = c.x.len();
+        if c.nx > MAX_VERTICES {
+            bail!(
+                "the pieces have {} vertices together, more than the limit of {MAX_VERTICES}",
+                c.nx
+            );
+        }
+        Ok(c)
     }
 
     pub fn len(&self) -> usize {

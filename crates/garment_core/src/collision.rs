@@ -4,7 +4,7 @@
 
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use parry3d_f64::query::Ray;
+use parry3d_f64::query::{PointQueryWithLocation, Ray};
 use parry3d_f64::shape::{
     Ball, Capsule, Cone, Cuboid, Cylinder, SharedShape, TriMesh, TriMeshFlags,
 };
@@ -72,6 +72,9 @@ pub struct Obstacle {
     pub friction: f64,
     /// Mesh data for visualisation (vertices in the obstacle frame).
     pub mesh: Option<MeshData>,
+    /// A triangle mesh every edge of which two triangles share: it has an
+    /// inside (found with the mesh's pseudo-normals), like the primitives.
+    pub closed: bool,
 }
 
 impl std::fmt::Debug for Obstacle {
@@ -185,6 +188,7 @@ impl Obstacle {
             angular_velocity: Vector3::zeros(),
             thickness,
             friction,
+            closed: mesh.as_ref().is_some_and(|(_, t)| is_closed(t)),
             mesh,
         })
     }
@@ -214,11 +218,11 @@ impl Obstacle {
 
     /// Refuses this obstacle where it lies with a cloth vertex deeper than
     /// [`crate::limits::MAX_OVERLAP`] inside it, naming the obstacle, the
-    /// vertex and the depth. Triangle meshes are not checked: they may be
-    /// open, with no inside.
+    /// vertex and the depth. Open triangle meshes are not checked: they have
+    /// no inside.
     pub fn check_overlap(&self, x: &[Vector3<f64>]) -> Result<()> {
         use crate::limits::MAX_OVERLAP;
-        if matches!(self.spec, ShapeSpec::Triangles { .. }) {
+        if matches!(self.spec, ShapeSpec::Triangles { .. }) && !self.closed {
             return Ok(());
         }
         if let Some((i, d)) = self.deepest_inside(x) {
@@ -242,7 +246,12 @@ impl Obstacle {
     pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {
         let iso = self.pose * self.shape_pose_offset;
         let pt = Point3::from(*p);
-        let proj = self.shape.project_point(&iso, &pt, false);
+        let proj = match self.shape.as_trimesh() {
+            // parry's plain projection of a mesh never says "inside"; the
+            // located one does, from the pseudo-normals of an oriented mesh
+            Some(m) if self.closed => m.project_point_and_get_location(&iso, &pt, false).0,
+            _ => self.shape.project_point(&iso, &pt, false),
+        };
         let c = proj.point.coords;
         let d = p - c;
         let dn = d.norm();
@@ -359,6 +368,18 @@ impl Obstacle {
             .collect();
         (v, tris)
     }
+}
+
+/// Is every edge of the triangles shared by exactly two of them?
+pub fn is_closed(t: &[[u32; 3]]) -> bool {
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = Default::default();
+    for tri in t {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    !t.is_empty() && edges.values().all(|&c| c == 2)
 }
 
 fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
@@ -538,5 +559,56 @@ mod tests {
         let p = s.proximity(&Vector3::new(0.5, 1.0, 0.0));
         // point (0.5, 0.1, 0): v = (1,0,0) + (0,0,2)×(0,0.1,0) = (0.8, 0, 0)
         assert!((p.velocity - Vector3::new(0.8, 0.0, 0.0)).norm() < 1e-12);
+    }
+}
+
+#[cfg(test)]
+mod mesh_inside {
+    use super::*;
+
+    /// A closed, outward-oriented triangle mesh has an inside: a point in it
+    /// is at a negative distance.
+    #[test]
+    fn a_closed_mesh_has_an_inside() {
+        let v = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ];
+        let t = vec![
+            [0, 2, 1],
+            [0, 3, 2],
+            [4, 5, 6],
+            [4, 6, 7],
+            [0, 1, 5],
+            [0, 5, 4],
+            [1, 2, 6],
+            [1, 6, 5],
+            [2, 3, 7],
+            [2, 7, 6],
+            [3, 0, 4],
+            [3, 4, 7],
+        ];
+        let o = Obstacle::new(
+            "cube",
+            ShapeSpec::Triangles {
+                vertices: v,
+                triangles: t,
+            },
+            Isometry3::identity(),
+            0.0,
+            0.0,
+        )
+        .unwrap();
+        let p = o.proximity(&Vector3::new(0.5, 0.5, 0.3));
+        assert!((p.distance + 0.3).abs() < 1e-12, "{}", p.distance);
+        assert!((p.normal + Vector3::z()).norm() < 1e-12, "{}", p.normal);
+        let q = o.proximity(&Vector3::new(0.5, 0.5, 1.2));
+        assert!((q.distance - 0.2).abs() < 1e-12, "{}", q.distance);
     }
 }

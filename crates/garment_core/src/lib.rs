@@ -13,5 +13,6 @@
 pub mod cloth;
 pub mod collision;
 pub mod fabric;
+pub mod garment;
 pub mod limits;
 pub mod solver;

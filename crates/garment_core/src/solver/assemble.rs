@@ -115,6 +115,8 @@ pub struct Slots {
     pub tension: Vec<[usize; 4]>,
     pub shear: Vec<[usize; 4]>,
     pub hinge: Vec<[usize; 16]>,
+    /// Blocks (p, q) of each seam stitch's three vertices, at `3p + q`.
+    pub seam: Vec<[usize; 9]>,
 }
 
 impl Slots {
@@ -137,8 +139,56 @@ impl Slots {
                     r
                 })
                 .collect(),
+            seam: c
+                .seams
+                .iter()
+                .map(|st| {
+                    let mut r = [0; 9];
+                    for p in 0..3 {
+                        for q in 0..3 {
+                            r[3 * p + q] = a.index(st.v[p], st.v[q]);
+                        }
+                    }
+                    r
+                })
+                .collect(),
         }
     }
+}
+
+/// Adds the seam stitches ([`crate::cloth::Stitch`]) to the assembled step:
+/// each is a linear spring on its gap `g = Σ c_k x_k` with damping on `ġ`,
+/// so `∂f/∂x = −k c cᵀ`, `∂f/∂v = −d c cᵀ` exactly; `A += (h² k + h d) c cᵀ`,
+/// `f += −c (k g + d ġ)` and `rhs += h (f − c (h k ġ + k ĝ_y))` with `ĝ_y`
+/// the gap of the position correction `y` (the terms of
+/// [`super::Simulation`]'s formula). Returns the damping power `−d |ġ|²`.
+pub fn add_seams(
+    h: f64,
+    cloth: &Cloth,
+    y: &[Vector3<f64>],
+    slots: &Slots,
+    a: &mut BlockMatrix,
+    force: &mut [Vector3<f64>],
+    rhs: &mut [Vector3<f64>],
+) -> f64 {
+    let mut power = 0.0;
+    for (st, sl) in cloth.seams.iter().zip(&slots.seam) {
+        let g = st.gap(&cloth.x);
+        let gv = st.gap(&cloth.v);
+        let gy = st.gap(y);
+        let f = -(g * st.k + gv * st.d);
+        let r = (f - (gv * (h * st.k) + gy * st.k)) * h;
+        power -= st.d * gv.norm_squared();
+        let w = h * h * st.k + h * st.d;
+        for p in 0..3 {
+            force[st.v[p]] += f * st.c[p];
+            rhs[st.v[p]] += r * st.c[p];
+            for q in 0..3 {
+                a.val[sl[3 * p + q]] += Matrix3::identity() * (w * st.c[p] * st.c[q]);
+            }
+        }
+    }
+    power
 }
 
 /// What every thread reads.

@@ -209,6 +209,8 @@ pub struct Energies {
     pub tension: f64,
     pub shear: f64,
     pub bending: f64,
+    /// Seam stitches (garments).
+    pub seam: f64,
     /// Work done so far by the Rayleigh damping forces (≥ 0 dissipated).
     pub dissipated_damping: f64,
 }
@@ -216,7 +218,7 @@ pub struct Energies {
 impl Energies {
     /// Kinetic + potential (gravity and elastic).
     pub fn total(&self) -> f64 {
-        self.kinetic + self.gravity + self.tension + self.shear + self.bending
+        self.kinetic + self.gravity + self.tension + self.shear + self.bending + self.seam
     }
 }
 
@@ -301,6 +303,21 @@ impl Simulation {
         cliques.extend(cloth.tension.iter().map(|s| vec![s.a, s.b]));
         cliques.extend(cloth.shear.iter().map(|s| vec![s.a, s.b]));
         cliques.extend(cloth.hinges.iter().map(|h| h.v.to_vec()));
+        cliques.extend(cloth.seams.iter().map(|s| s.v.to_vec()));
+        for (k, s) in cloth.seams.iter().enumerate() {
+            if s.v.iter().any(|&v| v >= n)
+                || !(s.k.is_finite() && s.k >= 0.0 && s.d.is_finite() && s.d >= 0.0)
+                || s.c.iter().any(|c| !c.is_finite())
+            {
+                bail!(
+                    "seam stitch {k}: vertices {:?} (the cloth has {n}), stiffness {} N/m, \
+                     damping {} N·s/m: needs vertices of the cloth and finite k, d ≥ 0",
+                    s.v,
+                    s.k,
+                    s.d
+                );
+            }
+        }
         let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
         let threads = match params.threads {
             0 => team::threads_for(n),
@@ -711,7 +728,57 @@ impl Simulation {
             &mut self.b,
             &mut self.team,
         );
-        self.dissipated -= self.params.dt * power;
+        let seams = if self.cloth.seams.is_empty() {
+            0.0
+        } else {
+            assemble::add_seams(
+                self.params.dt,
+                &self.cloth,
+                &self.y,
+                &self.slots,
+                &mut self.a,
+                &mut self.force,
+                &mut self.b,
+            )
+        };
+        self.dissipated -= self.params.dt * (power + seams);
+    }
+
+    /// The force each obstacle contact exerted on the cloth in the last
+    /// step, N (zero for a vertex not in contact): the constraint's reaction
+    /// `(A Δv − b)/h` of the filtered system (Baraff & Witkin 1998 §5: the
+    /// residual of a constrained vertex is the impulse its constraint
+    /// supplied) plus the kinetic friction force of a sliding contact. The
+    /// force on the obstacles is its opposite.
+    pub fn contact_forces(&self) -> Vec<Vector3<f64>> {
+        let n = self.cloth.len();
+        let mut out = vec![Vector3::zeros(); n];
+        if self.steps == 0 {
+            return out;
+        }
+        let mut adv = vec![Vector3::zeros(); n];
+        self.a.mul(&self.dv, &mut adv);
+        let h = self.params.dt;
+        for i in 0..n {
+            if self.contact_of[i].is_some() && self.pinned[i].is_none() {
+                out[i] = (adv[i] - self.b[i]) / h + self.friction_force[i];
+            }
+        }
+        out
+    }
+
+    /// The outward normal of each vertex's obstacle contact in the last step
+    /// (zero for a vertex not in contact).
+    pub fn contact_normals(&self) -> Vec<Vector3<f64>> {
+        (0..self.cloth.len())
+            .map(|i| {
+                if self.contact_of[i].is_some() {
+                    self.normals[i]
+                } else {
+                    Vector3::zeros()
+                }
+            })
+            .collect()
     }
 
     /// What most likely drove a failed step, from the state at its start:
@@ -807,6 +874,9 @@ impl Simulation {
                 &f.dir(hg.weft).bending,
                 dihedral(hinge_positions(hg, &c.x)),
             );
+        }
+        for st in &c.seams {
+            e.seam += 0.5 * st.k * st.gap(&c.x).norm_squared();
         }
         e
     }

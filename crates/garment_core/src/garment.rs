@@ -1,0 +1,492 @@
+//! Garments (MODEL.md §8): pattern panels cut from the warp/weft grid and
+//! joined by seams.
+//!
+//! Each panel is a [`Cloth::clipped_to_outline`] grid whose warp follows the
+//! panel's grain, placed in the world by the pattern's placement; the panels
+//! become one [`Cloth`] ([`Cloth::merge`]) whose seams are
+//! [`crate::cloth::Stitch`]es. A seam joins edge `a` of one panel to edge
+//! `b` of another: every border vertex of either edge is stitched to the
+//! point of the other edge at the same fraction of its length (measured
+//! along the edge, from the ends the seam pairs), interpolated between the
+//! two vertices of that edge around it. The two edges need not have the
+//! same length nor the same sampling.
+
+use crate::cloth::{Cloth, Outline, Stitch};
+use anyhow::{bail, Result};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+
+/// One pattern piece, in its own plane (panel coordinates, m).
+#[derive(Debug, Clone)]
+pub struct PanelCut {
+    pub name: String,
+    /// The edges in order around the outline: each a polyline (first point
+    /// its start, last its end, the end of one the start of the next).
+    pub edges: Vec<Vec<[f64; 2]>>,
+    /// Warp direction in panel coordinates (normalised here).
+    pub grain: [f64; 2],
+    /// Maps the panel plane (x, y, 0) to the world.
+    pub placement: Isometry3<f64>,
+}
+
+impl PanelCut {
+    /// The outline polygon (the edges' points, each shared point once).
+    pub fn polygon(&self) -> Vec<[f64; 2]> {
+        self.edges
+            .iter()
+            .flat_map(|e| e[..e.len() - 1].iter().copied())
+            .collect()
+    }
+
+    /// Length of edge `e`, m.
+    pub fn edge_length(&self, e: usize) -> f64 {
+        polyline_length(&self.edges[e])
+    }
+}
+
+/// Length of a polyline.
+pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
+    p.windows(2)
+        .map(|w| ((w[1][0] - w[0][0]).powi(2) + (w[1][1] - w[0][1]).powi(2)).sqrt())
+        .sum()
+}
+
+/// A seam between edge `a.1` of panel `a.0` and edge `b.1` of panel `b.0`.
+#[derive(Debug, Clone)]
+pub struct SeamSpec {
+    pub a: (usize, usize),
+    pub b: (usize, usize),
+    /// Stiffness per metre of seam, N/m per m (a stitch standing for a
+    /// length ℓ of seam gets `k = stiffness · ℓ / 2`, the two edges' stitches
+    /// sharing the seam).
+    pub stiffness: f64,
+    /// Damping time of the stitches, s (`d = damping · k`).
+    pub damping: f64,
+}
+
+/// A panel of a built garment.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub name: String,
+    /// Its vertices are `first..first + count` of the garment's cloth.
+    pub first: usize,
+    pub count: usize,
+    /// Panel coordinates of each of its vertices, m.
+    pub uv: Vec<[f64; 2]>,
+    /// Border vertices on each pattern edge (garment indices), with their
+    /// fraction of the edge's length from its start, sorted by it.
+    pub edge_vertices: Vec<Vec<(usize, f64)>>,
+    /// Length of each pattern edge, m.
+    pub edge_lengths: Vec<f64>,
+    pub grain: [f64; 2],
+    pub area: f64,
+}
+
+/// A built seam: its stitches are `stitches` of the cloth's seams.
+#[derive(Debug, Clone)]
+pub struct Seam {
+    pub a: (usize, usize),
+    pub b: (usize, usize),
+    /// The seam runs from `b`'s end to its start (it does for two panels
+    /// facing each other).
+    pub reversed: bool,
+    pub stitches: std::ops::Range<usize>,
+}
+
+/// Panels and seams as one cloth.
+#[derive(Debug, Clone)]
+pub struct Garment {
+    pub cloth: Cloth,
+    pub panels: Vec<Panel>,
+    pub seams: Vec<Seam>,
+}
+
+impl Garment {
+    /// Cuts every panel at `spacing` (warp and weft, m) with `areal_mass`
+    /// (kg/m²) and sews the seams.
+    pub fn build(
+        cuts: &[PanelCut],
+        seams: &[SeamSpec],
+        spacing: f64,
+        areal_mass: f64,
+    ) -> Result<Garment> {
+        if cuts.is_empty() {
+            bail!("a garment needs at least one panel");
+        }
+        let mut parts = Vec::new();
+        let mut panels = Vec::new();
+        let mut first = 0;
+        for cut in cuts {
+            let (cloth, panel) = cut_panel(cut, spacing, areal_mass, first)?;
+            first += cloth.len();
+            parts.push(cloth);
+            panels.push(panel);
+        }
+        let mut cloth = Cloth::merge(parts)?;
+        let mut built = Vec::new();
+        for (k, s) in seams.iter().enumerate() {
+            for (side, (p, e)) in [("a", s.a), ("b", s.b)] {
+                if p >= panels.len() || e >= cuts[p].edges.len() {
+                    bail!("seam {k}: side {side} names panel {p} edge {e}, which does not exist");
+                }
+            }
+            if !(s.stiffness.is_finite() && s.stiffness > 0.0) {
+                bail!("seam {k}: stiffness {} N/m per m must be > 0", s.stiffness);
+            }
+            if !(s.damping.is_finite() && s.damping >= 0.0) {
+                bail!("seam {k}: damping {} s must be ≥ 0", s.damping);
+            }
+            // each edge's border vertices, their fractions stretched to run
+            // 0 → 1 from the first to the last (a corner the grid did not keep
+            // leaves the first a little way along): the ends of the two edges
+            // meet
+            let span = |ev: &[(usize, f64)]| -> Vec<(usize, f64)> {
+                let (t0, t1) = match (ev.first(), ev.last()) {
+                    (Some(a), Some(b)) if b.1 > a.1 => (a.1, b.1),
+                    _ => return ev.to_vec(),
+                };
+                ev.iter().map(|&(v, t)| (v, (t - t0) / (t1 - t0))).collect()
+            };
+            let (ea, eb) = (
+                &span(&panels[s.a.0].edge_vertices[s.a.1]),
+                &span(&panels[s.b.0].edge_vertices[s.b.1]),
+            );
+            for (side, (p, e), ev) in [("a", s.a, ea), ("b", s.b, eb)] {
+                if ev.is_empty() {
+                    bail!(
+                        "seam {k}: edge {e} of panel {:?} (side {side}) has {} border vertices at \
+                         spacing {spacing} m; it needs one: use a finer spacing",
+                        panels[p].name,
+                        ev.len()
+                    );
+                }
+            }
+            // which end of b meets a's start: the nearer one where the
+            // pattern places them
+            let end = |ev: &[(usize, f64)], last: bool| {
+                cloth.x[if last { ev[ev.len() - 1].0 } else { ev[0].0 }]
+            };
+            let straight =
+                (end(ea, false) - end(eb, false)).norm() + (end(ea, true) - end(eb, true)).norm();
+            let crossed =
+                (end(ea, false) - end(eb, true)).norm() + (end(ea, true) - end(eb, false)).norm();
+            let reversed = crossed < straight;
+            let la = panels[s.a.0].edge_lengths[s.a.1];
+            let lb = panels[s.b.0].edge_lengths[s.b.1];
+            let start = cloth.seams.len();
+            for (from, onto, lfrom) in [(ea, eb, la), (eb, ea, lb)] {
+                for (idx, &(v, t)) in from.iter().enumerate() {
+                    // seam length this vertex stands for
+                    let lo = if idx == 0 {
+                        t
+                    } else {
+                        0.5 * (t + from[idx - 1].1)
+                    };
+                    let hi = if idx + 1 == from.len() {
+                        t.max(1.0)
+                    } else {
+                        0.5 * (t + from[idx + 1].1)
+                    };
+                    let ell = (hi - lo).max(0.0) * lfrom;
+                    let target = if reversed { 1.0 - t } else { t };
+                    let (v0, v1, w) = bracket(onto, target);
+                    let k = s.stiffness * ell / 2.0;
+                    cloth.seams.push(Stitch {
+                        v: [v, v0, v1],
+                        c: [1.0, -(1.0 - w), -w],
+                        k,
+                        d: s.damping * k,
+                    });
+                }
+            }
+            built.push(Seam {
+                a: s.a,
+                b: s.b,
+                reversed,
+                stitches: start..cloth.seams.len(),
+            });
+        }
+        Ok(Garment {
+            cloth,
+            panels,
+            seams: built,
+        })
+    }
+
+    /// The largest seam gap, m (the distance between a stitched vertex and
+    /// its point on the other edge), and the seam it is on.
+    pub fn largest_gap(&self, x: &[Vector3<f64>]) -> (f64, Option<usize>) {
+        let mut best = (0.0, None);
+        for (k, s) in self.seams.iter().enumerate() {
+            for st in &self.cloth.seams[s.stitches.clone()] {
+                let g = st.gap(x).norm();
+                if g > best.0 {
+                    best = (g, Some(k));
+                }
+            }
+        }
+        best
+    }
+
+    /// The panel a vertex belongs to.
+    pub fn panel_of(&self, v: usize) -> usize {
+        self.panels
+            .iter()
+            .position(|p| v >= p.first && v < p.first + p.count)
+            .unwrap_or(0)
+    }
+}
+
+/// The two vertices of an edge around fraction `t` and the weight of the
+/// second (clamped at the edge's ends).
+fn bracket(ev: &[(usize, f64)], t: f64) -> (usize, usize, f64) {
+    if ev.len() == 1 {
+        return (ev[0].0, ev[0].0, 0.0);
+    }
+    if t <= ev[0].1 {
+        return (ev[0].0, ev[1].0, 0.0);
+    }
+    for w in ev.windows(2) {
+        if t <= w[1].1 {
+            let span = w[1].1 - w[0].1;
+            let f = if span > 0.0 { (t - w[0].1) / span } else { 0.0 };
+            return (w[0].0, w[1].0, f);
+        }
+    }
+    let n = ev.len();
+    (ev[n - 2].0, ev[n - 1].0, 1.0)
+}
+
+/// Cuts one panel: its grid in material coordinates (warp along the grain),
+/// placed in the world, and the border vertices of each of its edges.
+fn cut_panel(
+    cut: &PanelCut,
+    spacing: f64,
+    areal_mass: f64,
+    first: usize,
+) -> Result<(Cloth, Panel)> {
+    let name = &cut.name;
+    if cut.edges.is_empty() || cut.edges.iter().any(|e| e.len() < 2) {
+        bail!("panel {name:?}: needs edges of at least two points each");
+    }
+    let poly = cut.polygon();
+    if poly.iter().flatten().any(|c| !c.is_finite()) {
+        bail!("panel {name:?}: outline has a non-finite point");
+    }
+    if let Some((i, j)) = self_intersection(&cut.edges) {
+        bail!(
+            "panel {name:?}: its outline crosses itself (edge {i} crosses edge {j}); a panel must \
+             be a simple closed outline"
+        );
+    }
+    let gl = (cut.grain[0].powi(2) + cut.grain[1].powi(2)).sqrt();
+    if !(gl.is_finite() && gl > 1e-9) {
+        bail!(
+            "panel {name:?}: grain {:?} must be a non-zero direction",
+            cut.grain
+        );
+    }
+    let g = [cut.grain[0] / gl, cut.grain[1] / gl];
+    // material frame: u along the grain, v a quarter turn from it
+    let to_uv = |p: [f64; 2]| [p[0] * g[0] + p[1] * g[1], -p[0] * g[1] + p[1] * g[0]];
+    let from_uv = |m: [f64; 2]| [m[0] * g[0] - m[1] * g[1], m[0] * g[1] + m[1] * g[0]];
+    let outline = Outline::Polygon(poly.iter().map(|&p| to_uv(p)).collect());
+    let theta = g[1].atan2(g[0]);
+    let pose = cut.placement
+        * Isometry3::from_parts(
+            Default::default(),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, theta),
+        );
+    let cloth =
+        Cloth::clipped_to_outline(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
+            .map_err(|e| anyhow::anyhow!("panel {name:?}: {e}"))?;
+    let uv: Vec<[f64; 2]> = cloth.material.iter().map(|&m| from_uv(m)).collect();
+    // border vertices: on an edge of the triangulation used by one triangle
+    let mut count = std::collections::HashMap::new();
+    for t in &cloth.triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0usize) += 1;
+        }
+    }
+    let mut border = vec![false; cloth.len()];
+    for (&(a, b), &c) in &count {
+        if c == 1 {
+            border[a] = true;
+            border[b] = true;
+        }
+    }
+    let lengths: Vec<f64> = (0..cut.edges.len()).map(|e| cut.edge_length(e)).collect();
+    let mut edge_vertices = vec![Vec::new(); cut.edges.len()];
+    for (v, &p) in uv.iter().enumerate() {
+        if !border[v] {
+            continue;
+        }
+        // the nearest edge (every edge as near: a corner is on two), and the
+        // fraction of its length there
+        let near: Vec<(f64, f64)> = cut
+            .edges
+            .iter()
+            .enumerate()
+            .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
+            .collect();
+        let d = near.iter().map(|n| n.0).fold(f64::INFINITY, f64::min);
+        if d > 0.75 * spacing {
+            continue;
+        }
+        for (e, &(de, t)) in near.iter().enumerate() {
+            if de <= d + 1e-6 * spacing {
+                edge_vertices[e].push((first + v, t));
+            }
+        }
+    }
+    for ev in &mut edge_vertices {
+        ev.sort_by(|a, b| a.1.total_cmp(&b.1));
+    }
+    let area = crate::cloth::polygon_area(&poly).abs();
+    let panel = Panel {
+        name: name.clone(),
+        first,
+        count: cloth.len(),
+        uv,
+        edge_vertices,
+        edge_lengths: lengths,
+        grain: g,
+        area,
+    };
+    Ok((cloth, panel))
+}
+
+/// Distance from `p` to a polyline of length `len`, and the fraction of the
+/// length at the nearest point.
+fn nearest_on_polyline(pts: &[[f64; 2]], p: [f64; 2], len: f64) -> (f64, f64) {
+    let mut best = (f64::INFINITY, 0.0);
+    let mut along = 0.0;
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l = (dx * dx + dy * dy).sqrt();
+        let t = if l > 0.0 {
+            (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (l * l)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let d = ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt();
+        if d < best.0 {
+            best = (d, (along + t * l) / len.max(1e-300));
+        }
+        along += l;
+    }
+    best
+}
+
+/// Two non-adjacent segments of the outline that cross: the edges they
+/// belong to.
+fn self_intersection(edges: &[Vec<[f64; 2]>]) -> Option<(usize, usize)> {
+    let mut segs = Vec::new();
+    for (e, pts) in edges.iter().enumerate() {
+        for w in pts.windows(2) {
+            segs.push((w[0], w[1], e));
+        }
+    }
+    let n = segs.len();
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    for i in 0..n {
+        for j in i + 1..n {
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            let (p, q, ei) = segs[i];
+            let (r, s, ej) = segs[j];
+            let d1 = cross(r, s, p);
+            let d2 = cross(r, s, q);
+            let d3 = cross(p, q, r);
+            let d4 = cross(p, q, s);
+            if ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+                && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+            {
+                return Some((ei, ej));
+            }
+        }
+    }
+    None
+}
+
+/// A point of a panel's plane in the world.
+pub fn place(placement: &Isometry3<f64>, p: [f64; 2]) -> Vector3<f64> {
+    (placement * Point3::new(p[0], p[1], 0.0)).coords
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rect(name: &str, w: f64, h: f64, at: Isometry3<f64>) -> PanelCut {
+        PanelCut {
+            name: name.into(),
+            edges: vec![
+                vec![[0.0, 0.0], [w, 0.0]],
+                vec![[w, 0.0], [w, h]],
+                vec![[w, h], [0.0, h]],
+                vec![[0.0, h], [0.0, 0.0]],
+            ],
+            grain: [0.0, 1.0],
+            placement: at,
+        }
+    }
+
+    #[test]
+    fn seams_pair_every_border_vertex_of_both_edges() {
+        let a = rect("a", 0.2, 0.1, Isometry3::identity());
+        let b = rect("b", 0.2, 0.1, Isometry3::translation(0.0, 0.15, 0.0));
+        // a's top edge (2) runs right to left; b's bottom edge (0) left to right
+        let g = Garment::build(
+            &[a, b],
+            &[SeamSpec {
+                a: (0, 2),
+                b: (1, 0),
+                stiffness: 1000.0,
+                damping: 0.0,
+            }],
+            0.02,
+            0.2,
+        )
+        .unwrap();
+        let s = &g.seams[0];
+        assert!(s.reversed);
+        let na = g.panels[0].edge_vertices[2].len();
+        let nb = g.panels[1].edge_vertices[0].len();
+        assert_eq!((na, nb), (11, 11));
+        assert_eq!(s.stitches.len(), na + nb);
+        // every stitch spans the 5 cm between the placed edges
+        for st in &g.cloth.seams {
+            assert!((st.gap(&g.cloth.x).norm() - 0.05).abs() < 1e-9);
+        }
+        // stiffness sums to the seam's: 1000 N/m per m × 0.2 m
+        let k: f64 = g.cloth.seams.iter().map(|s| s.k).sum();
+        assert!((k - 200.0).abs() < 1e-9, "{k}");
+    }
+
+    #[test]
+    fn a_crossing_outline_is_refused_naming_the_edges() {
+        let bow = PanelCut {
+            name: "bow".into(),
+            edges: vec![
+                vec![[0.0, 0.0], [0.2, 0.2]],
+                vec![[0.2, 0.2], [0.2, 0.0]],
+                vec![[0.2, 0.0], [0.0, 0.2]],
+                vec![[0.0, 0.2], [0.0, 0.0]],
+            ],
+            grain: [0.0, 1.0],
+            placement: Isometry3::identity(),
+        };
+        let e = Garment::build(&[bow], &[], 0.02, 0.2)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("\"bow\"") && e.contains("edge 0 crosses edge 2"),
+            "{e}"
+        );
+    }
+}

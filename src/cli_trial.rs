@@ -1,0 +1,152 @@
+//! `garment_sim trial`: a virtual garment trial from the command line.
+
+use anyhow::Result;
+use garment_sim::render::{full_scale, FieldPicture, Surface};
+use garment_sim::trial::{self, Trial, TrialOverrides};
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+
+#[derive(clap::Args)]
+pub struct TrialArgs {
+    /// Trial file, e.g. examples/trials/skirt_on_anny.yaml
+    trial: PathBuf,
+    /// Output directory.
+    #[arg(long, default_value = "out/trial")]
+    out: PathBuf,
+    /// Grid spacing of the panels, m (default: the trial's).
+    #[arg(long, allow_negative_numbers = true)]
+    spacing: Option<f64>,
+    /// Fixed time step, s (default: the trial's).
+    #[arg(long, allow_negative_numbers = true)]
+    dt: Option<f64>,
+    /// Longest drape after sewing, s (default: the trial's settle.max_time).
+    #[arg(long, allow_negative_numbers = true)]
+    max_time: Option<f64>,
+    /// Threads of the assembly, the PCG and the contacts.
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+pub fn trial(a: TrialArgs) -> Result<()> {
+    let t = Trial::load(&a.trial)?;
+    let ov = TrialOverrides {
+        spacing: a.spacing,
+        dt: a.dt,
+        max_time: a.max_time,
+        threads: a.threads,
+    };
+    let (mut sim, g) = t.build(&ov)?;
+    eprintln!(
+        "garment {}: {} panels, {} seams ({} stitches), {} vertices, {:.0} g of {}; body {} \
+         triangles; dt = {} s",
+        t.garment.name,
+        g.panels.len(),
+        g.seams.len(),
+        g.cloth.seams.len(),
+        g.cloth.len(),
+        1e3 * g.cloth.total_mass(),
+        sim.fabric.name,
+        t.body.mesh.as_ref().map_or(0, |m| m.1.len()),
+        sim.params.dt
+    );
+    std::fs::create_dir_all(&a.out)?;
+    let stop = garment_sim::run::stop_flag()?;
+    let mut sew = crate::progress_printer("sewing".into());
+    let mut drape = crate::progress_printer("drape".into());
+    let stats = trial::run(
+        &mut sim,
+        &t.file.sewing,
+        &t.file.settle,
+        a.max_time,
+        &mut |phase, x, of| {
+            if phase == "sewing" {
+                sew(x, of)
+            } else {
+                drape(x, of)
+            }
+        },
+        &|| stop.load(Ordering::Relaxed),
+    )?;
+    drape(1.0, 1.0);
+    let (fit, vf) = trial::fit(&sim, &g, &t, stats);
+    trial::write_obj(&sim, &g, &a.out.join("garment.obj"))?;
+    trial::write_ply(&sim, &vf, &a.out.join("garment.ply"))?;
+    let json = serde_json::to_string_pretty(&fit)?;
+    garment_sim::io::write_atomic(&a.out.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
+    let cloth = Surface {
+        vertices: sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
+        triangles: sim.cloth.triangles.clone(),
+    };
+    let body = vec![Surface::from_obstacle(&t.body)];
+    let info = vec![
+        format!("fabric {}", sim.fabric.name),
+        format!(
+            "{} vertices at {:.1} cm",
+            sim.cloth.len(),
+            100.0 * sim.cloth.lc
+        ),
+        format!("t = {:.2} s", sim.time),
+    ];
+    let strain_pic = FieldPicture {
+        title: format!("{}: stretch", t.garment.name),
+        info: info.clone(),
+        cloth: cloth.clone(),
+        full: full_scale(&vf.stretch, 0.001),
+        field: vf.stretch.clone(),
+        label: ("stretch (warp, weft, bias)".into(), "%".into()),
+        label_scale: 100.0,
+        obstacles: body.clone(),
+        size: (1500, 800),
+    };
+    strain_pic.save_png(&a.out.join("fit_strain.png"))?;
+    let pressure_pic = FieldPicture {
+        title: format!("{}: pressure on the body", t.garment.name),
+        info,
+        cloth,
+        full: full_scale(&vf.pressure, 1.0),
+        field: vf.pressure.clone(),
+        label: ("pressure".into(), "Pa".into()),
+        label_scale: 1.0,
+        obstacles: body,
+        size: (1500, 800),
+    };
+    pressure_pic.save_png(&a.out.join("fit_pressure.png"))?;
+    let r = &fit.run;
+    println!(
+        "{}: sewn in {:.2} s, {}; {} steps, {:.1} s wall ({:.1} ms/step: assemble {:.1}, solve {:.1}, contacts {:.1})",
+        t.garment.name,
+        r.sewing_s,
+        match r.settle_time_s {
+            Some(s) => format!("settled {s:.2} s after sewing"),
+            None => format!("NOT settled (rms speed {:.4} m/s)", r.final_rms_speed_m_s),
+        },
+        r.steps,
+        r.wall_s,
+        r.ms_per_step,
+        r.time_split_ms_per_step.assemble,
+        r.time_split_ms_per_step.solve,
+        r.time_split_ms_per_step.collide
+    );
+    println!(
+        "weight {:.3} N, force on the body {:.3} N over {:.1} cm² (mean pressure {:.1} Pa, peak {:.1} Pa); largest seam gap {:.2} mm; {} vertices inside the body",
+        fit.weight_n,
+        fit.contact_force_magnitude_n,
+        1e4 * fit.contact_area_m2,
+        fit.mean_pressure_pa,
+        fit.peak_pressure_pa,
+        fit.largest_seam_gap_mm,
+        fit.body_penetrations
+    );
+    for (name, gf) in &fit.girths {
+        if let Some(e) = gf.ease_cm {
+            println!(
+                "  {name} (z = {:.2} m): body {:.1} cm, garment {:.1} cm, ease {e:.1} cm",
+                gf.height_m,
+                gf.body_cm.unwrap_or(0.0),
+                gf.garment_cm.unwrap_or(0.0)
+            );
+        }
+    }
+    println!("wrote {}", a.out.display());
+    Ok(())
+}

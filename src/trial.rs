@@ -1,0 +1,1014 @@
+//! Virtual garment trials (`garment_sim trial TRIAL.yaml`): a garment
+//! ([`crate::pattern`]) is placed around a body mesh, sewn, draped until it
+//! settles, and its fit reported. See `docs/garments.md`.
+//!
+//! Phases:
+//! 1. **Sewing.** Gravity off; the seams pull the panels' edges together
+//!    with their stiffness times `sewing.stiffness_factor`, against a drag
+//!    (mass-proportional damping `sewing.drag`, 1/s, in place of the
+//!    fabric's air friction) that keeps the panels from overshooting; the
+//!    body's contacts stop them on the skin. It lasts `sewing.duration`.
+//! 2. **Drape.** Gravity on, the seams at their own stiffness, the fabric's
+//!    own damping; the run ends when the rms speed stays below
+//!    `settle.speed` for `settle.hold` seconds, or at `settle.max_time`.
+
+use crate::collision::{Obstacle, ShapeSpec};
+use crate::fabric::Fabric;
+use crate::garment::Garment;
+use crate::pattern::GarmentDef;
+use crate::scene::PoseSpec;
+use crate::solver::{LinearSolverKind, Params, Simulation};
+use anyhow::{bail, Context, Result};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+fn d_spacing() -> f64 {
+    0.01
+}
+fn d_dt() -> f64 {
+    1.0 / 200.0
+}
+fn d_skin() -> f64 {
+    0.003
+}
+fn d_friction() -> f64 {
+    0.5
+}
+fn d_scale() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodyFile {
+    /// Closed, outward-oriented triangle mesh (OBJ), relative to the trial file.
+    pub obj: PathBuf,
+    /// Metres per OBJ unit.
+    #[serde(default = "d_scale")]
+    pub scale: f64,
+    #[serde(default)]
+    pub pose: PoseSpec,
+    /// Distance from the skin at which the cloth rests, m (Marvelous: 3 mm).
+    #[serde(default = "d_skin")]
+    pub skin_offset: f64,
+    /// Cloth–skin Coulomb friction.
+    #[serde(default = "d_friction")]
+    pub friction: f64,
+    /// Heights (world z, m) of the girths the fit report measures ease at,
+    /// e.g. `{chest: 1.21, waist: 1.03, hip: 0.86}`.
+    #[serde(default)]
+    pub girths: BTreeMap<String, f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SewingFile {
+    #[serde(default = "SewingFile::d_duration")]
+    pub duration: f64,
+    #[serde(default)]
+    pub gravity: bool,
+    #[serde(default = "SewingFile::d_drag")]
+    pub drag: f64,
+    #[serde(default = "SewingFile::d_factor")]
+    pub stiffness_factor: f64,
+}
+
+impl SewingFile {
+    fn d_duration() -> f64 {
+        1.0
+    }
+    fn d_drag() -> f64 {
+        20.0
+    }
+    /// Sewing pulls at 2 % of the seams' stiffness (2e4 N/m per m by
+    /// default): edges 20 cm apart close in about half a second against the
+    /// default drag, without a jump through the body.
+    fn d_factor() -> f64 {
+        0.02
+    }
+}
+
+impl Default for SewingFile {
+    fn default() -> Self {
+        SewingFile {
+            duration: Self::d_duration(),
+            gravity: false,
+            drag: Self::d_drag(),
+            stiffness_factor: Self::d_factor(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SettleFile {
+    /// rms speed below which the garment counts as at rest, m/s.
+    #[serde(default = "SettleFile::d_speed")]
+    pub speed: f64,
+    /// It must stay below for this long, s.
+    #[serde(default = "SettleFile::d_hold")]
+    pub hold: f64,
+    /// The drape phase ends here even if not settled, s.
+    #[serde(default = "SettleFile::d_max")]
+    pub max_time: f64,
+}
+
+impl SettleFile {
+    fn d_speed() -> f64 {
+        0.005
+    }
+    fn d_hold() -> f64 {
+        0.2
+    }
+    fn d_max() -> f64 {
+        6.0
+    }
+}
+
+impl Default for SettleFile {
+    fn default() -> Self {
+        SettleFile {
+            speed: Self::d_speed(),
+            hold: Self::d_hold(),
+            max_time: Self::d_max(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrialFile {
+    /// Garment file, relative to the trial file.
+    pub garment: PathBuf,
+    pub body: BodyFile,
+    /// Overrides the garment's fabric.
+    #[serde(default)]
+    pub fabric: Option<PathBuf>,
+    #[serde(default = "d_spacing")]
+    pub spacing: f64,
+    #[serde(default = "d_dt")]
+    pub dt: f64,
+    #[serde(default)]
+    pub sewing: SewingFile,
+    #[serde(default)]
+    pub settle: SettleFile,
+    #[serde(default)]
+    pub linear_solver: Option<LinearSolverKind>,
+    #[serde(default)]
+    pub threads: Option<usize>,
+}
+
+/// A trial as read, with its files resolved.
+#[derive(Debug, Clone)]
+pub struct Trial {
+    pub file: TrialFile,
+    pub path: PathBuf,
+    pub garment: GarmentDef,
+    pub fabric: Fabric,
+    pub body: Obstacle,
+}
+
+/// Command-line overrides.
+#[derive(Debug, Clone, Default)]
+pub struct TrialOverrides {
+    pub spacing: Option<f64>,
+    pub dt: Option<f64>,
+    pub max_time: Option<f64>,
+    pub threads: Option<usize>,
+}
+
+/// What the body mesh check found and repaired.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct BodyCheck {
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Zero-area triangles dropped (the documented repair).
+    pub degenerate_dropped: usize,
+}
+
+/// Loads a body mesh and checks it can have an inside: every edge shared by
+/// exactly two triangles (no hole, no fin), positive enclosed volume (faces
+/// outward). Zero-area triangles are dropped (named in the check).
+pub fn load_body(path: &Path, scale: f64) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>, BodyCheck)> {
+    let (mut v, t) = crate::io::load_obj(path)?;
+    if !(scale.is_finite() && scale > 0.0) {
+        bail!("body scale {scale}: must be > 0");
+    }
+    v.iter_mut()
+        .for_each(|p| p.iter_mut().for_each(|c| *c *= scale));
+    let mut check = BodyCheck {
+        vertices: v.len(),
+        ..Default::default()
+    };
+    let area = |tri: &[u32; 3]| {
+        let p = |k: usize| Vector3::from(v[tri[k] as usize]);
+        (p(1) - p(0)).cross(&(p(2) - p(0))).norm() / 2.0
+    };
+    let (lo, hi) = bbox(&v);
+    let size = (Vector3::from(hi) - Vector3::from(lo)).norm();
+    let kept: Vec<[u32; 3]> = t
+        .iter()
+        .copied()
+        .filter(|tri| {
+            tri[0] != tri[1]
+                && tri[1] != tri[2]
+                && tri[0] != tri[2]
+                && area(tri) > 1e-14 * size * size
+        })
+        .collect();
+    check.degenerate_dropped = t.len() - kept.len();
+    check.triangles = kept.len();
+    let mut edges: HashMap<(u32, u32), usize> = HashMap::new();
+    for tri in &kept {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let open: Vec<(&(u32, u32), &usize)> = edges.iter().filter(|(_, &c)| c != 2).collect();
+    if !open.is_empty() {
+        let (&(a, _), &c) = *open.iter().min().expect("non-empty");
+        let p = v[a as usize];
+        bail!(
+            "body mesh {}: {} edges are not shared by exactly two triangles (e.g. at vertex {} \
+             ({:.3}, {:.3}, {:.3}) m, an edge of {c} triangle(s)): the body must be closed to have \
+             an inside; close its holes (e.g. Blender: Select ▸ All by Trait ▸ Non Manifold, then \
+             Face ▸ Fill)",
+            path.display(),
+            open.len(),
+            a + 1,
+            p[0],
+            p[1],
+            p[2]
+        );
+    }
+    let vol: f64 = kept
+        .iter()
+        .map(|tri| {
+            let p = |k: usize| Vector3::from(v[tri[k] as usize]);
+            p(0).dot(&p(1).cross(&p(2))) / 6.0
+        })
+        .sum();
+    if !(vol > 0.0) {
+        bail!(
+            "body mesh {}: encloses a volume of {vol:.4} m³: its faces must face outward \
+             (counter-clockwise seen from outside)",
+            path.display()
+        );
+    }
+    Ok((v, kept, check))
+}
+
+fn bbox(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in v {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+impl Trial {
+    pub fn load(path: &Path) -> Result<Trial> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read trial file {}", path.display()))?;
+        crate::io::check_yaml_shape(&text)
+            .with_context(|| format!("trial file {}", path.display()))?;
+        let file: TrialFile = serde_yaml::from_str(&text)
+            .with_context(|| format!("trial file {}: invalid YAML or field", path.display()))?;
+        Trial::from_file(file, path)
+    }
+
+    pub fn from_file(file: TrialFile, path: &Path) -> Result<Trial> {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let garment = GarmentDef::load(&dir.join(&file.garment))?;
+        let fabric_path = match &file.fabric {
+            Some(f) => dir.join(f),
+            None => garment.fabric.clone(),
+        };
+        let fabric = crate::io::load_fabric(&fabric_path)?;
+        let b = &file.body;
+        let what = |f: &str| format!("trial file {}: body.{f}", path.display());
+        crate::limits::check_range(
+            &what("skin_offset"),
+            b.skin_offset,
+            0.0,
+            0.05,
+            "m",
+            "a skin offset of at most 5 cm",
+        )?;
+        crate::limits::check_range(
+            &what("friction"),
+            b.friction,
+            0.0,
+            crate::limits::MAX_FRICTION,
+            "",
+            "a Coulomb coefficient",
+        )?;
+        let obj = dir.join(&b.obj);
+        let (v, t, _) = load_body(&obj, b.scale)?;
+        let pose = b.pose.isometry(&what("pose"))?;
+        let body = Obstacle::new(
+            "body",
+            ShapeSpec::Triangles {
+                vertices: v,
+                triangles: t,
+            },
+            pose,
+            b.skin_offset,
+            b.friction,
+        )?;
+        Ok(Trial {
+            file,
+            path: path.to_path_buf(),
+            garment,
+            fabric,
+            body,
+        })
+    }
+
+    /// Cuts and sews the garment and places it with the body.
+    pub fn build(&self, ov: &TrialOverrides) -> Result<(Simulation, Garment)> {
+        let spacing = ov.spacing.unwrap_or(self.file.spacing);
+        crate::limits::check_range(
+            "spacing",
+            spacing,
+            0.002,
+            0.1,
+            "m",
+            "a garment grid of 2 mm to 10 cm",
+        )?;
+        let dt = ov.dt.unwrap_or(self.file.dt);
+        crate::limits::check_dt("dt", dt)?;
+        let g = Garment::build(
+            &self.garment.cuts,
+            &self.garment.seams,
+            spacing,
+            self.fabric.areal_mass,
+        )
+        .with_context(|| format!("garment {}", self.garment.source.display()))?;
+        // no panel may start inside the body
+        let mut worst: Option<(usize, f64)> = None;
+        for (i, p) in g.cloth.x.iter().enumerate() {
+            let d = self.body.proximity(p).distance;
+            if d < 0.0 && worst.is_none_or(|(_, w)| d < w) {
+                worst = Some((i, d));
+            }
+        }
+        if let Some((i, d)) = worst {
+            let panel = &g.panels[g.panel_of(i)];
+            let p = g.cloth.x[i];
+            bail!(
+                "garment {}: panel {:?} starts inside the body: its vertex {} at ({:.3}, {:.3}, \
+                 {:.3}) m lies {:.1} cm under the skin; move the panel (its placement) or the \
+                 body (body.pose)",
+                self.garment.source.display(),
+                panel.name,
+                i - panel.first,
+                p.x,
+                p.y,
+                p.z,
+                -100.0 * d
+            );
+        }
+        let params = Params {
+            dt,
+            linear_solver: self.file.linear_solver.unwrap_or_default(),
+            threads: ov.threads.or(self.file.threads).unwrap_or(0),
+            cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
+            ..Params::default()
+        };
+        let mut sim = Simulation::new(g.cloth.clone(), self.fabric.clone(), params)?;
+        sim.obstacles.push(self.body.clone());
+        Ok((sim, g))
+    }
+}
+
+/// How the run went.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunStats {
+    pub sewing_s: f64,
+    /// Simulated time from the end of sewing until settled; `null` if it did
+    /// not settle within `settle.max_time`.
+    pub settle_time_s: Option<f64>,
+    pub simulated_s: f64,
+    pub steps: u64,
+    pub wall_s: f64,
+    pub ms_per_step: f64,
+    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub final_rms_speed_m_s: f64,
+}
+
+/// Sews and drapes (the phases of the module's documentation);
+/// `progress(phase, t, of)` after each step, `stop()` ends the run early.
+pub fn run(
+    sim: &mut Simulation,
+    sew: &SewingFile,
+    st: &SettleFile,
+    max_time: Option<f64>,
+    progress: &mut dyn FnMut(&str, f64, f64),
+    stop: &dyn Fn() -> bool,
+) -> Result<RunStats> {
+    crate::limits::check_range(
+        "sewing.duration",
+        sew.duration,
+        0.0,
+        60.0,
+        "s",
+        "a sewing phase of at most a minute",
+    )?;
+    crate::limits::check_range(
+        "sewing.drag",
+        sew.drag,
+        0.0,
+        1e3,
+        "1/s",
+        "mass-proportional damping",
+    )?;
+    crate::limits::check_range(
+        "sewing.stiffness_factor",
+        sew.stiffness_factor,
+        1e-3,
+        1e3,
+        "",
+        "a factor on the seams' stiffness",
+    )?;
+    let max_time = max_time.unwrap_or(st.max_time);
+    crate::limits::check_range(
+        "settle.max_time",
+        max_time,
+        0.0,
+        600.0,
+        "s",
+        "at most 10 minutes simulated",
+    )?;
+    crate::limits::check_range("settle.speed", st.speed, 1e-6, 1.0, "m/s", "an rms speed")?;
+    crate::limits::check_range("settle.hold", st.hold, 0.0, 10.0, "s", "a hold time")?;
+    let start = Instant::now();
+    let mut split = crate::run::TimeSplit::default();
+    let mut steps = 0u64;
+    let gravity = sim.params.gravity;
+    let alpha = sim.fabric.damping.alpha;
+    let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
+    // 1. sewing
+    if !sew.gravity {
+        sim.params.gravity = Vector3::zeros();
+    }
+    sim.fabric.damping.alpha = alpha.min(-sew.drag);
+    for s in sim.cloth.seams.iter_mut() {
+        s.k *= sew.stiffness_factor;
+        s.d *= sew.stiffness_factor;
+    }
+    let sew_steps = (sew.duration / sim.params.dt).round() as u64;
+    let mut step = |sim: &mut Simulation, steps: &mut u64| -> Result<()> {
+        let s = sim
+            .step()
+            .with_context(|| format!("step {} (t = {:.4} s)", *steps + 1, sim.time))?;
+        split.assemble += s.assemble_s;
+        split.solve += s.solve_s;
+        split.collide += s.collide_s;
+        *steps += 1;
+        Ok(())
+    };
+    for _ in 0..sew_steps {
+        if stop() {
+            break;
+        }
+        step(sim, &mut steps)?;
+        progress("sewing", sim.time, sew.duration);
+    }
+    let sewing_s = sim.time;
+    // 2. drape
+    sim.params.gravity = gravity;
+    sim.fabric.damping.alpha = alpha;
+    for (s, (k, d)) in sim.cloth.seams.iter_mut().zip(own) {
+        s.k = k;
+        s.d = d;
+    }
+    let mut calm_since: Option<f64> = None;
+    let mut settle = None;
+    while sim.time - sewing_s < max_time - 1e-12 && !stop() {
+        step(sim, &mut steps)?;
+        if sim.rms_speed() < st.speed {
+            let since = *calm_since.get_or_insert(sim.time);
+            if sim.time - since >= st.hold - 1e-12 {
+                settle = Some(since - sewing_s);
+                break;
+            }
+        } else {
+            calm_since = None;
+        }
+        progress("drape", sim.time - sewing_s, max_time);
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let n = steps.max(1) as f64;
+    Ok(RunStats {
+        sewing_s,
+        settle_time_s: settle,
+        simulated_s: sim.time,
+        steps,
+        wall_s: wall,
+        ms_per_step: 1e3 * wall / n,
+        time_split_ms_per_step: crate::run::TimeSplit {
+            assemble: 1e3 * split.assemble / n,
+            solve: 1e3 * split.solve / n,
+            collide: 1e3 * split.collide / n,
+        },
+        final_rms_speed_m_s: sim.rms_speed(),
+    })
+}
+
+/// Largest, mean strain of one kind on one panel, %.
+#[derive(Debug, Clone, Copy, Serialize, Default)]
+pub struct StrainStat {
+    pub max_percent: f64,
+    pub mean_percent: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PanelFit {
+    pub name: String,
+    pub vertices: usize,
+    pub area_m2: f64,
+    pub warp: StrainStat,
+    pub weft: StrainStat,
+    pub bias: StrainStat,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct GirthFit {
+    pub height_m: f64,
+    /// Convex-hull perimeter of the body's section (the torso's loop around
+    /// the vertical axis), and of the garment's section points within 1.5×
+    /// its reach + 5 cm, cm: tape measures.
+    pub body_cm: Option<f64>,
+    pub garment_cm: Option<f64>,
+    /// Garment girth − body girth, cm.
+    pub ease_cm: Option<f64>,
+    /// Mean distance of the garment from the body in a band 2 cm high, cm.
+    pub mean_distance_cm: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Fit {
+    pub garment: String,
+    pub fabric: String,
+    pub vertices: usize,
+    pub spacing_m: f64,
+    pub dt_s: f64,
+    pub mass_kg: f64,
+    /// The garment's weight, N.
+    pub weight_n: f64,
+    pub panels: Vec<PanelFit>,
+    /// Cloth area in contact with the body, m².
+    pub contact_area_m2: f64,
+    pub contact_vertices: usize,
+    /// Total force of the garment on the body (vector, and its size), N.
+    pub contact_force_n: [f64; 3],
+    pub contact_force_magnitude_n: f64,
+    /// Normal force over the contact area, Pa.
+    pub mean_pressure_pa: f64,
+    pub peak_pressure_pa: f64,
+    /// Σ pressure × area over the contact vertices (the normal force), N.
+    pub pressure_integral_n: f64,
+    /// Vertices per 1 cm band of distance from the skin: [0, 1) cm, … , ≥ 10 cm.
+    pub distance_histogram_cm: Vec<usize>,
+    pub girths: BTreeMap<String, GirthFit>,
+    /// Garment vertices inside the body's surface, and the deepest, cm.
+    pub body_penetrations: usize,
+    pub deepest_penetration_cm: f64,
+    pub largest_seam_gap_mm: f64,
+    pub largest_seam_gap_at: Option<String>,
+    pub run: RunStats,
+}
+
+/// Per-vertex fields of the fit (for the PLY, the pictures, the node).
+#[derive(Debug, Clone)]
+pub struct VertexFit {
+    pub panel: Vec<usize>,
+    pub warp: Vec<f64>,
+    pub weft: Vec<f64>,
+    pub bias: Vec<f64>,
+    /// Largest of warp, weft and bias stretch (the strain map).
+    pub stretch: Vec<f64>,
+    /// Contact pressure, Pa.
+    pub pressure: Vec<f64>,
+    /// Distance from the body's surface, m.
+    pub distance: Vec<f64>,
+    /// Force of the garment on the body at each vertex, N.
+    pub force: Vec<Vector3<f64>>,
+}
+
+/// Measures the fit of the garment as it is now.
+pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit, VertexFit) {
+    let c = &sim.cloth;
+    let x = &c.x;
+    let n = c.len();
+    let panel: Vec<usize> = (0..n).map(|i| g.panel_of(i)).collect();
+    let np = g.panels.len();
+    let mut warp = vec![f64::NEG_INFINITY; n];
+    let mut weft = vec![f64::NEG_INFINITY; n];
+    let mut bias = vec![f64::NEG_INFINITY; n];
+    let mut acc = vec![[(f64::NEG_INFINITY, 0.0, 0usize); 3]; np];
+    let mut note = |k: usize, a: usize, b: usize, e: f64, field: &mut Vec<f64>| {
+        field[a] = field[a].max(e);
+        field[b] = field[b].max(e);
+        let s = &mut acc[panel[a]][k];
+        s.0 = s.0.max(e);
+        s.1 += e;
+        s.2 += 1;
+    };
+    for s in &c.tension {
+        let e = (x[s.b] - x[s.a]).norm() / s.l0 - 1.0;
+        if s.weft {
+            note(1, s.a, s.b, e, &mut weft);
+        } else {
+            note(0, s.a, s.b, e, &mut warp);
+        }
+    }
+    for s in &c.shear {
+        let e = (x[s.b] - x[s.a]).norm() / s.l0 - 1.0;
+        note(2, s.a, s.b, e, &mut bias);
+    }
+    let fin = |v: &mut Vec<f64>| {
+        v.iter_mut().for_each(|e| {
+            if !e.is_finite() {
+                *e = 0.0
+            }
+        })
+    };
+    fin(&mut warp);
+    fin(&mut weft);
+    fin(&mut bias);
+    let stretch: Vec<f64> = (0..n).map(|i| warp[i].max(weft[i]).max(bias[i])).collect();
+    let stat = |s: (f64, f64, usize)| StrainStat {
+        max_percent: if s.2 > 0 { 100.0 * s.0 } else { 0.0 },
+        mean_percent: if s.2 > 0 {
+            100.0 * s.1 / s.2 as f64
+        } else {
+            0.0
+        },
+    };
+    let panels = g
+        .panels
+        .iter()
+        .enumerate()
+        .map(|(k, p)| PanelFit {
+            name: p.name.clone(),
+            vertices: p.count,
+            area_m2: p.area,
+            warp: stat(acc[k][0]),
+            weft: stat(acc[k][1]),
+            bias: stat(acc[k][2]),
+        })
+        .collect();
+    // contacts: the force on the body is the opposite of the contacts' on the cloth
+    let on_cloth = sim.contact_forces();
+    let normals = sim.contact_normals();
+    let rho = sim.fabric.areal_mass;
+    let mut pressure = vec![0.0; n];
+    let mut force = vec![Vector3::zeros(); n];
+    let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
+        (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
+    for i in 0..n {
+        if on_cloth[i] == Vector3::zeros() {
+            continue;
+        }
+        force[i] = -on_cloth[i];
+        total += force[i];
+        let a = c.mass[i] / rho;
+        let fnorm = on_cloth[i].dot(&normals[i]).max(0.0);
+        pressure[i] = fnorm / a;
+        normal_sum += fnorm;
+        peak = peak.max(pressure[i]);
+        area += a;
+        nc += 1;
+    }
+    let distance: Vec<f64> = x.iter().map(|p| trial.body.proximity(p).distance).collect();
+    let mut hist = vec![0usize; 11];
+    for &d in &distance {
+        hist[((d.max(0.0) * 100.0).floor() as usize).min(10)] += 1;
+    }
+    let (pen, deepest) = distance
+        .iter()
+        .filter(|d| **d < 0.0)
+        .fold((0, 0.0f64), |(k, m), d| (k + 1, m.max(-d)));
+    let (gap, at) = g.largest_gap(x);
+    let mass = c.total_mass();
+    let weight = mass * sim.params.gravity.norm();
+    let mut girths = BTreeMap::new();
+    let (bv, bt) = trial.body.local_triangles();
+    let bw: Vec<[f64; 3]> = bv
+        .iter()
+        .map(|p| {
+            let q = trial.body.pose * nalgebra::Point3::from(Vector3::from(*p));
+            [q.x, q.y, q.z]
+        })
+        .collect();
+    let bt: Vec<[usize; 3]> = bt.iter().map(|t| t.map(|k| k as usize)).collect();
+    let gw: Vec<[f64; 3]> = x.iter().map(|p| [p.x, p.y, p.z]).collect();
+    for (name, &z) in &trial.file.body.girths {
+        let body_loop = torso_loop(&bw, &bt, z);
+        let centre = body_loop.as_ref().map(|l| centroid(l));
+        // the garment's panels are separate meshes joined by stitches: its
+        // section is open pieces; take its points around the body's section
+        let garment_loop = body_loop.as_ref().and_then(|bl| {
+            let cen = centre.expect("a loop has a centre");
+            let reach = bl
+                .iter()
+                .map(|p| ((p[0] - cen[0]).powi(2) + (p[1] - cen[1]).powi(2)).sqrt())
+                .fold(0.0, f64::max)
+                * 1.5
+                + 0.05;
+            let pts: Vec<[f64; 2]> = section_points(&gw, &c.triangles, z)
+                .into_iter()
+                .filter(|p| ((p[0] - cen[0]).powi(2) + (p[1] - cen[1]).powi(2)).sqrt() <= reach)
+                .collect();
+            (pts.len() >= 3).then_some(pts)
+        });
+        let band: Vec<f64> = (0..n)
+            .filter(|&i| (x[i].z - z).abs() <= 0.01)
+            .map(|i| distance[i])
+            .collect();
+        let bcm = body_loop.map(|l| 100.0 * hull_perimeter(&l));
+        let gcm = garment_loop.map(|l| 100.0 * hull_perimeter(&l));
+        girths.insert(
+            name.clone(),
+            GirthFit {
+                height_m: z,
+                body_cm: bcm,
+                garment_cm: gcm,
+                ease_cm: bcm.zip(gcm).map(|(b, g)| g - b),
+                mean_distance_cm: (!band.is_empty())
+                    .then(|| 100.0 * band.iter().sum::<f64>() / band.len() as f64),
+            },
+        );
+    }
+    let fit = Fit {
+        garment: trial.garment.name.clone(),
+        fabric: sim.fabric.name.clone(),
+        vertices: n,
+        spacing_m: c.lc,
+        dt_s: sim.params.dt,
+        mass_kg: mass,
+        weight_n: weight,
+        panels,
+        contact_area_m2: area,
+        contact_vertices: nc,
+        contact_force_n: total.into(),
+        contact_force_magnitude_n: total.norm(),
+        mean_pressure_pa: if area > 0.0 { normal_sum / area } else { 0.0 },
+        peak_pressure_pa: peak,
+        pressure_integral_n: (0..n).map(|i| pressure[i] * c.mass[i] / rho).sum(),
+        distance_histogram_cm: hist,
+        girths,
+        body_penetrations: pen,
+        deepest_penetration_cm: 100.0 * deepest,
+        largest_seam_gap_mm: 1e3 * gap,
+        largest_seam_gap_at: at.map(|k| trial.garment.seam_names[k].clone()),
+        run,
+    };
+    let vf = VertexFit {
+        panel,
+        warp,
+        weft,
+        bias,
+        stretch,
+        pressure,
+        distance,
+        force,
+    };
+    (fit, vf)
+}
+
+/// Closed loops where the plane z = `z` cuts a triangle mesh (xy points).
+pub fn slice_loops(v: &[[f64; 3]], t: &[[usize; 3]], z: f64) -> Vec<Vec<[f64; 2]>> {
+    // crossing points keyed by the mesh edge they lie on
+    let key = |a: usize, b: usize| (a.min(b), a.max(b));
+    let point = |a: usize, b: usize| -> [f64; 2] {
+        let (p, q) = (v[a], v[b]);
+        let s = (z - p[2]) / (q[2] - p[2]);
+        [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])]
+    };
+    let above = |k: usize| v[k][2] > z;
+    let mut next: HashMap<(usize, usize), Vec<(usize, usize)>> = HashMap::new();
+    for tri in t {
+        let cut: Vec<(usize, usize)> = (0..3)
+            .filter(|&k| above(tri[k]) != above(tri[(k + 1) % 3]))
+            .map(|k| key(tri[k], tri[(k + 1) % 3]))
+            .collect();
+        if cut.len() == 2 {
+            next.entry(cut[0]).or_default().push(cut[1]);
+            next.entry(cut[1]).or_default().push(cut[0]);
+        }
+    }
+    let mut seen: std::collections::HashSet<(usize, usize)> = Default::default();
+    let mut loops = Vec::new();
+    let mut keys: Vec<(usize, usize)> = next.keys().copied().collect();
+    keys.sort();
+    for start in keys {
+        if seen.contains(&start) {
+            continue;
+        }
+        let mut lp = vec![];
+        let mut cur = start;
+        let mut prev: Option<(usize, usize)> = None;
+        loop {
+            seen.insert(cur);
+            lp.push(point(cur.0, cur.1));
+            let nb = &next[&cur];
+            let nxt = nb
+                .iter()
+                .copied()
+                .find(|e| Some(*e) != prev && !seen.contains(e));
+            match nxt {
+                Some(e) => {
+                    prev = Some(cur);
+                    cur = e;
+                }
+                None => break,
+            }
+        }
+        if lp.len() >= 3 {
+            loops.push(lp);
+        }
+    }
+    loops
+}
+
+fn centroid(l: &[[f64; 2]]) -> [f64; 2] {
+    let n = l.len() as f64;
+    [
+        l.iter().map(|p| p[0]).sum::<f64>() / n,
+        l.iter().map(|p| p[1]).sum::<f64>() / n,
+    ]
+}
+
+fn contains(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    let n = poly.len();
+    for k in 0..n {
+        let (a, b) = (poly[k], poly[(k + 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if p[0] < x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// The body's torso at height z: the largest loop of the section around
+/// the vertical axis x = y = 0 (the shipped bodies are centred on it), or
+/// the largest loop.
+fn torso_loop(v: &[[f64; 3]], t: &[[usize; 3]], z: f64) -> Option<Vec<[f64; 2]>> {
+    let loops = slice_loops(v, t, z);
+    let area = |l: &Vec<[f64; 2]>| {
+        let n = l.len();
+        (0..n)
+            .map(|k| l[k][0] * l[(k + 1) % n][1] - l[(k + 1) % n][0] * l[k][1])
+            .sum::<f64>()
+            .abs()
+            / 2.0
+    };
+    let around: Vec<&Vec<[f64; 2]>> = loops.iter().filter(|l| contains(l, [0.0, 0.0])).collect();
+    let pick = if around.is_empty() {
+        loops.iter().max_by(|a, b| area(a).total_cmp(&area(b)))
+    } else {
+        around
+            .into_iter()
+            .max_by(|a, b| area(a).total_cmp(&area(b)))
+    };
+    pick.cloned()
+}
+
+/// Where the plane z = `z` cuts the edges of a triangle mesh (xy points).
+fn section_points(v: &[[f64; 3]], t: &[[usize; 3]], z: f64) -> Vec<[f64; 2]> {
+    let mut out = Vec::new();
+    for tri in t {
+        for k in 0..3 {
+            let (a, b) = (v[tri[k]], v[tri[(k + 1) % 3]]);
+            if (a[2] > z) != (b[2] > z) {
+                let s = (z - a[2]) / (b[2] - a[2]);
+                out.push([a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])]);
+            }
+        }
+    }
+    out
+}
+
+/// Perimeter of the convex hull (a tape measure around the section), m.
+pub fn hull_perimeter(p: &[[f64; 2]]) -> f64 {
+    let mut pts = p.to_vec();
+    pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    pts.dedup();
+    if pts.len() < 3 {
+        return 0.0;
+    }
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut hull: Vec<[f64; 2]> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &q in it {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    let n = hull.len();
+    (0..n)
+        .map(|k| {
+            let (a, b) = (hull[k], hull[(k + 1) % n]);
+            ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt()
+        })
+        .sum()
+}
+
+/// The garment as OBJ: one group per panel, panel coordinates (m) as UVs.
+pub fn write_obj(sim: &Simulation, g: &Garment, path: &Path) -> Result<()> {
+    crate::io::write_atomic(path, |w| {
+        writeln!(
+            w,
+            "# garment_sim garment: one group per panel; vt = panel coordinates, m"
+        )?;
+        writeln!(w, "o garment")?;
+        for p in &sim.cloth.x {
+            writeln!(w, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z)?;
+        }
+        for p in &g.panels {
+            for uv in &p.uv {
+                writeln!(w, "vt {:.6} {:.6}", uv[0], uv[1])?;
+            }
+        }
+        let tris = &sim.cloth.triangles;
+        for (k, p) in g.panels.iter().enumerate() {
+            writeln!(w, "g {}", p.name)?;
+            for t in tris.iter().filter(|t| g.panel_of(t[0]) == k) {
+                writeln!(w, "f {0}/{0} {1}/{1} {2}/{2}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// The garment as PLY with the per-vertex fit fields.
+pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
+    let c = &sim.cloth;
+    crate::io::write_atomic(path, |w| {
+        writeln!(w, "ply\nformat ascii 1.0\ncomment garment_sim garment; metres, strains l/l0 - 1, pressure Pa, distance from the body m")?;
+        writeln!(w, "element vertex {}", c.len())?;
+        for f in ["x", "y", "z"] {
+            writeln!(w, "property float {f}")?;
+        }
+        writeln!(w, "property int panel")?;
+        for f in [
+            "strain_warp",
+            "strain_weft",
+            "strain_bias",
+            "pressure",
+            "distance",
+        ] {
+            writeln!(w, "property float {f}")?;
+        }
+        writeln!(w, "element face {}", c.triangles.len())?;
+        writeln!(w, "property list uchar int vertex_indices\nend_header")?;
+        for i in 0..c.len() {
+            let p = c.x[i];
+            writeln!(
+                w,
+                "{:.6} {:.6} {:.6} {} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e}",
+                p.x,
+                p.y,
+                p.z,
+                vf.panel[i],
+                vf.warp[i],
+                vf.weft[i],
+                vf.bias[i],
+                vf.pressure[i],
+                vf.distance[i]
+            )?;
+        }
+        for t in &c.triangles {
+            writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
+        }
+        Ok(())
+    })
+}
