@@ -69,6 +69,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     )?;
     drape(1.0, 1.0);
     let (fit, vf) = trial::fit(&sim, &g, &t, stats);
+    trial::write_trace(&fit.run, &a.out.join("trial.csv"))?;
     trial::write_obj(&sim, &g, &a.out.join("garment.obj"))?;
     trial::write_ply(&sim, &vf, &a.out.join("garment.ply"))?;
     let json = serde_json::to_string_pretty(&fit)?;
@@ -113,7 +114,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     pressure_pic.save_png(&a.out.join("fit_pressure.png"))?;
     let r = &fit.run;
     println!(
-        "{}: sewn in {:.2} s, {}; {} steps, {:.1} s wall ({:.1} ms/step: assemble {:.1}, solve {:.1}, contacts {:.1})",
+        "{}: sewn in {:.2} s, {}; {} steps, {:.1} s wall ({:.1} ms/step: assemble {:.1}, solve {:.1} ({:.1} iterations), contacts {:.1})",
         t.garment.name,
         r.sewing_s,
         match r.settle_time_s {
@@ -125,6 +126,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         r.ms_per_step,
         r.time_split_ms_per_step.assemble,
         r.time_split_ms_per_step.solve,
+        r.mean_solver_iterations,
         r.time_split_ms_per_step.collide
     );
     println!(

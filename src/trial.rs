@@ -390,6 +390,64 @@ impl Trial {
     }
 }
 
+/// Does this YAML file describe a trial (it names a garment) rather than a
+/// scene?
+pub fn is_trial_file(path: &Path) -> bool {
+    std::fs::read_to_string(path)
+        .ok()
+        .and_then(|t| serde_yaml::from_str::<serde_yaml::Value>(&t).ok())
+        .is_some_and(|v| v.get("garment").is_some())
+}
+
+/// What a bag or the node's `scene_description` says of a trial: its file
+/// and the garment and fabric files it names, as written.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrialDescription {
+    pub format: String,
+    pub trial_file: String,
+    pub trial_yaml: String,
+    pub garment_file: String,
+    pub garment_yaml: String,
+    pub panels: Vec<String>,
+    pub vertices: usize,
+    pub dt_s: f64,
+}
+
+impl Trial {
+    /// The trial's description (YAML).
+    pub fn description(&self, g: &Garment, sim: &Simulation) -> Result<String> {
+        let read = |p: &Path| {
+            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))
+        };
+        let d = TrialDescription {
+            format: "garment_sim/trial_description/1".into(),
+            trial_file: self.path.display().to_string(),
+            trial_yaml: read(&self.path)?,
+            garment_file: self.garment.source.display().to_string(),
+            garment_yaml: read(&self.garment.source)?,
+            panels: g.panels.iter().map(|p| p.name.clone()).collect(),
+            vertices: sim.cloth.len(),
+            dt_s: sim.params.dt,
+        };
+        Ok(serde_yaml::to_string(&d)?)
+    }
+
+    /// Builds the trial and runs its sewing phase: the garment on the body,
+    /// sewn, gravity on, ready to drape (the node's scene).
+    pub fn sewn(&self, ov: &TrialOverrides) -> Result<(Simulation, Garment)> {
+        let (mut sim, g) = self.build(ov)?;
+        run(
+            &mut sim,
+            &self.file.sewing,
+            &self.file.settle,
+            Some(0.0),
+            &mut |_, _, _| {},
+            &|| false,
+        )?;
+        Ok((sim, g))
+    }
+}
+
 /// How the run went.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunStats {
@@ -403,6 +461,11 @@ pub struct RunStats {
     pub ms_per_step: f64,
     pub time_split_ms_per_step: crate::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
+    pub mean_solver_iterations: f64,
+    /// Every 0.05 s: time (s), rms speed (m/s), vertices in contact, solver
+    /// iterations of that step (written as `trial.csv`).
+    #[serde(skip)]
+    pub trace: Vec<[f64; 4]>,
 }
 
 /// Sews and drapes (the phases of the module's documentation);
@@ -453,6 +516,9 @@ pub fn run(
     let start = Instant::now();
     let mut split = crate::run::TimeSplit::default();
     let mut steps = 0u64;
+    let mut iters = 0usize;
+    let mut trace: Vec<[f64; 4]> = Vec::new();
+    let every = ((0.05 / sim.params.dt).round() as u64).max(1);
     let gravity = sim.params.gravity;
     let alpha = sim.fabric.damping.alpha;
     let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
@@ -473,7 +539,16 @@ pub fn run(
         split.assemble += s.assemble_s;
         split.solve += s.solve_s;
         split.collide += s.collide_s;
+        iters += s.iterations;
         *steps += 1;
+        if *steps % every == 0 {
+            trace.push([
+                sim.time,
+                sim.rms_speed(),
+                s.contacts as f64,
+                s.iterations as f64,
+            ]);
+        }
         Ok(())
     };
     for _ in 0..sew_steps {
@@ -521,6 +596,8 @@ pub fn run(
             collide: 1e3 * split.collide / n,
         },
         final_rms_speed_m_s: sim.rms_speed(),
+        mean_solver_iterations: iters as f64 / n,
+        trace,
     })
 }
 
@@ -942,6 +1019,18 @@ pub fn hull_perimeter(p: &[[f64; 2]]) -> f64 {
         .sum()
 }
 
+/// The run's trace as CSV: time (s), rms speed (m/s), contacts, solver
+/// iterations.
+pub fn write_trace(run: &RunStats, path: &Path) -> Result<()> {
+    crate::io::write_atomic(path, |w| {
+        writeln!(w, "time_s,rms_speed_m_s,contacts,solver_iterations")?;
+        for r in &run.trace {
+            writeln!(w, "{:.4},{:.6e},{},{}", r[0], r[1], r[2], r[3])?;
+        }
+        Ok(())
+    })
+}
+
 /// The garment as OBJ: one group per panel, panel coordinates (m) as UVs.
 pub fn write_obj(sim: &Simulation, g: &Garment, path: &Path) -> Result<()> {
     crate::io::write_atomic(path, |w| {
@@ -973,7 +1062,7 @@ pub fn write_obj(sim: &Simulation, g: &Garment, path: &Path) -> Result<()> {
 pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
     let c = &sim.cloth;
     crate::io::write_atomic(path, |w| {
-        writeln!(w, "ply\nformat ascii 1.0\ncomment garment_sim garment; metres, strains l/l0 - 1, pressure Pa, distance from the body m")?;
+        writeln!(w, "ply\nformat ascii 1.0\ncomment garment_sim garment; metres, strains l/l0 - 1, pressure Pa, distance from the body m, speed m/s")?;
         writeln!(w, "element vertex {}", c.len())?;
         for f in ["x", "y", "z"] {
             writeln!(w, "property float {f}")?;
@@ -985,6 +1074,7 @@ pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
             "strain_bias",
             "pressure",
             "distance",
+            "speed",
         ] {
             writeln!(w, "property float {f}")?;
         }
@@ -994,7 +1084,7 @@ pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
             let p = c.x[i];
             writeln!(
                 w,
-                "{:.6} {:.6} {:.6} {} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e}",
+                "{:.6} {:.6} {:.6} {} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e}",
                 p.x,
                 p.y,
                 p.z,
@@ -1003,7 +1093,8 @@ pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
                 vf.weft[i],
                 vf.bias[i],
                 vf.pressure[i],
-                vf.distance[i]
+                vf.distance[i],
+                c.v[i].norm()
             )?;
         }
         for t in &c.triangles {

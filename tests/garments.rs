@@ -352,3 +352,80 @@ fn bad_garments_are_refused_naming_the_file_the_panel_and_the_edge() {
     let (_, _, check) = trial::load_body(&obj, 1.0).unwrap();
     assert_eq!(check.degenerate_dropped, 2);
 }
+
+#[test]
+fn the_garmentcode_importer_agrees_with_pygarment() {
+    // panel areas, stitched edge lengths and placed vertices of every shipped
+    // pattern against pygarment 2.0.2's own edges (tests/garmentcode_reference.py)
+    support::require_python_in(
+        "python3",
+        "scipy, svgpathtools",
+        "python3 -m pip install -r tests/requirements.txt && python3 -m pip install --no-deps pygarment==2.0.2",
+    );
+    let mut checked = (0, 0);
+    for name in ["tshirt", "skirt", "trousers"] {
+        let spec = root().join(format!("assets/garments/{name}_specification.json"));
+        let o = std::process::Command::new("python3")
+            .arg(root().join("tests/garmentcode_reference.py"))
+            .arg(&spec)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let pat = garment_sim::pattern::garmentcode::load(&spec).unwrap();
+        for p in &pat.panels {
+            let poly: Vec<[f64; 2]> = p
+                .edges
+                .iter()
+                .flat_map(|e| e[..e.len() - 1].to_vec())
+                .collect();
+            let ours = 1e4 * garment_sim::cloth::polygon_area(&poly).abs();
+            let theirs = r["panels"][&p.name]["area_cm2"].as_f64().unwrap();
+            assert!(
+                (ours - theirs).abs() <= 0.005 * theirs,
+                "{name} {}: area {ours:.2} cm², pygarment {theirs:.2} cm²",
+                p.name
+            );
+            // placed vertices (GarmentCode's frame, cm)
+            for (k, v) in r["panels"][&p.name]["vertices_3d_cm"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .enumerate()
+            {
+                let v: Vec<f64> = v
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|c| c.as_f64().unwrap())
+                    .collect();
+                let q = r["panels"][&p.name]["vertices_cm"][k].as_array().unwrap();
+                let local =
+                    Vector3::new(q[0].as_f64().unwrap(), q[1].as_f64().unwrap(), 0.0) * pat.unit;
+                let ours = p.rotation * local + p.translation;
+                let d = (ours - Vector3::new(v[0], v[1], v[2]) * pat.unit).norm();
+                assert!(
+                    d < 1e-6,
+                    "{name} {} vertex {k}: {d} m from pygarment's",
+                    p.name
+                );
+            }
+            checked.0 += 1;
+        }
+        for s in r["stitches"].as_array().unwrap() {
+            for side in ["a", "b"] {
+                let panel = s[side]["panel"].as_str().unwrap();
+                let edge = s[side]["edge"].as_u64().unwrap() as usize;
+                let theirs = s[side]["length_cm"].as_f64().unwrap();
+                let p = pat.panels.iter().find(|p| p.name == panel).unwrap();
+                let ours = 100.0 * garment_sim::garment::polyline_length(&p.edges[edge]);
+                assert!(
+                    (ours - theirs).abs() <= 0.005 * theirs,
+                    "{name} {panel}:{edge}: {ours:.3} cm, pygarment {theirs:.3} cm"
+                );
+                checked.1 += 1;
+            }
+        }
+    }
+    assert!(checked.0 >= 16 && checked.1 >= 80, "{checked:?}");
+}

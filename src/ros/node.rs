@@ -129,6 +129,24 @@ struct Loaded {
 
 fn load(s: &Settings) -> Result<Loaded> {
     let path = PathBuf::from(&s.scene);
+    if crate::trial::is_trial_file(&path) {
+        // a garment trial: sewn onto its body before the first step
+        let t = crate::trial::Trial::load(&path)?;
+        let ov = s.overrides()?;
+        let (sim, g) = t.sewn(&crate::trial::TrialOverrides {
+            spacing: ov.spacing,
+            dt: ov.dt,
+            threads: ov.threads,
+            max_time: None,
+        })?;
+        let registry = ObstacleRegistry::from_sim(&sim);
+        let description = t.description(&g, &sim)?;
+        return Ok(Loaded {
+            sim,
+            registry,
+            description,
+        });
+    }
     let scene = Scene::load(&path)?;
     let ov = s.overrides()?;
     let sim = scene.build(&ov)?;
@@ -911,6 +929,35 @@ impl Node {
 #[cfg(test)]
 mod tests {
     use super::drain;
+
+    #[test]
+    fn a_garment_trial_is_a_scene_the_node_loads_sewn() {
+        let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/trials/skirt_on_anny.yaml")
+            .display()
+            .to_string();
+        let s = super::Settings {
+            scene,
+            spacing: 0.04,
+            ..Default::default()
+        };
+        let l = super::load(&s).unwrap();
+        // sewn: every stitch closed within 2 mm; the body is the obstacle
+        let worst = l
+            .sim
+            .cloth
+            .seams
+            .iter()
+            .map(|st| st.gap(&l.sim.cloth.x).norm())
+            .fold(0.0, f64::max);
+        assert!(!l.sim.cloth.seams.is_empty());
+        assert!(worst < 2e-3, "seam gap {worst} m after sewing");
+        assert_eq!(l.sim.obstacles.len(), 1);
+        assert_eq!(l.sim.obstacles[0].id, "body");
+        assert!(l.sim.params.gravity.norm() > 9.0);
+        assert!(l.description.contains("garment_sim/trial_description/1"));
+        assert!(l.description.contains("skirt_front"));
+    }
 
     #[test]
     fn undecodable_messages_are_reported_and_do_not_hide_the_next() {
