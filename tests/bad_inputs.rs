@@ -310,14 +310,17 @@ fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
 
 /// A step that fails names what drove it: the spring, its vertices and
 /// strain (here a cloth stretched 1e80 times along warp, whose forces
-/// overflow).
+/// overflow), on every linear solver, and leaves the state as it was.
 #[test]
 fn a_failed_step_names_the_spring_and_the_strain() {
     use garment_sim::scene::{Overrides, Scene};
     use garment_sim::solver::LinearSolverKind;
     let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
-    let solver = LinearSolverKind::Cholesky;
-    {
+    for solver in [
+        LinearSolverKind::Cholesky,
+        LinearSolverKind::Pcg,
+        LinearSolverKind::Auto,
+    ] {
         let mut sim = sc
             .build(&Overrides {
                 solver: Some(solver),
@@ -329,7 +332,7 @@ fn a_failed_step_names_the_spring_and_the_strain() {
         for p in sim.cloth.x.iter_mut() {
             p.x = x0.x + (p.x - x0.x) * 1e80;
         }
-        let before = sim.cloth.x.clone();
+        let before = (sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time);
         let e = match sim.step() {
             Ok(_) => panic!("{solver:?}: the step succeeded"),
             Err(e) => format!("{e:#}"),
@@ -341,7 +344,7 @@ fn a_failed_step_names_the_spring_and_the_strain() {
             "{solver:?}: {e}"
         );
         // nothing changed
-        assert_eq!(sim.cloth.x, before);
+        assert_eq!((sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time), before);
     }
 }
 
@@ -699,4 +702,128 @@ fn random_extreme_messages_never_break_the_step() {
         applied > 40 && refused > 40,
         "{applied} applied, {refused} refused"
     );
+}
+
+/// Every law of every shipped fabric (warp and weft tension, shear, warp and
+/// weft bending, with their hysteresis) keeps a positive, finite step
+/// tangent far outside its measured range, in both directions and from any
+/// memory (a loop saturated either way, a reversal at the point itself): the
+/// system matrix of a step stays positive definite whatever the strain.
+#[test]
+fn every_law_keeps_a_positive_tangent_outside_its_measured_range() {
+    use garment_sim::fabric::{Law, LawState};
+    let mut files: Vec<PathBuf> = std::fs::read_dir("config/fabrics")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 5, "{files:?}");
+    let reach = |c: &garment_sim::fabric::kes::KesCurve| {
+        c.load
+            .iter()
+            .chain(&c.recover)
+            .map(|p| p.0.abs())
+            .fold(0.0, f64::max)
+    };
+    let mut checked = 0;
+    for f in &files {
+        let fab = garment_sim::io::load_fabric(f).unwrap();
+        let shear_reach = reach(&fab.warp.shear_curve).max(reach(&fab.weft.shear_curve));
+        let laws: [(&str, &Law, f64); 5] = [
+            (
+                "warp tension",
+                &fab.warp.tensile,
+                reach(&fab.warp.tensile_curve),
+            ),
+            (
+                "weft tension",
+                &fab.weft.tensile,
+                reach(&fab.weft.tensile_curve),
+            ),
+            ("shear", &fab.shear, shear_reach),
+            (
+                "warp bending",
+                &fab.warp.bending,
+                reach(&fab.warp.bending_curve),
+            ),
+            (
+                "weft bending",
+                &fab.weft.bending,
+                reach(&fab.weft.bending_curve),
+            ),
+        ];
+        for (name, law, xmax) in laws {
+            assert!(xmax > 0.0, "{f:?} {name}: no measured range");
+            assert!(
+                !law.hysteresis.is_none() || name.contains("tension"),
+                "{f:?} {name}"
+            );
+            // memories: fresh, and loops driven to ±xmax (saturated)
+            let mut memories = vec![LawState::at(0.0)];
+            for sign in [1.0, -1.0] {
+                let mut st = LawState::at(0.0);
+                for k in 1..=200 {
+                    law.commit(&mut st, sign * xmax * k as f64 / 200.0);
+                }
+                memories.push(st);
+            }
+            for m in [1.5, 10.0, 100.0, 1e3, 1e4] {
+                for sign in [1.0, -1.0] {
+                    let x = sign * m * xmax;
+                    let mut here = LawState::at(0.0);
+                    law.commit(&mut here, x);
+                    for st in memories.iter().chain([&here]) {
+                        let (sig, _, tangent) = law.eval_for_step(st, x);
+                        assert!(
+                            sig.is_finite() && tangent.is_finite() && tangent > 0.0,
+                            "{f:?} {name} at {m} × its measured range ({x:e}), memory \
+                             {st:?}: σ {sig:e}, step tangent {tangent:e}"
+                        );
+                        let (_, elastic) = law.elastic.eval(x);
+                        assert!(elastic > 0.0, "{f:?} {name} at {x:e}: {elastic:e}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(checked, files.len() * 5 * 5 * 2 * 4);
+}
+
+/// A law written out in a fabric file (`law:`, as `fit-kes` writes it) with
+/// a negative coefficient (a tangent that turns negative at large strains)
+/// or a memory length of 0 is refused, naming the field.
+#[test]
+fn a_fabric_law_with_a_negative_tangent_is_refused() {
+    let d = support::Scratch::new("neglaw");
+    let base = std::fs::read_to_string(acrylic()).unwrap();
+    let cases = [
+        (
+            "c: [100.0, 0.0, 0.0, -1.0e6]",
+            "h0: 0.0, h1: 0.0, h2: 0.0, xs: 1.0",
+            "warp.tensile.law.elastic.c",
+        ),
+        (
+            "c: [100.0, 0.0, 0.0, 0.0]",
+            "h0: 1.0, h1: 0.0, h2: 0.0, xs: 0.0",
+            "warp.tensile.law.hysteresis",
+        ),
+        (
+            "c: [0.0, 0.0, 0.0, 0.0]",
+            "h0: 0.0, h1: 0.0, h2: 0.0, xs: 1.0",
+            "warp.tensile.law.elastic.c",
+        ),
+    ];
+    for (k, (c, h, field)) in cases.iter().enumerate() {
+        // the law goes into warp.tensile
+        let old = "EMT: 5.36 }";
+        let law = format!("EMT: 5.36, law: {{ elastic: {{ {c} }}, hysteresis: {{ {h} }} }} }}");
+        let text = base.replacen(old, &law, 1);
+        assert_ne!(text, base);
+        let p = d.join(&format!("law{k}.yaml"));
+        std::fs::write(&p, &text).unwrap();
+        let e = format!("{:#}", garment_sim::io::load_fabric(&p).unwrap_err());
+        assert!(e.contains(field), "{c} {h}: {e}");
+    }
 }

@@ -479,6 +479,14 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let delta0 = sh.sum(0).max(sh.sum(2));
     sh.barrier.wait();
     let mut dnew = sh.sum(1);
+    // a non-finite reference or residual would end the loop below at once
+    // (NaN compares false) and pass the first guess off as the solution
+    if !(delta0.is_finite() && dnew.is_finite()) {
+        return Err(anyhow!(
+            "PCG breakdown: non-finite right-hand side or residual (δ0 = {delta0:e}, \
+             rᵀr = {dnew:e})"
+        ));
+    }
     if delta0 <= 0.0 {
         return Ok(0);
     }
@@ -532,6 +540,12 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         // c may be updated after the sum is known
         sh.barrier.wait();
         dnew = sh.sum(1);
+        if !dnew.is_finite() {
+            return Err(anyhow!(
+                "PCG breakdown: non-finite residual after {} iterations",
+                it + 1
+            ));
+        }
         let beta = dnew / dold;
         for k in 0..len {
             c_own[k] = f[k].apply(&(s[k] + c_own[k] * beta));

@@ -429,6 +429,25 @@ impl Simulation {
             }
         }
         let assemble_s = t_asm.elapsed().as_secs_f64();
+        // forces that overflow (a cloth stretched by orders of magnitude, a
+        // pin target at 1e300 m) make every solver's answer meaningless: the
+        // PCG's convergence test cannot even be evaluated. Refused here, on
+        // every solver, before anything is changed.
+        if let Some(i) = (0..n).find(|&i| {
+            !(self.force[i].iter().all(|c| c.is_finite())
+                && self.b[i].iter().all(|c| c.is_finite()))
+        }) {
+            bail!(
+                "the step diverged at vertex {i} (non-finite force{}) at t = {:.4} s; {}",
+                if self.pinned[i].is_some() {
+                    ", pinned"
+                } else {
+                    ""
+                },
+                self.time,
+                self.diagnose()
+            );
+        }
         // 3. solve
         let t_solve = Instant::now();
         let solved = match self.params.linear_solver {
