@@ -362,7 +362,7 @@ fn a_full_disk_under_the_bag_stops_the_recording_not_the_run() {
     assert!(!err.contains("panicked"), "{err}");
     assert!(
         err.contains("disk/bag")
-            && err.contains("bag_0.mcap")
+            && (err.contains("bag_0.mcap") || err.contains("metadata.yaml"))
             && err.contains("No space")
             && err.contains("recording stopped at t = ")
             && err.contains("the run went on without it"),
@@ -390,8 +390,15 @@ fn a_full_disk_under_the_bag_stops_the_recording_not_the_run() {
             "{f}"
         );
     }
-    // what was recorded: rebuilt by `bag repair`, read by the mcap crate
+    // what was recorded, with no temporary file left: rebuilt by `bag
+    // repair`, read by the mcap crate
     let copy = d.join("copy");
+    let mut names: Vec<String> = std::fs::read_dir(&copy)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["bag_0.mcap", "metadata.yaml"]);
     let o = bin().args(["bag", "repair"]).arg(&copy).output().unwrap();
     let rep = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -947,8 +954,9 @@ enum Expect {
 }
 
 /// Runs the program with `args` (in a network namespace of its own if
-/// `netns`: a node must not reach the network), killed as a hang after 60 s.
-fn run_bounded(args: &[String], netns: bool) -> std::process::Output {
+/// `netns`: a node must not reach the network); `None` if it was still
+/// running after 60 s (a hang; it is killed).
+fn run_bounded(args: &[String], netns: bool) -> Option<std::process::Output> {
     let mut cmd = if netns {
         let mut c = Command::new("unshare");
         c.arg("-rn").arg(support::garment_sim_path());
@@ -965,11 +973,12 @@ fn run_bounded(args: &[String], netns: bool) -> std::process::Output {
     let t = std::time::Instant::now();
     loop {
         if child.try_wait().unwrap().is_some() {
-            return child.wait_with_output().unwrap();
+            return Some(child.wait_with_output().unwrap());
         }
         if t.elapsed().as_secs() > 60 {
             let _ = child.kill();
-            panic!("{args:?}: still running after 60 s (a hang)");
+            let _ = child.wait();
+            return None;
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
     }
@@ -1000,7 +1009,7 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
     let raw = |name: &str, size: &str, spacing: &str| {
         file(
             &format!("{name}.yaml"),
-            format!("cloth:\n  fabric: {fabric}\n  size: {size}\n  spacing: {spacing}\n")
+            format!("cloth:\n  fabric: {fabric}\n  size: {size}\n  spacing: {spacing}\ndt: 0.001\nduration: 0.05\n")
                 .as_bytes(),
         )
     };
@@ -1049,6 +1058,10 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
             .to_vec()
     };
     let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let td = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/scenes/table_drape.yaml"
+    );
     let cli = |a: &[&str]| -> Vec<String> { a.iter().map(|s| s.to_string()).collect() };
     let node = |a: &[&str]| -> Vec<String> {
         let mut v = cli(&["node", "--ros-args", "-p", &format!("scene:={ff}")]);
@@ -1078,12 +1091,13 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         ("scene: empty", drape(file("s2.yaml", b"")), Refused(&["s2.yaml"])),
         ("scene: binary", drape(file("s3.yaml", &junk)), Refused(&["s3.yaml"])),
         ("scene: unknown field", drape(sc("s4", "", "colour: red\n")), Refused(&["s4.yaml", "colour"])),
-        ("scene: missing fabric", drape(file("s5.yaml", b"cloth:\n  fabric: nofabric.yaml\n  size: [0.5, 0.5]\n  spacing: 0.05\n")), Refused(&["nofabric.yaml"])),
+        ("scene: missing fabric", drape(file("s5.yaml", b"cloth:\n  fabric: nofabric.yaml\n  size: [0.5, 0.5]\n  spacing: 0.05\ndt: 0.001\nduration: 0.05\n")), Refused(&["nofabric.yaml"])),
         ("scene: negative size", drape(raw("s6", "[-0.5, 0.5]", "0.05")), Refused(&["s6.yaml", "size"])),
         ("scene: spacing 0", drape(raw("s7", "[0.5, 0.5]", "0")), Refused(&["s7.yaml", "spacing"])),
         ("scene: spacing NaN", drape(raw("s7b", "[0.5, 0.5]", ".nan")), Refused(&["s7b.yaml", "spacing"])),
         ("scene: gravity NaN", drape(sc("s8", "", "gravity: [0, 0, .nan]\n")), Refused(&["s8.yaml", "gravity"])),
-        ("scene: gravity 1e300", drape(sc("s8b", "", "gravity: [0, 0, -1e300]\n")), Refused(&["s8b.yaml", "gravity"])),
+        ("scene: gravity 1e300", drape(sc("s8b", "", "gravity: [0, 0, -1e300]\n")), Refused(&["s8b.yaml", "gravity", "MAX_GRAVITY"])),
+        ("scene: gravity 1e3", drape(sc("s8c", "", "gravity: [0, 1000, 0]\n")), Refused(&["s8c.yaml", "gravity", "MAX_GRAVITY"])),
         ("scene: duration -1", drape(edit(sc("s9", "", ""), "duration: 0.05", "duration: -1")), Refused(&["s9.yaml", "duration"])),
         ("scene: dt NaN", drape(edit(sc("s9b", "", ""), "dt: 0.001", "dt: .nan")), Refused(&["s9b.yaml", "dt"])),
         ("scene: pin grid outside", drape(sc("s10", "", "pins: [ { grid: [100, 0] } ]\n")), Refused(&["s10.yaml", "pins[0].grid"])),
@@ -1105,7 +1119,7 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         ("scene: normal zero", drape(sc("s26", "", "obstacles: [ { id: b, shape: { type: box, size: [0.1, 0.1, 0.1] }, pose: { position: [0, 0, 0.5], normal: [0, 0, 0] } } ]\n")), Refused(&["s26.yaml", "normal"])),
         ("scene: hysteresis not a bool", drape(sc("s27", "  hysteresis: maybe\n", "")), Refused(&["s27.yaml", "hysteresis"])),
         ("scene: output_rate -1", drape(sc("s28", "", "output_rate: -1\n")), Refused(&["s28.yaml", "output_rate"])),
-        ("scene: cloth 1e6 m wide", drape(file("s29.yaml", format!("cloth:\n  fabric: {fabric}\n  size: [1e6, 1e6]\n  spacing: 0.01\n").as_bytes())), Refused(&["s29.yaml"])),
+        ("scene: cloth 1e6 m wide", drape(file("s29.yaml", format!("cloth:\n  fabric: {fabric}\n  size: [1e6, 1e6]\n  spacing: 0.01\ndt: 0.001\nduration: 0.05\n").as_bytes())), Refused(&["s29.yaml"])),
         ("scene: mesh scale 0", drape(sc("s30", "", "obstacles: [ { id: m, shape: { type: mesh, obj: cube.obj, scale: 0 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s30.yaml", "scale"])),
         // OBJ meshes
         ("obj: missing file", drape(mesh_scene("o1", "none.obj")), Refused(&["none.obj"])),
@@ -1137,7 +1151,7 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         ("kes curve: binary", { file("k5.csv", &junk); kes(curve_fabric("k5.yaml", "k5.csv")) }, Refused(&["k5.csv"])),
         ("fit-kes: letters", cli(&["fit-kes", &file("fk1.csv", b"direction,test,x,y,branch\nwarp,tensile,a,b,load\n"), "--areal-mass", "20", "--out", &dir.join("fk1.yaml").display().to_string()]), Refused(&["fk1.csv"])),
         ("fit-kes: empty", cli(&["fit-kes", &file("fk2.csv", b""), "--areal-mass", "20", "--out", &dir.join("fk2.yaml").display().to_string()]), Refused(&["fk2.csv"])),
-        ("fit-kes: areal mass NaN", cli(&["fit-kes", &file("fk3.csv", b"direction,test,x,y,branch\n"), "--areal-mass", "NaN", "--out", &dir.join("fk3.yaml").display().to_string()]), Refused(&["areal"])),
+        ("fit-kes: areal mass NaN", cli(&["fit-kes", &file("fk3.csv", b"direction,test,x,y,branch\n"), "--areal-mass", "NaN", "--out", &dir.join("fk3.yaml").display().to_string()]), Refused(&["fk3.csv"])),
         // captures
         ("capture: missing file", identify(dir.join("none.c3d").display().to_string()), Refused(&["none.c3d"])),
         ("capture: C3D of junk", identify(file("c1.c3d", &junk)), Refused(&["c1.c3d"])),
@@ -1151,9 +1165,9 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         ("bag info: missing", cli(&["bag", "info", &dir.join("nobag").display().to_string()]), Refused(&["nobag"])),
         ("bag info: empty directory", cli(&["bag", "info", &bag_dir]), Refused(&["emptybag"])),
         ("bag info: junk file", cli(&["bag", "info", &garbage_mcap]), Refused(&["garbage.mcap"])),
-        ("bag export: junk file", cli(&["bag", "export", &garbage_mcap, "--out", &dir.join("shape.ply").display().to_string()]), Refused(&["garbage.mcap"])),
+        ("bag export: junk file", cli(&["bag", "export", &garbage_mcap, "--time", "0", "--out", &dir.join("shape.ply").display().to_string()]), Refused(&["garbage.mcap"])),
         ("bag repair: junk file", cli(&["bag", "repair", &garbage_mcap]), Refused(&["garbage.mcap"])),
-        ("bag export: magic only", cli(&["bag", "export", &magic_only, "--out", &dir.join("shape2.ply").display().to_string()]), Refused(&["magic.mcap"])),
+        ("bag export: magic only", cli(&["bag", "export", &magic_only, "--time", "0", "--out", &dir.join("shape2.ply").display().to_string()]), Refused(&["magic.mcap"])),
         ("bag export: format xyz", cli(&["bag", "export", &magic_only, "--format", "xyz", "--out", &out_s]), Refused(&["xyz"])),
         // command-line values
         ("drape: missing scene", cli(&["drape", &dir.join("none.yaml").display().to_string()]), Refused(&["none.yaml"])),
@@ -1171,7 +1185,7 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         // node parameters (refused before DDS starts; in a namespace without network all the same)
         ("node: publish_rate -1", node(&["-p", "publish_rate:=-1.0"]), Refused(&["publish_rate"])),
         ("node: dt 1", node(&["-p", "dt:=1.0"]), Refused(&["dt"])),
-        ("node: spacing 0", node(&["-p", "spacing:=0.0"]), Refused(&["spacing"])),
+        ("node: spacing -1", node(&["-p", "spacing:=-1.0"]), Refused(&["spacing"])),
         ("node: missing scene", cli(&["node", "--ros-args", "-p", &format!("scene:={}", dir.join("none.yaml").display())]), Refused(&["none.yaml"])),
         ("node: solver foo", node(&["-p", "solver:=foo"]), Refused(&["solver"])),
         ("node: unknown parameter", node(&["-p", "colour:=1"]), Refused(&["colour"])),
@@ -1181,47 +1195,67 @@ fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
         ("node: threads -1", node(&["-p", "threads:=-1"]), Refused(&["threads"])),
         ("node: max_messages_per_step 0", node(&["-p", "max_messages_per_step:=0"]), Refused(&["max_messages_per_step"])),
         // accepted extremes: finite, bounded results
-        ("drape: 25 cm grid", cli(&["drape", ff, "--spacing", "0.25", "--duration", "0.05", "--out", &out_s]), Finite),
+        ("drape: 25 cm grid", cli(&["drape", td, "--spacing", "0.25", "--duration", "0.05", "--out", &out_s]), Finite),
         ("drape: dt at MAX_DT", cli(&["drape", ff, "--dt", "0.05", "--duration", "0.5", "--out", &out_s]), Finite),
-        ("drape: cloth 2 cm thick", drape(sc("e1", "  thickness: 0.02\n", "duration: 0.1\n")), Finite),
+        ("drape: cloth 2 cm thick", drape(sc("e1", "  thickness: 0.02\n", "")), Finite),
         ("drape: far pin target, travelled", drape(sc("e2", "", "pins: [ { grid: [0, 0], target: [1.5, -0.25, 1] } ]\n")), Finite),
     ];
     let n = cases.len();
+    let mut failed = Vec::new();
     for (what, args, expect) in cases {
         let _ = std::fs::remove_dir_all(&out);
         let netns = args.first().is_some_and(|a| a == "node");
-        let o = run_bounded(&args, netns);
+        let Some(o) = run_bounded(&args, netns) else {
+            failed.push(format!("{what}: still running after 60 s (a hang)"));
+            continue;
+        };
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(!err.contains("panicked"), "{what}: {err}");
+        if err.contains("panicked") {
+            failed.push(format!("{what}: panicked: {err}"));
+            continue;
+        }
         match expect {
             Refused(needles) => {
-                assert!(
-                    matches!(o.status.code(), Some(1) | Some(2)),
-                    "{what}: exit {:?}, expected a refusal\n{err}",
-                    o.status
-                );
+                if !matches!(o.status.code(), Some(1) | Some(2)) {
+                    failed.push(format!(
+                        "{what}: exit {:?}, expected a refusal: {err}",
+                        o.status
+                    ));
+                }
                 for needle in needles {
-                    assert!(
-                        err.contains(needle),
-                        "{what}: the error lacks {needle:?}: {err}"
-                    );
+                    if !err.contains(needle) {
+                        failed.push(format!("{what}: the error lacks {needle:?}: {err}"));
+                    }
                 }
             }
             Finite => {
-                assert!(o.status.success(), "{what}: {err}");
+                if !o.status.success() {
+                    failed.push(format!("{what}: exit {:?}: {err}", o.status));
+                    continue;
+                }
                 let ply = std::fs::read_to_string(out.join("final.ply")).unwrap();
                 let body = ply.split("end_header\n").nth(1).unwrap();
                 let mut count = 0;
                 for line in body.lines().filter(|l| !l.starts_with("3 ")) {
                     for v in line.split_whitespace() {
                         let v: f64 = v.parse().unwrap();
-                        assert!(v.is_finite() && v.abs() < 10.0, "{what}: {v} in final.ply");
+                        if !(v.is_finite() && v.abs() < 10.0) {
+                            failed.push(format!("{what}: {v} in final.ply"));
+                        }
                         count += 1;
                     }
                 }
-                assert!(count > 0, "{what}");
+                if count == 0 {
+                    failed.push(format!("{what}: an empty final.ply"));
+                }
             }
         }
     }
+    assert!(
+        failed.is_empty(),
+        "{} of {n} cases:\n{}",
+        failed.len(),
+        failed.join("\n")
+    );
     assert!(n >= 80, "{n} cases");
 }

@@ -274,8 +274,15 @@ impl Simulation {
         if params.cg_max_iterations == 0 {
             bail!("cg_max_iterations = 0: must be ≥ 1");
         }
-        if !params.gravity.iter().all(|g| g.is_finite()) {
-            bail!("gravity = {:?}: must be finite", params.gravity);
+        let g = params.gravity;
+        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
+            bail!(
+                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
+                g.x,
+                g.y,
+                g.z,
+                crate::limits::MAX_GRAVITY
+            );
         }
         crate::limits::check_range(
             "cloth thickness",
@@ -459,7 +466,9 @@ impl Simulation {
         };
         let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
         let solve_s = t_solve.elapsed().as_secs_f64();
-        // nothing is changed yet: a failed step leaves the state as it was
+        // positions, velocities and time are unchanged yet: a failed step
+        // leaves them as they were (the hysteresis memory was advanced to
+        // these positions by the assembly, as the next step's would be)
         for i in 0..n {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
                 bail!(
