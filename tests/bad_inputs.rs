@@ -937,7 +937,7 @@ fn a_fabric_law_with_a_negative_tangent_is_refused() {
         let law = format!("EMT: 5.36, law: {{ elastic: {{ {c} }}, hysteresis: {{ {h} }} }} }}");
         let text = base.replacen(old, &law, 1);
         assert_ne!(text, base);
-        let p = d.join(&format!("law{k}.yaml"));
+        let p = d.join(format!("law{k}.yaml"));
         std::fs::write(&p, &text).unwrap();
         let e = format!("{:#}", garment_sim::io::load_fabric(&p).unwrap_err());
         assert!(e.contains(field), "{c} {h}: {e}");
