@@ -266,6 +266,12 @@ impl Pcg {
         // the reference: the right-hand side, or gravity's impulse if larger
         let delta0 = delta0.max(floor);
         let eps2 = tol * tol * delta0;
+        if delta0 <= 0.0 && !zero_rhs(b, filter) {
+            return Err(anyhow!(
+                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
+                 out of range)"
+            ));
+        }
         if delta0 <= 0.0 || rj <= eps2 {
             return Ok(0);
         }
@@ -328,6 +334,14 @@ impl Pcg {
             }
         }
     }
+}
+
+/// Whether the filtered right-hand side is zero (every thread of a solve
+/// gets the same answer).
+fn zero_rhs(b: &[Vector3<f64>], filter: &[Filter]) -> bool {
+    b.iter()
+        .zip(filter)
+        .all(|(b, f)| f.apply(b) == Vector3::zeros())
 }
 
 /// The block-Jacobi preconditioner's block for the diagonal block `d`: its
@@ -488,7 +502,16 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         ));
     }
     if delta0 <= 0.0 {
-        return Ok(0);
+        // nothing to solve only if the right-hand side is zero: a non-zero
+        // one whose norm underflows (a system scaled out of range, a cloth
+        // stretched by orders of magnitude) is not a converged solve
+        return match zero_rhs(b, filter) {
+            true => Ok(0),
+            false => Err(anyhow!(
+                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
+                 out of range)"
+            )),
+        };
     }
     let eps2 = args.tol * args.tol * delta0;
     let mut it = 0;
