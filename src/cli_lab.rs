@@ -191,7 +191,7 @@ pub struct FitKesArgs {
     #[arg(long)]
     pub base: Option<PathBuf>,
     /// Areal mass W, mg/cm² (required without --base).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub areal_mass: Option<f64>,
     /// Fabric name.
     #[arg(long)]

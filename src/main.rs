@@ -94,7 +94,7 @@ enum Cmd {
         #[arg(long, default_value = "11x11")]
         grid: String,
         /// Marker spacing, m.
-        #[arg(long, default_value_t = 0.05)]
+        #[arg(long, default_value_t = 0.05, allow_negative_numbers = true)]
         spacing: f64,
         /// Markers are stored warp-major (index i*ny + j) instead of grid order (j*nx + i).
         #[arg(long)]
@@ -494,27 +494,36 @@ fn real_main(cli: Cli) -> Result<()> {
                 "wrote            {}/final.ply, final.png, energy.csv, summary.json",
                 out.display()
             );
+            let mut bag_error = None;
             if let Some(r) = recorded {
-                println!(
-                    "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
-                    r.bag.dir.display(),
-                    r.frames,
-                    r.bag.message_count,
-                    r.bag.bytes as f64 / (1024.0 * 1024.0),
-                    1e3 * r.record_s / r.frames.max(1) as f64,
-                    100.0 * r.record_s / s.wall_s.max(1e-12),
-                    if r.stopped {
-                        ", stopped by a signal: bag finished"
-                    } else {
-                        ""
-                    }
-                );
-                if r.stopped {
-                    eprintln!(
-                        "stopped by a signal at t = {:.4} s; the bag is complete",
-                        s.simulated_s
+                if let Some(b) = &r.bag {
+                    println!(
+                        "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
+                        b.dir.display(),
+                        r.frames,
+                        b.message_count,
+                        b.bytes as f64 / (1024.0 * 1024.0),
+                        1e3 * r.record_s / r.frames.max(1) as f64,
+                        100.0 * r.record_s / s.wall_s.max(1e-12),
+                        if r.stopped {
+                            ", stopped by a signal: bag finished"
+                        } else {
+                            ""
+                        }
                     );
                 }
+                if r.stopped && r.bag.is_some() {
+                    eprintln!(
+                        "stopped by a signal at t = {:.4} s; the bag is complete{}",
+                        s.simulated_s,
+                        if garment_sim::run::interrupted_again() {
+                            " (interrupted again while it was being closed: it was finished first)"
+                        } else {
+                            ""
+                        }
+                    );
+                }
+                bag_error = r.bag_error;
             }
             if let (Some(v), Some(r)) = (&view, &live_run) {
                 println!(
@@ -532,7 +541,11 @@ fn real_main(cli: Cli) -> Result<()> {
                     v.linger(stop_ref);
                 }
             }
-            Ok(())
+            match bag_error {
+                // the outputs are written; the bag is not whole
+                Some(e) => anyhow::bail!("{e}"),
+                None => Ok(()),
+            }
         }
         Cmd::Bag { cmd } => bag_cmd(cmd),
         Cmd::Identify {

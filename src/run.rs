@@ -7,7 +7,7 @@ use crate::solver::Simulation;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -301,9 +301,19 @@ pub fn write_energy_csv(rows: &[EnergyRow], path: &Path) -> Result<()> {
 
 static STOP: Mutex<Option<Arc<AtomicBool>>> = Mutex::new(None);
 
+/// SIGINT and SIGTERM received so far.
+static SIGNALS: AtomicUsize = AtomicUsize::new(0);
+
+/// Bags open for writing ([`Recording`]).
+static RECORDING: AtomicUsize = AtomicUsize::new(0);
+
 /// The process-wide stop flag, set by SIGINT or SIGTERM (handlers installed
-/// on the first call). A second SIGINT/SIGTERM while the flag is set exits
-/// the process at once (status 1), so a stuck run can still be interrupted.
+/// on the first call). A second SIGINT/SIGTERM exits the process at once
+/// (status 1), so a stuck run can still be interrupted, except while a bag
+/// is open ([`Recording`]): then the second one only stops the run as the
+/// first did, the bag is finished (summary, `metadata.yaml`) and the program
+/// says so ([`interrupted_again`]); a third exits at once, leaving the bag
+/// readable up to its last chunk for `bag repair`.
 pub fn stop_flag() -> Result<Arc<AtomicBool>> {
     let mut g = STOP.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(f) = g.as_ref() {
@@ -311,10 +321,48 @@ pub fn stop_flag() -> Result<Arc<AtomicBool>> {
     }
     let f = Arc::new(AtomicBool::new(false));
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        // order matters: the shutdown check sees the flag before this signal sets it
-        signal_hook::flag::register_conditional_shutdown(sig, 1, f.clone())?;
-        signal_hook::flag::register(sig, f.clone())?;
+        let flag = f.clone();
+        let handler = move || {
+            // atomics and _exit only: async-signal-safe
+            let before = SIGNALS.fetch_add(1, Ordering::SeqCst);
+            flag.store(true, Ordering::SeqCst);
+            let tolerated = if RECORDING.load(Ordering::SeqCst) > 0 {
+                2
+            } else {
+                1
+            };
+            if before >= tolerated {
+                signal_hook::low_level::exit(1);
+            }
+        };
+        // SAFETY: the handler only touches atomics and calls _exit, both
+        // async-signal-safe
+        unsafe { signal_hook::low_level::register(sig, handler) }?;
     }
     *g = Some(f.clone());
     Ok(f)
+}
+
+/// Whether more than one SIGINT/SIGTERM arrived (the later ones while a bag
+/// was open, see [`stop_flag`]).
+pub fn interrupted_again() -> bool {
+    SIGNALS.load(Ordering::SeqCst) > 1
+}
+
+/// Held while a bag is open for writing (its recorder owns one): a second
+/// SIGINT/SIGTERM then lets the bag be finished instead of exiting.
+#[derive(Debug)]
+pub struct Recording(());
+
+impl Recording {
+    pub fn start() -> Recording {
+        RECORDING.fetch_add(1, Ordering::SeqCst);
+        Recording(())
+    }
+}
+
+impl Drop for Recording {
+    fn drop(&mut self) {
+        RECORDING.fetch_sub(1, Ordering::SeqCst);
+    }
 }

@@ -485,9 +485,16 @@ impl Scene {
             limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
         }
         let cloth = Cloth::grid(&grid, self.fabric.areal_mass).with_context(ctx)?;
-        // the cloth must start outside the obstacles (meshes may be open,
-        // with no inside: not checked)
+        // the obstacles lie within reach of the cloth (as a message's must),
+        // and the cloth starts outside them (meshes may be open, with no
+        // inside: not checked)
         for (k, ob) in obstacles.iter().enumerate() {
+            limits::check_reach(
+                &format!("obstacles[{k}] ({:?}) pose.position", ob.id),
+                &ob.pose.translation.vector,
+                &cloth.x,
+            )
+            .with_context(ctx)?;
             ob.check_overlap(&cloth.x)
                 .with_context(|| format!("obstacles[{k}]"))
                 .with_context(ctx)?;

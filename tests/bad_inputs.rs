@@ -106,6 +106,28 @@ fn implausible_scene_fields_are_refused_with_the_field_named() {
             vec!["\"ball\"", "overlaps the cloth", "0.3000 m inside"],
         ),
         (
+            "far_table",
+            "",
+            "obstacles: [ { id: table, shape: { type: box, size: [1, 1, 0.1] }, \
+             pose: { position: [10000, 0, 0.5] } } ]\n",
+            vec!["obstacles[0] (\"table\") pose.position", "MAX_REACH"],
+        ),
+        (
+            "mm_table",
+            "",
+            "obstacles: [ { id: table, shape: { type: box, size: [1.0, 0.6, 0.05] }, \
+             pose: { position: [0, 0, 720] } } ]\n",
+            vec!["obstacles[0] (\"table\") pose.position", "MAX_REACH"],
+        ),
+        (
+            "far_sphere",
+            "",
+            "obstacles: [ { id: a, shape: { type: sphere, radius: 0.1 }, \
+             pose: { position: [0, 0, 0] } }, { id: b, shape: { type: sphere, radius: 0.1 }, \
+             pose: { position: [0, -5, 1] } } ]\n",
+            vec!["obstacles[1] (\"b\") pose.position", "MAX_REACH"],
+        ),
+        (
             "thick_cloth",
             "  thickness: 1.0\n",
             "",
@@ -308,15 +330,104 @@ fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
     );
 }
 
+/// A full disk under `drape --bag` (the bag on an 128 KiB tmpfs, the
+/// outputs elsewhere, in a mount namespace of the test's own): the run goes
+/// on without the bag and writes its outputs, the same `final.ply` as a run
+/// without a bag; the error names the bag's file and the exit code is 1;
+/// the bag, copied where there is space, is rebuilt by `bag repair` and
+/// reads in a CRC-checking reader.
+#[test]
+fn a_full_disk_under_the_bag_stops_the_recording_not_the_run() {
+    let d = support::Scratch::new("bagdisk");
+    let td = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/scenes/table_drape.yaml"
+    );
+    let run = "--spacing 0.05 --duration 0.3";
+    let script = format!(
+        "set -e; d={dir}; mkdir -p \"$d/disk\"; mount -t tmpfs -o size=128k tmpfs \"$d/disk\"; \
+         if {bin} drape {td} {run} --out \"$d/out\" --bag \"$d/disk/bag\" --bag-rate 1000 \
+         --bag-chunk-size 20000; then echo EXIT=0; else echo EXIT=$?; fi; \
+         cp -r \"$d/disk/bag\" \"$d/copy\"",
+        dir = d.display(),
+        bin = support::garment_sim_path()
+    );
+    let o = Command::new("unshare")
+        .args(["-rm", "sh", "-c", &script])
+        .output()
+        .expect("unshare (util-linux) runs");
+    let out = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(out.contains("EXIT=1"), "{out}\n{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("disk/bag")
+            && (err.contains("bag_0.mcap") || err.contains("metadata.yaml"))
+            && err.contains("No space")
+            && err.contains("recording stopped at t = ")
+            && err.contains("the run went on without it"),
+        "{err}"
+    );
+    // the outputs, whole: the same final state as a run without a bag
+    let o = bin()
+        .args([
+            "drape",
+            td,
+            "--spacing",
+            "0.05",
+            "--duration",
+            "0.3",
+            "--out",
+        ])
+        .arg(d.join("plain"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["final.ply", "energy.csv"] {
+        assert_eq!(
+            std::fs::read(d.join("out").join(f)).unwrap(),
+            std::fs::read(d.join("plain").join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    // what was recorded, with no temporary file left: rebuilt by `bag
+    // repair`, read by the mcap crate
+    let copy = d.join("copy");
+    let mut names: Vec<String> = std::fs::read_dir(&copy)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["bag_0.mcap", "metadata.yaml"]);
+    let o = bin().args(["bag", "repair"]).arg(&copy).output().unwrap();
+    let rep = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{rep}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let data = std::fs::read(copy.join("bag_0.mcap")).unwrap();
+    let n = log_times(&data).len();
+    assert!(n >= 10, "{n} messages recovered\n{rep}");
+    assert!(rep.contains(&format!("repaired: {n} messages")), "{rep}");
+}
+
 /// A step that fails names what drove it: the spring, its vertices and
-/// strain (here a cloth stretched 1e80 times along warp, whose forces
-/// overflow).
+/// strain (here a cloth stretched 1e20 times along warp, whose system the
+/// PCG's norms cannot measure, and 1e80 times, whose forces overflow), on
+/// every linear solver, and leaves the state as it was.
 #[test]
 fn a_failed_step_names_the_spring_and_the_strain() {
     use garment_sim::scene::{Overrides, Scene};
     use garment_sim::solver::LinearSolverKind;
     let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
-    let solver = LinearSolverKind::Cholesky;
+    for (solver, stretch) in [
+        LinearSolverKind::Cholesky,
+        LinearSolverKind::Pcg,
+        LinearSolverKind::Auto,
+    ]
+    .into_iter()
+    .flat_map(|s| [(s, 1e20), (s, 1e80)])
     {
         let mut sim = sc
             .build(&Overrides {
@@ -327,21 +438,21 @@ fn a_failed_step_names_the_spring_and_the_strain() {
         sim.fabric.warp.tensile.elastic.c = [100.0, 0.0, 0.0, 100.0];
         let x0 = sim.cloth.x[0];
         for p in sim.cloth.x.iter_mut() {
-            p.x = x0.x + (p.x - x0.x) * 1e80;
+            p.x = x0.x + (p.x - x0.x) * stretch;
         }
-        let before = sim.cloth.x.clone();
+        let before = (sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time);
         let e = match sim.step() {
-            Ok(_) => panic!("{solver:?}: the step succeeded"),
+            Ok(_) => panic!("{solver:?}, stretch {stretch:e}: the step succeeded"),
             Err(e) => format!("{e:#}"),
         };
         assert!(
             e.contains("most stretched: tension spring")
                 && e.contains("warp vertices")
-                && e.contains("at strain 1.000e80"),
-            "{solver:?}: {e}"
+                && e.contains(&format!("at strain {stretch:.3e}")),
+            "{solver:?}, stretch {stretch:e}: {e}"
         );
         // nothing changed
-        assert_eq!(sim.cloth.x, before);
+        assert_eq!((sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time), before);
     }
 }
 
@@ -431,6 +542,18 @@ fn bag_repair_keeps_every_readable_chunk() {
         *x ^= 0xff;
     }
     std::fs::write(&file, &damaged).unwrap();
+    // `bag info` names the damaged chunk, counts only what reads, and points
+    // to `bag repair` (the file is finished: its footer is intact)
+    let o = bin().args(["bag", "info"]).arg(&bag).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        out.contains(&format!("DAMAGED: the chunk at byte {a} does not read"))
+            && out.contains("bag repair")
+            && out.contains(&format!("Messages:          {}", all - lost.len()))
+            && !out.contains("State:             complete"),
+        "{out}"
+    );
     let o = bin().args(["bag", "repair"]).arg(&bag).output().unwrap();
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -699,4 +822,444 @@ fn random_extreme_messages_never_break_the_step() {
         applied > 40 && refused > 40,
         "{applied} applied, {refused} refused"
     );
+}
+
+/// Every law of every shipped fabric (warp and weft tension, shear, warp and
+/// weft bending, with their hysteresis) keeps a positive, finite step
+/// tangent far outside its measured range, in both directions and from any
+/// memory (a loop saturated either way, a reversal at the point itself): the
+/// system matrix of a step stays positive definite whatever the strain.
+#[test]
+fn every_law_keeps_a_positive_tangent_outside_its_measured_range() {
+    use garment_sim::fabric::{Law, LawState};
+    let mut files: Vec<PathBuf> = std::fs::read_dir("config/fabrics")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 5, "{files:?}");
+    let reach = |c: &garment_sim::fabric::kes::KesCurve| {
+        c.load
+            .iter()
+            .chain(&c.recover)
+            .map(|p| p.0.abs())
+            .fold(0.0, f64::max)
+    };
+    let mut checked = 0;
+    for f in &files {
+        let fab = garment_sim::io::load_fabric(f).unwrap();
+        let shear_reach = reach(&fab.warp.shear_curve).max(reach(&fab.weft.shear_curve));
+        let laws: [(&str, &Law, f64); 5] = [
+            (
+                "warp tension",
+                &fab.warp.tensile,
+                reach(&fab.warp.tensile_curve),
+            ),
+            (
+                "weft tension",
+                &fab.weft.tensile,
+                reach(&fab.weft.tensile_curve),
+            ),
+            ("shear", &fab.shear, shear_reach),
+            (
+                "warp bending",
+                &fab.warp.bending,
+                reach(&fab.warp.bending_curve),
+            ),
+            (
+                "weft bending",
+                &fab.weft.bending,
+                reach(&fab.weft.bending_curve),
+            ),
+        ];
+        for (name, law, xmax) in laws {
+            assert!(xmax > 0.0, "{f:?} {name}: no measured range");
+            assert!(
+                !law.hysteresis.is_none() || name.contains("tension"),
+                "{f:?} {name}"
+            );
+            // memories: fresh, and loops driven to ±xmax (saturated)
+            let mut memories = vec![LawState::at(0.0)];
+            for sign in [1.0, -1.0] {
+                let mut st = LawState::at(0.0);
+                for k in 1..=200 {
+                    law.commit(&mut st, sign * xmax * k as f64 / 200.0);
+                }
+                memories.push(st);
+            }
+            for m in [1.5, 10.0, 100.0, 1e3, 1e4] {
+                for sign in [1.0, -1.0] {
+                    let x = sign * m * xmax;
+                    let mut here = LawState::at(0.0);
+                    law.commit(&mut here, x);
+                    for st in memories.iter().chain([&here]) {
+                        let (sig, _, tangent) = law.eval_for_step(st, x);
+                        assert!(
+                            sig.is_finite() && tangent.is_finite() && tangent > 0.0,
+                            "{f:?} {name} at {m} × its measured range ({x:e}), memory \
+                             {st:?}: σ {sig:e}, step tangent {tangent:e}"
+                        );
+                        let (_, elastic) = law.elastic.eval(x);
+                        assert!(elastic > 0.0, "{f:?} {name} at {x:e}: {elastic:e}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(checked, files.len() * 5 * 5 * 2 * 4);
+}
+
+/// A law written out in a fabric file (`law:`, as `fit-kes` writes it) with
+/// a negative coefficient (a tangent that turns negative at large strains)
+/// or a memory length of 0 is refused, naming the field.
+#[test]
+fn a_fabric_law_with_a_negative_tangent_is_refused() {
+    let d = support::Scratch::new("neglaw");
+    let base = std::fs::read_to_string(acrylic()).unwrap();
+    let cases = [
+        (
+            "c: [100.0, 0.0, 0.0, -1.0e6]",
+            "h0: 0.0, h1: 0.0, h2: 0.0, xs: 1.0",
+            "warp.tensile.law.elastic.c",
+        ),
+        (
+            "c: [100.0, 0.0, 0.0, 0.0]",
+            "h0: 1.0, h1: 0.0, h2: 0.0, xs: 0.0",
+            "warp.tensile.law.hysteresis",
+        ),
+        (
+            "c: [0.0, 0.0, 0.0, 0.0]",
+            "h0: 0.0, h1: 0.0, h2: 0.0, xs: 1.0",
+            "warp.tensile.law.elastic.c",
+        ),
+    ];
+    for (k, (c, h, field)) in cases.iter().enumerate() {
+        // the law goes into warp.tensile
+        let old = "EMT: 5.36 }";
+        let law = format!("EMT: 5.36, law: {{ elastic: {{ {c} }}, hysteresis: {{ {h} }} }} }}");
+        let text = base.replacen(old, &law, 1);
+        assert_ne!(text, base);
+        let p = d.join(format!("law{k}.yaml"));
+        std::fs::write(&p, &text).unwrap();
+        let e = format!("{:#}", garment_sim::io::load_fabric(&p).unwrap_err());
+        assert!(e.contains(field), "{c} {h}: {e}");
+    }
+}
+
+/// What a corpus case must give.
+enum Expect {
+    /// Exit code 1 or 2, every needle in the error.
+    Refused(&'static [&'static str]),
+    /// Exit code 0 and a `final.ply` (in the case's `out`) whose every
+    /// number is finite and within 10 m of the origin.
+    Finite,
+}
+
+/// Runs the program with `args` (in a network namespace of its own if
+/// `netns`: a node must not reach the network); `None` if it was still
+/// running after 60 s (a hang; it is killed).
+fn run_bounded(args: &[String], netns: bool) -> Option<std::process::Output> {
+    let mut cmd = if netns {
+        let mut c = Command::new("unshare");
+        c.arg("-rn").arg(support::garment_sim_path());
+        c
+    } else {
+        bin()
+    };
+    let mut child = cmd
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = std::time::Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        if t.elapsed().as_secs() > 60 {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
+/// The corpus: bad, malformed and extreme inputs for every reader of the
+/// program (scenes, fabrics, OBJ meshes, KES curves, C3D and CSV captures,
+/// bags, command-line values, node parameters; the node's messages are the
+/// property test above and the unit tests of `ros::control`). Each gives a
+/// clean error naming the input (exit code 1 or 2, no panic), or a finite,
+/// bounded result; none hangs.
+#[test]
+fn corpus_of_bad_inputs_gives_clean_errors_or_finite_results() {
+    let d = support::Scratch::new("corpus");
+    let dir = d.to_path_buf();
+    let out = d.join("out");
+    let out_s = out.display().to_string();
+    let file = |name: &str, text: &[u8]| -> String {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    };
+    let fabric = acrylic().display().to_string();
+    let fabric_text = std::fs::read_to_string(acrylic()).unwrap();
+    // a valid scene with `cloth_extra` in its cloth and `rest` after it
+    let sc = |name: &str, cloth_extra: &str, rest: &str| scene(&dir, name, cloth_extra, rest);
+    // a scene file with the cloth's size and spacing as given
+    let raw = |name: &str, size: &str, spacing: &str| {
+        file(
+            &format!("{name}.yaml"),
+            format!("cloth:\n  fabric: {fabric}\n  size: {size}\n  spacing: {spacing}\ndt: 0.001\nduration: 0.05\n")
+                .as_bytes(),
+        )
+    };
+    // the file `path` with `from` replaced by `to`
+    let edit = |path: String, from: &str, to: &str| {
+        let t = std::fs::read_to_string(&path).unwrap();
+        assert!(t.contains(from), "{from}");
+        std::fs::write(&path, t.replacen(from, to, 1)).unwrap();
+        path
+    };
+    let drape = |scene: String| -> Vec<String> {
+        vec!["drape".into(), scene, "--out".into(), out_s.clone()]
+    };
+    // a scene with a mesh obstacle from `obj` 0.5 m below the cloth
+    let mesh_scene = |name: &str, obj: &str| {
+        sc(
+            name,
+            "",
+            &format!(
+                "obstacles: [ {{ id: m, shape: {{ type: mesh, obj: {obj} }}, \
+                 pose: {{ position: [0, 0, 0.5] }} }} ]\n"
+            ),
+        )
+    };
+    // a fabric with the first `from` replaced by `to`
+    let fab = |name: &str, from: &str, to: &str| -> String {
+        assert!(fabric_text.contains(from), "{from}");
+        file(name, fabric_text.replacen(from, to, 1).as_bytes())
+    };
+    let kes = |fabric: String| -> Vec<String> {
+        ["kes", &fabric, "--test", "tensile", "--out", &out_s]
+            .map(String::from)
+            .to_vec()
+    };
+    // a fabric whose warp tensile behaviour is the raw curve file `csv`
+    let curve_fabric = |name: &str, csv: &str| -> String {
+        fab(
+            name,
+            "tensile: { LT: 0.65, WT: 8.71, RT: 62.0, EMT: 5.36 }",
+            &format!("tensile: {{ curve: {csv} }}"),
+        )
+    };
+    let identify = |capture: String| -> Vec<String> {
+        ["identify", &capture, "--fabric", &fabric, "--out", &out_s]
+            .map(String::from)
+            .to_vec()
+    };
+    let ff = concat!(env!("CARGO_MANIFEST_DIR"), "/config/scenes/free_fall.yaml");
+    let td = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/scenes/table_drape.yaml"
+    );
+    let cli = |a: &[&str]| -> Vec<String> { a.iter().map(|s| s.to_string()).collect() };
+    let node = |a: &[&str]| -> Vec<String> {
+        let mut v = cli(&["node", "--ros-args", "-p", &format!("scene:={ff}")]);
+        v.extend(cli(a));
+        v
+    };
+    let junk: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    let c3d_header = {
+        // a C3D whose header points at a parameter block past the end
+        let mut h = vec![0u8; 512];
+        h[0] = 2;
+        h[1] = 0x50;
+        h
+    };
+    let bag_dir = d.join("emptybag");
+    std::fs::create_dir_all(&bag_dir).unwrap();
+    let bag_dir = bag_dir.display().to_string();
+    let magic_only = file("magic.mcap", b"\x89MCAP0\r\n");
+    let garbage_mcap = file("garbage.mcap", &junk);
+    use Expect::*;
+    #[rustfmt::skip]
+    let cases: Vec<(&str, Vec<String>, Expect)> = vec![
+        // scenes
+        ("scene: unclosed bracket", drape(file("s1.yaml", b"cloth: [unclosed")), Refused(&["s1.yaml"])),
+        ("scene: empty", drape(file("s2.yaml", b"")), Refused(&["s2.yaml"])),
+        ("scene: binary", drape(file("s3.yaml", &junk)), Refused(&["s3.yaml"])),
+        ("scene: unknown field", drape(sc("s4", "", "colour: red\n")), Refused(&["s4.yaml", "colour"])),
+        ("scene: missing fabric", drape(file("s5.yaml", b"cloth:\n  fabric: nofabric.yaml\n  size: [0.5, 0.5]\n  spacing: 0.05\ndt: 0.001\nduration: 0.05\n")), Refused(&["nofabric.yaml"])),
+        ("scene: negative size", drape(raw("s6", "[-0.5, 0.5]", "0.05")), Refused(&["s6.yaml", "size"])),
+        ("scene: spacing 0", drape(raw("s7", "[0.5, 0.5]", "0")), Refused(&["s7.yaml", "spacing"])),
+        ("scene: spacing NaN", drape(raw("s7b", "[0.5, 0.5]", ".nan")), Refused(&["s7b.yaml", "spacing"])),
+        ("scene: gravity NaN", drape(sc("s8", "", "gravity: [0, 0, .nan]\n")), Refused(&["s8.yaml", "gravity"])),
+        ("scene: gravity 1e300", drape(sc("s8b", "", "gravity: [0, 0, -1e300]\n")), Refused(&["s8b.yaml", "gravity", "MAX_GRAVITY"])),
+        ("scene: gravity 1e3", drape(sc("s8c", "", "gravity: [0, 1000, 0]\n")), Refused(&["s8c.yaml", "gravity", "MAX_GRAVITY"])),
+        ("scene: duration -1", drape(edit(sc("s9", "", ""), "duration: 0.05", "duration: -1")), Refused(&["s9.yaml", "duration"])),
+        ("scene: dt NaN", drape(edit(sc("s9b", "", ""), "dt: 0.001", "dt: .nan")), Refused(&["s9b.yaml", "dt"])),
+        ("scene: pin grid outside", drape(sc("s10", "", "pins: [ { grid: [100, 0] } ]\n")), Refused(&["s10.yaml", "pins[0].grid"])),
+        ("scene: pin vertex outside", drape(sc("s11", "", "pins: [ { vertex: 99999 } ]\n")), Refused(&["s11.yaml", "pins[0].vertex"])),
+        ("scene: release_at -1", drape(sc("s12", "", "pins: [ { grid: [0, 0], release_at: -1 } ]\n")), Refused(&["s12.yaml", "release_at"])),
+        ("scene: empty path", drape(sc("s13", "", "pins: [ { grid: [0, 0], path: [] } ]\n")), Refused(&["s13.yaml", "pins[0].path"])),
+        ("scene: waypoint time NaN", drape(sc("s14", "", "pins: [ { grid: [0, 0], path: [ { t: .nan, position: [-0.25, -0.25, 1] } ] } ]\n")), Refused(&["s14.yaml", "pins[0].path[0].t"])),
+        ("scene: waypoints back in time", drape(sc("s15", "", "pins: [ { grid: [0, 0], path: [ { t: 1, position: [-0.25, -0.25, 1] }, { t: 0.5, position: [-0.25, -0.25, 1.1] } ] } ]\n")), Refused(&["s15.yaml", "waypoint times"])),
+        ("scene: duplicate obstacle id", drape(sc("s16", "", "obstacles: [ { id: a, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.5] } }, { id: a, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.2] } } ]\n")), Refused(&["s16.yaml", "duplicate"])),
+        ("scene: unknown shape", drape(sc("s17", "", "obstacles: [ { id: t, shape: { type: torus, radius: 0.1 } } ]\n")), Refused(&["s17.yaml", "torus"])),
+        ("scene: place_on unknown", drape(sc("s18", "  place_on: { obstacle: nope, corner: [0, 0], gap: 0.01 }\n", "")), Refused(&["s18.yaml", "nope"])),
+        ("scene: place_on a sphere", drape(sc("s19", "  place_on: { obstacle: b, corner: [0, 0], gap: 0.01 }\n", "obstacles: [ { id: b, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s19.yaml", "must be a box"])),
+        ("scene: friction 1e6", drape(sc("s20", "", "obstacles: [ { id: b, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.5] }, friction: 1e6 } ]\n")), Refused(&["s20.yaml", "friction"])),
+        ("scene: obstacle thickness 5 m", drape(sc("s21", "", "obstacles: [ { id: b, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.5] }, thickness: 5 } ]\n")), Refused(&["s21.yaml", "thickness"])),
+        ("scene: cone radius -1", drape(sc("s22", "", "obstacles: [ { id: c, shape: { type: cone, height: 0.2, radius: -1 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s22.yaml", "radius"])),
+        ("scene: capsule length NaN", drape(sc("s23", "", "obstacles: [ { id: c, shape: { type: capsule, length: .nan, radius: 0.1 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s23.yaml", "length"])),
+        ("scene: cylinder height inf", drape(sc("s24", "", "obstacles: [ { id: c, shape: { type: cylinder, height: .inf, radius: 0.1 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s24.yaml", "height"])),
+        ("scene: spinning 1e4 rad/s", drape(sc("s25", "", "obstacles: [ { id: b, shape: { type: sphere, radius: 0.1 }, pose: { position: [0, 0, 0.5] }, angular_velocity: [0, 0, 1e4] } ]\n")), Refused(&["s25.yaml", "angular_velocity"])),
+        ("scene: normal zero", drape(sc("s26", "", "obstacles: [ { id: b, shape: { type: box, size: [0.1, 0.1, 0.1] }, pose: { position: [0, 0, 0.5], normal: [0, 0, 0] } } ]\n")), Refused(&["s26.yaml", "normal"])),
+        ("scene: hysteresis not a bool", drape(sc("s27", "  hysteresis: maybe\n", "")), Refused(&["s27.yaml", "hysteresis"])),
+        ("scene: output_rate -1", drape(sc("s28", "", "output_rate: -1\n")), Refused(&["s28.yaml", "output_rate"])),
+        ("scene: cloth 1e6 m wide", drape(file("s29.yaml", format!("cloth:\n  fabric: {fabric}\n  size: [1e6, 1e6]\n  spacing: 0.01\ndt: 0.001\nduration: 0.05\n").as_bytes())), Refused(&["s29.yaml"])),
+        ("scene: mesh scale 0", drape(sc("s30", "", "obstacles: [ { id: m, shape: { type: mesh, obj: cube.obj, scale: 0 }, pose: { position: [0, 0, 0.5] } } ]\n")), Refused(&["s30.yaml", "scale"])),
+        // OBJ meshes
+        ("obj: missing file", drape(mesh_scene("o1", "none.obj")), Refused(&["none.obj"])),
+        ("obj: empty", { file("o2.obj", b""); drape(mesh_scene("o2", "o2.obj")) }, Refused(&["o2.obj"])),
+        ("obj: letters", { file("o3.obj", b"v a b c\nf 1 2 3\n"); drape(mesh_scene("o3", "o3.obj")) }, Refused(&["o3.obj"])),
+        ("obj: face index outside", { file("o4.obj", b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 9\n"); drape(mesh_scene("o4", "o4.obj")) }, Refused(&["o4.obj"])),
+        ("obj: NaN vertex", { file("o5.obj", b"v nan 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"); drape(mesh_scene("o5", "o5.obj")) }, Refused(&["o5.obj"])),
+        ("obj: vertex 1e6 m away", { file("o6.obj", b"v 1e6 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n"); drape(mesh_scene("o6", "o6.obj")) }, Refused(&["MAX_OBSTACLE_SIZE"])),
+        ("obj: binary", { file("o7.obj", &junk); drape(mesh_scene("o7", "o7.obj")) }, Refused(&["o7.obj"])),
+        ("obj: face index 0", { file("o8.obj", b"v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 0 1 2\n"); drape(mesh_scene("o8", "o8.obj")) }, Refused(&["o8.obj"])),
+        // fabrics
+        ("fabric: binary", kes(file("f1.yaml", &junk)), Refused(&["f1.yaml"])),
+        ("fabric: areal mass 0", kes(fab("f2.yaml", "areal_mass_mg_per_cm2: 21.3", "areal_mass_mg_per_cm2: 0")), Refused(&["f2.yaml", "areal_mass"])),
+        ("fabric: areal mass NaN", kes(fab("f3.yaml", "areal_mass_mg_per_cm2: 21.3", "areal_mass_mg_per_cm2: .nan")), Refused(&["f3.yaml", "areal_mass"])),
+        ("fabric: areal mass missing", kes(fab("f4.yaml", "areal_mass_mg_per_cm2: 21.3", "")), Refused(&["f4.yaml", "areal_mass"])),
+        ("fabric: damping > 0", kes(fab("f5.yaml", "alpha: -7.0", "alpha: 7.0")), Refused(&["f5.yaml", "damping.alpha"])),
+        ("fabric: LT 3", kes(fab("f6.yaml", "LT: 0.65", "LT: 3")), Refused(&["f6.yaml", "LT"])),
+        ("fabric: RT 200", kes(fab("f7.yaml", "RT: 62.0", "RT: 200")), Refused(&["f7.yaml", "RT"])),
+        ("fabric: unknown field", kes(fab("f8.yaml", "areal_mass_mg_per_cm2: 21.3", "areal_mass_mg_per_cm2: 21.3\ncolour: red")), Refused(&["f8.yaml", "colour"])),
+        ("fabric: EMT negative", kes(fab("f9.yaml", "EMT: 5.36", "EMT: -5")), Refused(&["f9.yaml", "EMT"])),
+        ("fabric: G NaN", kes(fab("f10.yaml", "G: 0.80", "G: .nan")), Refused(&["f10.yaml", "shear.G"])),
+        ("fabric: B 0", kes(fab("f11.yaml", "B: 0.080", "B: 0")), Refused(&["f11.yaml", "bending.B"])),
+        ("fabric: missing file", kes(dir.join("nofabric.yaml").display().to_string()), Refused(&["nofabric.yaml"])),
+        // KES curves
+        ("kes curve: missing file", kes(curve_fabric("k1.yaml", "nocurve.csv")), Refused(&["nocurve.csv"])),
+        ("kes curve: empty", { file("k2.csv", b""); kes(curve_fabric("k2.yaml", "k2.csv")) }, Refused(&["k2.csv"])),
+        ("kes curve: letters", { file("k3.csv", b"x,y,branch\na,b,load\n"); kes(curve_fabric("k3.yaml", "k3.csv")) }, Refused(&["k3.csv"])),
+        ("kes curve: NaN", { file("k4.csv", b"x,y,branch\n0,0,load\nnan,1,load\n0.05,500,load\n0.05,500,recover\n0,0,recover\n"); kes(curve_fabric("k4.yaml", "k4.csv")) }, Refused(&["k4.csv"])),
+        ("kes curve: binary", { file("k5.csv", &junk); kes(curve_fabric("k5.yaml", "k5.csv")) }, Refused(&["k5.csv"])),
+        ("fit-kes: letters", cli(&["fit-kes", &file("fk1.csv", b"direction,test,x,y,branch\nwarp,tensile,a,b,load\n"), "--areal-mass", "20", "--out", &dir.join("fk1.yaml").display().to_string()]), Refused(&["fk1.csv"])),
+        ("fit-kes: empty", cli(&["fit-kes", &file("fk2.csv", b""), "--areal-mass", "20", "--out", &dir.join("fk2.yaml").display().to_string()]), Refused(&["fk2.csv"])),
+        ("fit-kes: areal mass NaN", cli(&["fit-kes", &file("fk3.csv", b"direction,test,x,y,branch\n"), "--areal-mass", "NaN", "--out", &dir.join("fk3.yaml").display().to_string()]), Refused(&["fk3.csv"])),
+        // captures
+        ("capture: missing file", identify(dir.join("none.c3d").display().to_string()), Refused(&["none.c3d"])),
+        ("capture: C3D of junk", identify(file("c1.c3d", &junk)), Refused(&["c1.c3d"])),
+        ("capture: C3D empty", identify(file("c2.c3d", b"")), Refused(&["c2.c3d"])),
+        ("capture: C3D header only", identify(file("c3.c3d", &c3d_header)), Refused(&["c3.c3d"])),
+        ("capture: CSV header only", identify(file("c4.csv", b"frame,time,m0_x,m0_y,m0_z\n")), Refused(&["c4.csv"])),
+        ("capture: CSV letters", identify(file("c5.csv", b"frame,time,m0_x,m0_y,m0_z\n0,a,b,c,d\n")), Refused(&["c5.csv"])),
+        ("capture: CSV NaN", identify(file("c6.csv", b"frame,time,m0_x,m0_y,m0_z\n0,0,nan,0,0\n1,0.01,0,0,0\n")), Refused(&["c6.csv"])),
+        ("capture: CSV times back", identify(file("c7.csv", b"frame,time,m0_x,m0_y,m0_z\n0,0.02,0,0,0\n1,0.01,0,0,0\n2,0.03,0,0,0\n")), Refused(&["c7.csv"])),
+        // bags
+        ("bag info: missing", cli(&["bag", "info", &dir.join("nobag").display().to_string()]), Refused(&["nobag"])),
+        ("bag info: empty directory", cli(&["bag", "info", &bag_dir]), Refused(&["emptybag"])),
+        ("bag info: junk file", cli(&["bag", "info", &garbage_mcap]), Refused(&["garbage.mcap"])),
+        ("bag export: junk file", cli(&["bag", "export", &garbage_mcap, "--time", "0", "--out", &dir.join("shape.ply").display().to_string()]), Refused(&["garbage.mcap"])),
+        ("bag repair: junk file", cli(&["bag", "repair", &garbage_mcap]), Refused(&["garbage.mcap"])),
+        ("bag export: magic only", cli(&["bag", "export", &magic_only, "--time", "0", "--out", &dir.join("shape2.ply").display().to_string()]), Refused(&["magic.mcap"])),
+        ("bag export: format xyz", cli(&["bag", "export", &magic_only, "--format", "xyz", "--out", &out_s]), Refused(&["xyz"])),
+        // command-line values
+        ("drape: missing scene", cli(&["drape", &dir.join("none.yaml").display().to_string()]), Refused(&["none.yaml"])),
+        ("drape: --spacing abc", cli(&["drape", ff, "--spacing", "abc"]), Refused(&["--spacing"])),
+        ("drape: --dt 1e999", cli(&["drape", ff, "--dt", "1e999", "--out", &out_s]), Refused(&["--dt"])),
+        ("drape: --threads 100000", cli(&["drape", ff, "--threads", "100000", "--out", &out_s]), Refused(&["threads"])),
+        ("drape: --solver foo", cli(&["drape", ff, "--solver", "foo"]), Refused(&["foo"])),
+        ("drape: --spacing 1e-9", cli(&["drape", ff, "--spacing", "1e-9", "--out", &out_s]), Refused(&["vertices"])),
+        ("kes: --test bogus", cli(&["kes", &fabric, "--test", "bogus", "--out", &out_s]), Refused(&["bogus"])),
+        ("drapemeter: --diameter 0", cli(&["drapemeter", &fabric, "--diameter", "0", "--out", &out_s]), Refused(&["diameter"])),
+        ("bench: --steps abc", cli(&["bench", "--steps", "abc"]), Refused(&["--steps"])),
+        ("identify: --grid 0x0", cli(&["identify", &file("c8.csv", b"frame,time,m0_x,m0_y,m0_z\n"), "--fabric", &fabric, "--grid", "0x0", "--out", &out_s]), Refused(&["grid"])),
+        ("identify: --spacing -1", cli(&["identify", &file("c9.csv", b"frame,time,m0_x,m0_y,m0_z\n"), "--fabric", &fabric, "--spacing", "-1", "--out", &out_s]), Refused(&["--spacing -1: must be > 0"])),
+        ("fit-kes: --areal-mass -5", cli(&["fit-kes", &file("fk4.csv", b"direction,test,x,y,branch\n"), "--areal-mass", "-5", "--out", &dir.join("fk4.yaml").display().to_string()]), Refused(&["fk4.csv"])),
+        // node parameters (refused before DDS starts; in a namespace without network all the same)
+        ("node: publish_rate -1", node(&["-p", "publish_rate:=-1.0"]), Refused(&["publish_rate"])),
+        ("node: dt 1", node(&["-p", "dt:=1.0"]), Refused(&["dt"])),
+        ("node: spacing -1", node(&["-p", "spacing:=-1.0"]), Refused(&["spacing"])),
+        ("node: missing scene", cli(&["node", "--ros-args", "-p", &format!("scene:={}", dir.join("none.yaml").display())]), Refused(&["none.yaml"])),
+        ("node: solver foo", node(&["-p", "solver:=foo"]), Refused(&["solver"])),
+        ("node: unknown parameter", node(&["-p", "colour:=1"]), Refused(&["colour"])),
+        ("node: duration NaN", node(&["-p", "duration:=.nan"]), Refused(&["duration"])),
+        ("node: params file missing", node(&["--params-file", &dir.join("nop.yaml").display().to_string()]), Refused(&["nop.yaml"])),
+        ("node: params file junk", node(&["--params-file", &file("p1.yaml", &junk)]), Refused(&["p1.yaml"])),
+        ("node: threads -1", node(&["-p", "threads:=-1"]), Refused(&["threads"])),
+        ("node: max_messages_per_step 0", node(&["-p", "max_messages_per_step:=0"]), Refused(&["max_messages_per_step"])),
+        // accepted extremes: finite, bounded results
+        ("drape: 25 cm grid", cli(&["drape", td, "--spacing", "0.25", "--duration", "0.05", "--out", &out_s]), Finite),
+        ("drape: dt at MAX_DT", cli(&["drape", ff, "--dt", "0.05", "--duration", "0.5", "--out", &out_s]), Finite),
+        ("drape: cloth 2 cm thick", drape(sc("e1", "  thickness: 0.02\n", "")), Finite),
+        ("drape: far pin target, travelled", drape(sc("e2", "", "pins: [ { grid: [0, 0], target: [1.5, -0.25, 1] } ]\n")), Finite),
+    ];
+    let n = cases.len();
+    let mut failed = Vec::new();
+    for (what, args, expect) in cases {
+        let _ = std::fs::remove_dir_all(&out);
+        let netns = args.first().is_some_and(|a| a == "node");
+        let Some(o) = run_bounded(&args, netns) else {
+            failed.push(format!("{what}: still running after 60 s (a hang)"));
+            continue;
+        };
+        let err = String::from_utf8_lossy(&o.stderr);
+        if err.contains("panicked") {
+            failed.push(format!("{what}: panicked: {err}"));
+            continue;
+        }
+        match expect {
+            Refused(needles) => {
+                if !matches!(o.status.code(), Some(1) | Some(2)) {
+                    failed.push(format!(
+                        "{what}: exit {:?}, expected a refusal: {err}",
+                        o.status
+                    ));
+                }
+                for needle in needles {
+                    if !err.contains(needle) {
+                        failed.push(format!("{what}: the error lacks {needle:?}: {err}"));
+                    }
+                }
+            }
+            Finite => {
+                if !o.status.success() {
+                    failed.push(format!("{what}: exit {:?}: {err}", o.status));
+                    continue;
+                }
+                let ply = std::fs::read_to_string(out.join("final.ply")).unwrap();
+                let body = ply.split("end_header\n").nth(1).unwrap();
+                let mut count = 0;
+                for line in body.lines().filter(|l| !l.starts_with("3 ")) {
+                    for v in line.split_whitespace() {
+                        let v: f64 = v.parse().unwrap();
+                        if !(v.is_finite() && v.abs() < 10.0) {
+                            failed.push(format!("{what}: {v} in final.ply"));
+                        }
+                        count += 1;
+                    }
+                }
+                if count == 0 {
+                    failed.push(format!("{what}: an empty final.ply"));
+                }
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "{} of {n} cases:\n{}",
+        failed.len(),
+        failed.join("\n")
+    );
+    assert!(n >= 80, "{n} cases");
 }

@@ -320,6 +320,30 @@ def test_sigint_and_sigterm_leave_a_complete_bag(sig):
     assert "complete" in info.stdout and "problem" not in info.stdout.lower(), info.stdout
 
 
+def test_a_second_sigint_while_the_bag_closes_still_finishes_it():
+    """A second SIGINT 20 ms after the first (while the run stops, writes its
+    outputs and closes the bag; two signals sent at once are merged into one
+    by the kernel): the bag is finished all the same, its metadata.yaml lists
+    every message rosbags reads, and the program says it was interrupted
+    again."""
+    bag = TMP / "signal_twice"
+    p, _ = start_long_drape(bag)
+    os.kill(p.pid, signal.SIGINT)
+    time.sleep(0.02)
+    os.kill(p.pid, signal.SIGINT)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 0, out + err
+    assert "interrupted again while it was being closed" in err, err
+    msgs, _, count = read_rosbags(bag)
+    md = metadata(bag)
+    assert count == md["message_count"] == sum(len(v) for v in msgs.values())
+    summary = json.loads((bag.parent / (bag.name + "_out") / "summary.json").read_text())
+    assert msgs["/cloth/points"][-1][0] == ns(summary["simulated_s"])
+    with open(mcap_file(bag), "rb") as f:
+        s = make_reader(f).get_summary()
+        assert s is not None and sum(s.statistics.channel_message_counts.values()) == count
+
+
 def test_sigkill_leaves_a_bag_readable_to_its_last_chunk_and_repair_rebuilds_it():
     bag = TMP / "killed"
     p, before = start_long_drape(bag)

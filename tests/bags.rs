@@ -77,6 +77,6 @@ fn bags_open_in_rosbags_and_mcap_and_survive_signals() {
             ("GARMENT_SIM_EXPECTED", expected.as_os_str()),
             ("GARMENT_SIM_TMP", dir.as_os_str()),
         ],
-        "9 passed",
+        "10 passed",
     );
 }

@@ -481,6 +481,7 @@ def test_publishes_under_namespace_and_remap(tmp_path):
         d = n.wait("/lab/diagnostics", DiagnosticArray)
         kv = n.diag(d)
         assert float(kv["step_time_ms"]) > 0 and kv["rejected_messages"] == "0"
+        assert kv["recovered_steps"] == "0", kv
         ck = n.wait("/clock", Clock, lambda k: secs(k.clock) > stamp(c.header))
         log = n.wait("/rosout", Log, lambda l: "scene" in l.msg)
         desc = n.wait("/lab/scene_description", StringMsg)  # latched: arrives though published at start

@@ -70,6 +70,7 @@ fn messages_match_rosbags_byte_for_byte() {
             real_time_factor: 0.9,
             rejected_messages: 2,
             dropped_messages: 5,
+            recovered_steps: 1,
             paused: false,
             last_error: "pin: vertex 99999 out of range".into(),
         },
@@ -84,6 +85,7 @@ fn messages_match_rosbags_byte_for_byte() {
         "contacts",
         "contacts_held",
         "real_time_factor",
+        "recovered_steps",
     ] {
         assert!(keys.contains(&k), "diagnostics lack {k}: {keys:?}");
     }

@@ -214,19 +214,11 @@ impl BagInformation {
         serde_yaml::to_string(self).expect("metadata serialises")
     }
 
-    /// Writes `dir/metadata.yaml` atomically (temporary file, fsync, rename).
+    /// Writes `dir/metadata.yaml` atomically (temporary file, fsync, rename;
+    /// a failure, e.g. a full disk, leaves the old file and no temporary one).
     pub fn write(&self, dir: &Path) -> Result<()> {
-        use std::io::Write;
-        let path = dir.join("metadata.yaml");
-        let tmp = dir.join(".metadata.yaml.tmp");
-        let mut f = std::fs::File::create(&tmp)
-            .with_context(|| format!("cannot create {}", tmp.display()))?;
-        f.write_all(self.to_yaml().as_bytes())
-            .and_then(|_| f.sync_data())
-            .with_context(|| format!("cannot write {}", tmp.display()))?;
-        std::fs::rename(&tmp, &path)
-            .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))?;
-        Ok(())
+        let yaml = self.to_yaml();
+        crate::io::write_atomic(&dir.join("metadata.yaml"), |w| w.write_all(yaml.as_bytes()))
     }
 
     /// Reads `dir/metadata.yaml`.

@@ -74,7 +74,11 @@ impl DrapeBag {
 #[derive(Debug, Clone)]
 pub struct DrapeRecorded {
     pub summary: run::Summary,
-    pub bag: BagSummary,
+    /// The finished bag; `None` if writing it failed (see `bag_error`).
+    pub bag: Option<BagSummary>,
+    /// Why the recording stopped before the end (a full disk), naming the
+    /// bag's file: the run went on without it and wrote its outputs.
+    pub bag_error: Option<String>,
     pub frames: u64,
     /// The run was stopped by `stop` before its duration.
     pub stopped: bool,
@@ -118,7 +122,14 @@ pub fn drape_recorded_with(
     }
     let mut clock = FrameClock::new(sim.time);
     let description = scene_description(scene, ov, &sim)?;
-    let mut rec = SimRecorder::create(&bag.dir, &bag.options, &bag.topics, &description)?;
+    let mut rec = Some(SimRecorder::create(
+        &bag.dir,
+        &bag.options,
+        &bag.topics,
+        &description,
+    )?);
+    let mut bag_error: Option<String> = None;
+    let mut frames_before_failure = 0;
     let mut last = (Instant::now(), sim.steps, sim.time);
     let mut last_recorded = None;
     let mut stopped = false;
@@ -134,7 +145,15 @@ pub fn drape_recorded_with(
                 ..Default::default()
             };
             let t_rec = Instant::now();
-            rec.record(s, &bag.frame_id, &fig)?;
+            if let Some(r) = rec.as_mut() {
+                if let Err(e) = r.record(s, &bag.frame_id, &fig) {
+                    // the bag cannot be written (a full disk): stop recording,
+                    // close what was written, and go on with the run
+                    bag_error = Some(stopped_recording(&bag.dir, s.time, e, rec.take()));
+                } else {
+                    frames_before_failure = r.frames();
+                }
+            }
             record_s += t_rec.elapsed().as_secs_f64();
             last = (Instant::now(), s.steps, s.time);
             last_recorded = Some(s.time);
@@ -148,18 +167,60 @@ pub fn drape_recorded_with(
     };
     let (sim, summary) = run::drape_with(scene, ov, sim, out, progress, &mut observer)?;
     let t_rec = Instant::now();
-    if last_recorded != Some(sim.time) {
+    let mut frames = frames_before_failure;
+    let mut finished = None;
+    if let Some(mut r) = rec.take() {
         // the final state, as the node records it when it stops
-        rec.record(&sim, &bag.frame_id, &DiagnosticFigures::default())?;
+        let last = match last_recorded != Some(sim.time) {
+            true => r.record(&sim, &bag.frame_id, &DiagnosticFigures::default()),
+            false => Ok(()),
+        };
+        frames = r.frames();
+        match last {
+            Err(e) => bag_error = Some(stopped_recording(&bag.dir, sim.time, e, Some(r))),
+            Ok(()) => match r.finish() {
+                Ok(b) => finished = Some(b),
+                Err(e) => {
+                    bag_error = Some(format!(
+                        "bag {}: {e:#}; `garment_sim bag repair {}` rebuilds it from its \
+                         complete chunks",
+                        bag.dir.display(),
+                        bag.dir.display()
+                    ))
+                }
+            },
+        }
     }
-    let frames = rec.frames();
-    let bag = rec.finish()?;
     record_s += t_rec.elapsed().as_secs_f64();
     Ok(DrapeRecorded {
         summary,
-        bag,
+        bag: finished,
+        bag_error,
         frames,
         stopped,
         record_s,
     })
+}
+
+/// The recording of `dir` failed at simulated time `t` with `e`: closes
+/// what was written (which may fail too on a full disk) and says what is
+/// left.
+fn stopped_recording(dir: &Path, t: f64, e: anyhow::Error, rec: Option<SimRecorder>) -> String {
+    let frames = rec.as_ref().map(|r| r.frames()).unwrap_or(0);
+    let closed = rec.map(|r| r.finish());
+    let left = match closed {
+        Some(Ok(b)) => format!(
+            "the bag was closed with the {} messages written before ({frames} frames)",
+            b.message_count
+        ),
+        _ => format!(
+            "the bag could not be closed: it is readable up to its last complete chunk, and \
+             `garment_sim bag repair {}` rebuilds it (with space to write)",
+            dir.display()
+        ),
+    };
+    format!(
+        "bag {}: {e:#}; recording stopped at t = {t:.4} s and the run went on without it; {left}",
+        dir.display()
+    )
 }

@@ -26,6 +26,9 @@ pub struct BagInfo {
     /// Topic, type, count, in channel order.
     pub topics: Vec<(String, String, u64)>,
     pub ending: Ending,
+    /// Chunks that do not read (CRC mismatch, bad compressed data): byte
+    /// offset and why; their messages are not counted above.
+    pub damaged: Vec<(u64, String)>,
     /// Differences between `metadata.yaml` and the MCAP file (empty if they agree).
     pub metadata_problems: Vec<String>,
 }
@@ -71,7 +74,24 @@ impl std::fmt::Display for BagInfo {
                 Some(c) => c,
             }
         )?;
+        for (at, why) in &self.damaged {
+            writeln!(
+                f,
+                "State:             DAMAGED: the chunk at byte {at} does not read ({why}); its \
+                 messages are lost, the others are counted above and readable; `garment_sim \
+                 bag repair` rewrites the bag with every other chunk (the damaged file kept as \
+                 {}.damaged)",
+                self.file
+                    .file_name()
+                    .map(|n| n.to_string_lossy())
+                    .unwrap_or_default()
+            )?;
+        }
         match &self.ending {
+            Ending::Complete if !self.damaged.is_empty() => writeln!(
+                f,
+                "State:             finished (summary and footer) but damaged, see above"
+            )?,
             Ending::Complete => writeln!(f, "State:             complete")?,
             Ending::Truncated { offset, reason } => writeln!(
                 f,
@@ -168,6 +188,7 @@ pub fn info(path: &Path) -> Result<BagInfo> {
             .map(|c| (c.topic.clone(), c.type_name.clone(), c.message_count))
             .collect(),
         ending: r.ending.clone(),
+        damaged: r.damaged.clone(),
         metadata_problems: problems,
     })
 }

@@ -207,6 +207,8 @@ pub struct DiagnosticFigures {
     pub rejected_messages: u64,
     /// Messages dropped because they came faster than the steps.
     pub dropped_messages: u64,
+    /// Steps that failed and were taken again from the last good state.
+    pub recovered_steps: u64,
     pub paused: bool,
     pub last_error: String,
 }
@@ -242,6 +244,7 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
                 kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
                 kv("rejected_messages", f.rejected_messages.to_string()),
                 kv("dropped_messages", f.dropped_messages.to_string()),
+                kv("recovered_steps", f.recovered_steps.to_string()),
                 kv("vertices", sim.cloth.len().to_string()),
                 kv("pins", sim.pins.len().to_string()),
                 kv("obstacles", sim.obstacles.len().to_string()),

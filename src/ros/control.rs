@@ -408,6 +408,109 @@ pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<
     Ok(format!("{verb} {} vertices", vertices.len()))
 }
 
+/// Keeps a running simulation stepping when a step fails: the pins and
+/// obstacles as they were at the end of the last step that succeeded, and
+/// the count of steps recovered.
+///
+/// A failed step changes neither the positions, the velocities nor the time
+/// ([`Simulation::step`]); it has advanced the hysteresis memory to the
+/// positions it started from, as the step that follows would (and a retry
+/// does again): the last good state is the state the simulation is in. [`Recovery::step`]
+/// retries from it, first without the pins and obstacles changed since the
+/// last good step (the messages that drove the failure), then with the
+/// velocities set to zero (the cloth at rest where it is).
+#[derive(Debug, Default)]
+pub struct Recovery {
+    inputs: Option<(Vec<Pin>, Vec<Obstacle>, ObstacleRegistry)>,
+    /// Steps that failed and were recovered.
+    pub recovered: u64,
+}
+
+/// A step taken by [`Recovery::step`].
+#[derive(Debug)]
+pub enum Stepped {
+    Ok(crate::solver::StepStats),
+    /// The step failed (`error`) and was taken again after `undone`.
+    Recovered {
+        stats: crate::solver::StepStats,
+        error: String,
+        undone: String,
+    },
+}
+
+impl Recovery {
+    /// Call before a message changes the pins or the obstacles: remembers
+    /// them as the last good step left them (once between two steps).
+    pub fn before_change(&mut self, sim: &Simulation, registry: &ObstacleRegistry) {
+        if self.inputs.is_none() {
+            self.inputs = Some((sim.pins.clone(), sim.obstacles.clone(), registry.clone()));
+        }
+    }
+
+    /// Forgets the pins and obstacles remembered (a new scene was loaded).
+    pub fn forget(&mut self) {
+        self.inputs = None;
+    }
+
+    /// One step of `sim`; if it fails, the recoveries above in turn. An
+    /// error (every retry failed too) leaves the last good state.
+    pub fn step(
+        &mut self,
+        sim: &mut Simulation,
+        registry: &mut ObstacleRegistry,
+    ) -> Result<Stepped, String> {
+        let first = match sim.step() {
+            Ok(st) => {
+                self.inputs = None;
+                return Ok(Stepped::Ok(st));
+            }
+            Err(e) => format!("{e:#}"),
+        };
+        let mut last = first.clone();
+        if let Some((pins, obstacles, reg)) = self.inputs.take() {
+            let what = format!(
+                "undid the pins and obstacles messages since the last good step \
+                 ({} → {} pins, {} → {} obstacles)",
+                sim.pins.len(),
+                pins.len(),
+                sim.obstacles.len(),
+                obstacles.len()
+            );
+            sim.set_pins(pins).map_err(|e| format!("{first}; {e:#}"))?;
+            sim.obstacles = obstacles;
+            *registry = reg;
+            match sim.step() {
+                Ok(stats) => return Ok(self.recovered(stats, first, what)),
+                Err(e) => last = format!("{e:#}"),
+            }
+        }
+        sim.cloth.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+        match sim.step() {
+            Ok(stats) => {
+                let what = "set every velocity to zero (the cloth at rest where it was)";
+                Ok(self.recovered(stats, first, what.into()))
+            }
+            Err(e) => Err(format!(
+                "{first}; not recovered: {last}; with the velocities set to zero: {e:#}"
+            )),
+        }
+    }
+
+    fn recovered(
+        &mut self,
+        stats: crate::solver::StepStats,
+        error: String,
+        undone: String,
+    ) -> Stepped {
+        self.recovered += 1;
+        Stepped::Recovered {
+            stats,
+            error,
+            undone,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -777,5 +880,87 @@ mod tests {
         let o = s.obstacles.iter().find(|o| o.id == "beside").unwrap();
         assert!((o.pose.translation.vector - (c + Vector3::new(0.0, 0.0, 0.5))).norm() < 1e-12);
         steps_ok(&mut s, 20);
+    }
+
+    /// A step that fails is recovered: a pin that slipped past the limits
+    /// (an infinite target: forces overflow) is undone with the other
+    /// messages since the last good step; a state that breaks the step (a
+    /// vertex moving infinitely fast) is taken at rest. Each failure is counted, the
+    /// simulation keeps stepping, and the failed step changed nothing.
+    #[test]
+    fn a_failed_step_is_recovered_and_counted() {
+        let mut s = sim();
+        let mut reg = ObstacleRegistry::from_sim(&s);
+        let mut rec = Recovery::default();
+        for _ in 0..3 {
+            assert!(matches!(rec.step(&mut s, &mut reg), Ok(Stepped::Ok(_))));
+        }
+        let pins = s.pins.clone();
+        let obstacles = s.obstacles.len();
+        // an obstacle added (a plausible message) and a pin at a target no
+        // message may give (not finite), since the last good step
+        rec.before_change(&s, &reg);
+        let c = s.cloth.x[s.cloth.len() / 2];
+        apply_obstacle(
+            &mut s,
+            &mut reg,
+            &sphere("ball", 0.05, c + Vector3::new(0.0, 0.0, -0.3)),
+            "world",
+            100,
+        )
+        .unwrap();
+        assert_eq!(s.obstacles.len(), obstacles + 1);
+        let mut bad = s.pins.clone();
+        bad.push(Pin::new(
+            0,
+            PinPath::Fixed(Vector3::new(f64::INFINITY, 0.0, 0.0)),
+        ));
+        s.set_pins(bad).unwrap();
+        let before = (s.cloth.x.clone(), s.cloth.v.clone(), s.time, s.steps);
+        // the step alone fails and changes no position, velocity or time;
+        // the hysteresis memory is where the step starts from, and a retry
+        // leaves it there
+        let e = s.step().unwrap_err();
+        assert!(format!("{e:#}").contains("diverged at vertex 0"), "{e:#}");
+        assert_eq!(
+            (s.cloth.x.clone(), s.cloth.v.clone(), s.time, s.steps),
+            before
+        );
+        let memory = s.cloth.tension_state.clone();
+        assert!(s.step().is_err());
+        for (a, b) in s.cloth.tension_state.iter().zip(&memory) {
+            assert_eq!((a.x, a.dir), (b.x, b.dir));
+            assert!((a.sp - b.sp).abs() <= 1e-12 * b.sp.abs(), "{a:?} {b:?}");
+        }
+        match rec.step(&mut s, &mut reg) {
+            Ok(Stepped::Recovered { error, undone, .. }) => {
+                assert!(error.contains("vertex 0"), "{error}");
+                assert!(undone.contains("pins and obstacles"), "{undone}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(rec.recovered, 1);
+        assert_eq!(s.steps, before.3 + 1);
+        assert_eq!(s.pins, pins);
+        assert_eq!(s.obstacles.len(), obstacles);
+        // the registry was undone with the obstacles: "ball" is unknown again
+        let mut gone = sphere("ball", 0.05, c);
+        gone.operation = msgs::Obstacle::REMOVE;
+        assert!(apply_obstacle(&mut s, &mut reg, &gone, "world", 100).is_err());
+        steps_ok(&mut s, 3);
+        // a broken state, no message since: the cloth is taken at rest
+        s.cloth.v[5] = Vector3::new(0.0, 0.0, f64::INFINITY);
+        let steps = s.steps;
+        match rec.step(&mut s, &mut reg) {
+            Ok(Stepped::Recovered { undone, .. }) => {
+                assert!(undone.contains("velocity to zero"), "{undone}")
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(rec.recovered, 2);
+        assert_eq!(s.steps, steps + 1);
+        assert!(s.cloth.v.iter().all(|v| v.norm() < 1.0));
+        assert!(matches!(rec.step(&mut s, &mut reg), Ok(Stepped::Ok(_))));
+        assert_eq!(rec.recovered, 2);
     }
 }

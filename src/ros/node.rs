@@ -343,6 +343,8 @@ struct Node {
     last_recorded: Option<f64>,
     stop: Arc<AtomicBool>,
     counters: Counters,
+    /// Recovers failed steps and counts them (`recovered_steps`).
+    recovery: control::Recovery,
     frames: publish::FrameClock,
     /// Wall clock and simulated time the pacing counts from.
     pace_origin: (Instant, f64),
@@ -441,6 +443,7 @@ impl Node {
             live,
             last_recorded: None,
             stop,
+            recovery: control::Recovery::default(),
             counters: Counters {
                 rejected: 0,
                 dropped: 0,
@@ -600,6 +603,10 @@ impl Node {
         for e in undecodable {
             self.report(Err(format!("undecodable message (CDR): {e}")), topic);
         }
+        if got.iter().any(|m| m.is_some()) {
+            let l = &self.loaded;
+            self.recovery.before_change(&l.sim, &l.registry);
+        }
         let mut handled = 0;
         for m in got {
             match m {
@@ -694,6 +701,7 @@ impl Node {
         match load(&self.settings) {
             Ok(l) => {
                 self.loaded = l;
+                self.recovery.forget();
                 let _ = self.io.scene_description.publish(msgs::StringMsg {
                     data: self.loaded.description.clone(),
                 });
@@ -726,26 +734,39 @@ impl Node {
         }
     }
 
-    /// One step; a failure pauses the simulation with the error in
-    /// `diagnostics` until `~/reset`. Publishes `/clock` at up to 1 kHz and
-    /// answers `~/step` when its steps are done.
+    /// One step; a step that fails is recovered from the last good state
+    /// ([`control::Recovery`]: without the messages since, or at rest),
+    /// logged and counted in `recovered_steps`; only if that fails too the
+    /// simulation pauses with the error in `diagnostics` until `~/reset`.
+    /// Publishes `/clock` at up to 1 kHz and answers `~/step` when its steps
+    /// are done.
     fn step(&mut self) {
-        let sim = &mut self.loaded.sim;
-        let clock_every = ((1e-3 / sim.params.dt).round() as u64).max(1);
-        let stepped = sim.step();
+        let l = &mut self.loaded;
+        let clock_every = ((1e-3 / l.sim.params.dt).round() as u64).max(1);
+        let stepped = self.recovery.step(&mut l.sim, &mut l.registry);
         // between steps the node publishes, reads parameters and messages,
         // or sleeps: the simulation's workers sleep meanwhile instead of
         // spinning (the next step wakes them)
-        sim.rest_threads();
-        match stepped {
-            Ok(st) => {
-                self.counters.step_ms_sum += st.total_s * 1e3;
-                self.counters.step_count += 1;
-                self.counters.last_iterations = st.iterations;
+        l.sim.rest_threads();
+        let stats = match stepped {
+            Ok(control::Stepped::Ok(st)) => Some(st),
+            Ok(control::Stepped::Recovered {
+                stats,
+                error,
+                undone,
+            }) => {
+                self.counters.last_error = format!(
+                    "step failed at t = {:.4} s: {error}; recovered: {undone}",
+                    self.loaded.sim.time - self.loaded.sim.params.dt
+                );
+                let m = self.counters.last_error.clone();
+                self.warn(&m);
+                self.publish_now = true;
+                Some(stats)
             }
             Err(e) => {
                 self.counters.last_error =
-                    format!("step failed at t = {:.4} s: {e:#}", self.loaded.sim.time);
+                    format!("step failed at t = {:.4} s: {e}", self.loaded.sim.time);
                 let m = format!("{}; pausing (call ~/reset)", self.counters.last_error);
                 self.warn(&m);
                 self.settings.paused = true;
@@ -753,7 +774,13 @@ impl Node {
                     .ros
                     .set_parameter("paused", ParameterValue::Boolean(true));
                 self.pending_steps = 0;
+                None
             }
+        };
+        if let Some(st) = stats {
+            self.counters.step_ms_sum += st.total_s * 1e3;
+            self.counters.step_count += 1;
+            self.counters.last_iterations = st.iterations;
         }
         self.pending_steps = self.pending_steps.saturating_sub(1);
         let sim = &self.loaded.sim;
@@ -810,6 +837,7 @@ impl Node {
             real_time_factor: c.real_time_factor,
             rejected_messages: c.rejected,
             dropped_messages: c.dropped,
+            recovered_steps: self.recovery.recovered,
             paused: self.settings.paused,
             last_error: c.last_error.clone(),
         };
@@ -898,11 +926,16 @@ impl Node {
             }
             match rec.finish() {
                 Ok(b) => self.info(&format!(
-                    "bag {}: {} messages, {:.3} s, {:.2} MiB",
+                    "bag {}: {} messages, {:.3} s, {:.2} MiB{}",
                     b.dir.display(),
                     b.message_count,
                     b.duration_s(),
-                    b.bytes as f64 / (1024.0 * 1024.0)
+                    b.bytes as f64 / (1024.0 * 1024.0),
+                    if crate::run::interrupted_again() {
+                        " (interrupted again while it was being closed: it was finished first)"
+                    } else {
+                        ""
+                    }
                 )),
                 Err(e) => self.warn(&format!("bag {bag}: {e:#}")),
             }
@@ -913,13 +946,15 @@ impl Node {
         let c = &self.counters;
         eprintln!(
             "[garment_sim] stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
-             {} messages rejected, {} dropped; {} publications, {:.3} ms each",
+             {} messages rejected, {} dropped, {} failed steps recovered; {} publications, \
+             {:.3} ms each",
             sim.time,
             sim.steps,
             wall,
             1e3 * wall / steps as f64,
             c.rejected,
             c.dropped,
+            self.recovery.recovered,
             c.publishes,
             1e3 * c.publish_s / c.publishes.max(1) as f64
         );

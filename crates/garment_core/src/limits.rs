@@ -60,6 +60,10 @@ pub const MAX_ANGULAR_SPEED: f64 = 100.0;
 /// (a sphere put around it sends it metres away).
 pub const MAX_OVERLAP: f64 = 0.01;
 
+/// Largest gravity, m/s²: 10 g, beyond any place cloth hangs (a
+/// centrifuge aside); 1e300 overflows the forces at the first step.
+pub const MAX_GRAVITY: f64 = 100.0;
+
 /// Longest time step, s. The step is linearised once: the thesis runs 1 to
 /// 10 ms, the lab's quasi-static tests 10 ms, a motion capture's frame
 /// (20 Hz and faster) is the longest step `identify` takes, and the contact

@@ -320,6 +320,11 @@ fn direction(
             Family::Bending.memory_length(BENDING_MAX_PER_CM * PER_CM),
         ),
     };
+    for (n, spec) in [(&tn, &d.tensile), (&sn, &d.shear), (&bn, &d.bending)] {
+        if let Some(l) = &spec.law {
+            check_law(&format!("{n}.law"), l)?;
+        }
+    }
     let tensile = match d.tensile.law {
         Some(l) => l,
         None => fit_law(Family::Tensile, &tensile_curve).0,
@@ -335,6 +340,40 @@ fn direction(
         shear_curve,
         bending_curve,
     })
+}
+
+/// A law given in a fabric file (`law:`, as `fit-kes` writes it) keeps a
+/// positive tangent at every deformation, inside the measured range and far
+/// beyond it, as [`fit_law`]'s do: elastic coefficients finite, ≥ 0 and not
+/// all zero (the tangent `c0 + 2 c1|x| + 3 c2 x² + 4 c3 x²|x|` then grows
+/// with |x|; a negative coefficient turns it negative at large strains and
+/// the step's matrix indefinite), loop half-width coefficients finite and
+/// ≥ 0, memory length finite and > 0.
+fn check_law(name: &str, l: &Law) -> Result<()> {
+    let c = &l.elastic.c;
+    if !c.iter().all(|v| v.is_finite() && *v >= 0.0) || c.iter().all(|v| *v == 0.0) {
+        bail!(
+            "{name}.elastic.c = {c:?}: the coefficients must be finite, ≥ 0 and not all \
+             zero (a negative one makes the tangent negative at large deformations)"
+        );
+    }
+    let h = &l.hysteresis;
+    if !([h.h0, h.h1, h.h2]
+        .iter()
+        .all(|v| v.is_finite() && *v >= 0.0)
+        && h.xs.is_finite()
+        && h.xs > 0.0)
+    {
+        bail!(
+            "{name}.hysteresis = {{h0: {}, h1: {}, h2: {}, xs: {}}}: the half-width \
+             coefficients must be finite and ≥ 0, the memory length xs finite and > 0",
+            h.h0,
+            h.h1,
+            h.h2,
+            h.xs
+        );
+    }
+    Ok(())
 }
 
 /// Pointwise mean of two loops sampled over their common range.

@@ -266,6 +266,12 @@ impl Pcg {
         // the reference: the right-hand side, or gravity's impulse if larger
         let delta0 = delta0.max(floor);
         let eps2 = tol * tol * delta0;
+        if delta0 <= 0.0 && !zero_rhs(b, filter) {
+            return Err(anyhow!(
+                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
+                 out of range)"
+            ));
+        }
         if delta0 <= 0.0 || rj <= eps2 {
             return Ok(0);
         }
@@ -328,6 +334,14 @@ impl Pcg {
             }
         }
     }
+}
+
+/// Whether the filtered right-hand side is zero (every thread of a solve
+/// gets the same answer).
+fn zero_rhs(b: &[Vector3<f64>], filter: &[Filter]) -> bool {
+    b.iter()
+        .zip(filter)
+        .all(|(b, f)| f.apply(b) == Vector3::zeros())
 }
 
 /// The block-Jacobi preconditioner's block for the diagonal block `d`: its
@@ -479,8 +493,25 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let delta0 = sh.sum(0).max(sh.sum(2));
     sh.barrier.wait();
     let mut dnew = sh.sum(1);
+    // a non-finite reference or residual would end the loop below at once
+    // (NaN compares false) and pass the first guess off as the solution
+    if !(delta0.is_finite() && dnew.is_finite()) {
+        return Err(anyhow!(
+            "PCG breakdown: non-finite right-hand side or residual (δ0 = {delta0:e}, \
+             rᵀr = {dnew:e})"
+        ));
+    }
     if delta0 <= 0.0 {
-        return Ok(0);
+        // nothing to solve only if the right-hand side is zero: a non-zero
+        // one whose norm underflows (a system scaled out of range, a cloth
+        // stretched by orders of magnitude) is not a converged solve
+        return match zero_rhs(b, filter) {
+            true => Ok(0),
+            false => Err(anyhow!(
+                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
+                 out of range)"
+            )),
+        };
     }
     let eps2 = args.tol * args.tol * delta0;
     let mut it = 0;
@@ -532,6 +563,12 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         // c may be updated after the sum is known
         sh.barrier.wait();
         dnew = sh.sum(1);
+        if !dnew.is_finite() {
+            return Err(anyhow!(
+                "PCG breakdown: non-finite residual after {} iterations",
+                it + 1
+            ));
+        }
         let beta = dnew / dold;
         for k in 0..len {
             c_own[k] = f[k].apply(&(s[k] + c_own[k] * beta));

@@ -278,8 +278,15 @@ impl Simulation {
         if params.cg_max_iterations == 0 {
             bail!("cg_max_iterations = 0: must be ≥ 1");
         }
-        if !params.gravity.iter().all(|g| g.is_finite()) {
-            bail!("gravity = {:?}: must be finite", params.gravity);
+        let g = params.gravity;
+        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
+            bail!(
+                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
+                g.x,
+                g.y,
+                g.z,
+                crate::limits::MAX_GRAVITY
+            );
         }
         crate::limits::check_range(
             "cloth thickness",
@@ -473,6 +480,25 @@ impl Simulation {
             }
         }
         let assemble_s = t_asm.elapsed().as_secs_f64();
+        // forces that overflow (a cloth stretched by orders of magnitude, a
+        // pin target at 1e300 m) make every solver's answer meaningless: the
+        // PCG's convergence test cannot even be evaluated. Refused here, on
+        // every solver, before anything is changed.
+        if let Some(i) = (0..n).find(|&i| {
+            !(self.force[i].iter().all(|c| c.is_finite())
+                && self.b[i].iter().all(|c| c.is_finite()))
+        }) {
+            bail!(
+                "the step diverged at vertex {i} (non-finite force{}) at t = {:.4} s; {}",
+                if self.pinned[i].is_some() {
+                    ", pinned"
+                } else {
+                    ""
+                },
+                self.time,
+                self.diagnose()
+            );
+        }
         // 3. solve
         let t_solve = Instant::now();
         let solved = match self.params.linear_solver {
@@ -484,7 +510,9 @@ impl Simulation {
         };
         let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
         let solve_s = t_solve.elapsed().as_secs_f64();
-        // nothing is changed yet: a failed step leaves the state as it was
+        // positions, velocities and time are unchanged yet: a failed step
+        // leaves them as they were (the hysteresis memory was advanced to
+        // these positions by the assembly, as the next step's would be)
         for i in 0..n {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
                 bail!(
