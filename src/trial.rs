@@ -654,6 +654,9 @@ pub struct Fit {
     pub peak_pressure_pa: f64,
     /// Σ pressure × area over the contact vertices (the normal force), N.
     pub pressure_integral_n: f64,
+    /// The pressure map integrated as a force on the body, Σ −p A n, N
+    /// (the contact force less friction).
+    pub pressure_force_n: [f64; 3],
     /// Vertices per 1 cm band of distance from the skin: [0, 1) cm, … , ≥ 10 cm.
     pub distance_histogram_cm: Vec<usize>,
     pub girths: BTreeMap<String, GirthFit>,
@@ -753,6 +756,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
     let mut force = vec![Vector3::zeros(); n];
     let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
         (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
+    let mut pressure_force = Vector3::zeros();
     for i in 0..n {
         if on_cloth[i] == Vector3::zeros() {
             continue;
@@ -762,6 +766,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         let a = c.mass[i] / rho;
         let fnorm = on_cloth[i].dot(&normals[i]).max(0.0);
         pressure[i] = fnorm / a;
+        pressure_force -= normals[i] * (pressure[i] * a);
         normal_sum += fnorm;
         peak = peak.max(pressure[i]);
         area += a;
@@ -843,6 +848,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         mean_pressure_pa: if area > 0.0 { normal_sum / area } else { 0.0 },
         peak_pressure_pa: peak,
         pressure_integral_n: (0..n).map(|i| pressure[i] * c.mass[i] / rho).sum(),
+        pressure_force_n: pressure_force.into(),
         distance_histogram_cm: hist,
         girths,
         body_penetrations: pen,

@@ -429,3 +429,102 @@ fn the_garmentcode_importer_agrees_with_pygarment() {
     }
     assert!(checked.0 >= 16 && checked.1 >= 80, "{checked:?}");
 }
+
+/// Is `p` inside the closed triangle mesh? Ray parity along a fixed skew
+/// direction (independent of the contact code's pseudo-normals).
+fn inside_mesh(p: Vector3<f64>, v: &[[f64; 3]], t: &[[u32; 3]]) -> bool {
+    let d = Vector3::new(0.5773, 0.5774, 0.5775).normalize();
+    let mut hits = 0;
+    for tri in t {
+        let a = Vector3::from(v[tri[0] as usize]);
+        let b = Vector3::from(v[tri[1] as usize]);
+        let c = Vector3::from(v[tri[2] as usize]);
+        // Möller–Trumbore
+        let (e1, e2) = (b - a, c - a);
+        let h = d.cross(&e2);
+        let det = e1.dot(&h);
+        if det.abs() < 1e-14 {
+            continue;
+        }
+        let s = p - a;
+        let u = s.dot(&h) / det;
+        let q = s.cross(&e1);
+        let w = d.dot(&q) / det;
+        let dist = e2.dot(&q) / det;
+        if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0 {
+            hits += 1;
+        }
+    }
+    hits % 2 == 1
+}
+
+#[test]
+fn the_shipped_skirt_settles_on_a_frictionless_body_in_equilibrium() {
+    // the shipped skirt and body, the skin frictionless (held by the hips'
+    // shape alone), at 2 cm
+    let s = support::Scratch::new("garment_skirt");
+    let t = s.join("skirt.yaml");
+    std::fs::write(
+        &t,
+        format!(
+            "garment: {}\nbody:\n  obj: {}\n  skin_offset: 0.003\n  friction: 0.0\n  girths: {{waist: 1.0876, hips: 0.8826}}\nspacing: 0.02\ndt: 0.005\n",
+            root().join("assets/garments/skirt.garment.yaml").display(),
+            root().join("assets/bodies/anny/body.obj").display()
+        ),
+    )
+    .unwrap();
+    let out = s.join("out");
+    let o = support::garment_sim()
+        .args(["trial", t.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit = read_json(&out.join("fit.json"));
+    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
+    assert!(
+        fit["run"]["settle_time_s"].is_number(),
+        "not settled: {}",
+        fit["run"]
+    );
+    assert!(fit["run"]["final_rms_speed_m_s"].as_f64().unwrap() < 0.005);
+    assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
+    // equilibrium: the force on the body is the skirt's weight, straight down
+    let w = fit["weight_n"].as_f64().unwrap();
+    let f: Vec<f64> = fit["contact_force_n"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    assert!(
+        (-f[2] / w - 1.0).abs() < 0.02 || (f[2] / w - 1.0).abs() < 0.02,
+        "{f:?} vs {w}"
+    );
+    assert!(f[0].hypot(f[1]) < 0.02 * w, "{f:?}");
+    // frictionless: the contact force is all pressure; the pressure map
+    // integrates to it
+    let pf: Vec<f64> = fit["pressure_force_n"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    for k in 0..3 {
+        assert!(
+            (pf[k] - f[k]).abs() < 0.02 * w,
+            "pressure {pf:?} vs contact {f:?}"
+        );
+    }
+    // no vertex inside the body (ray parity, not the contact code), nothing
+    // slid off: the waist stays above the hips
+    let (bv, bt, _) = trial::load_body(&root().join("assets/bodies/anny/body.obj"), 1.0).unwrap();
+    let pts = ply_points(&out.join("garment.ply"));
+    let inside = pts
+        .iter()
+        .filter(|p| inside_mesh(Vector3::new(p[0], p[1], p[2]), &bv, &bt))
+        .count();
+    assert_eq!(inside, 0, "{inside} vertices inside the body");
+    let top = pts.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+    assert!(top > 0.95, "the skirt's top is at {top} m");
+    assert!(out.join("fit_pressure.png").exists());
+}

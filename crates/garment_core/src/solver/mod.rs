@@ -256,8 +256,6 @@ pub struct Simulation {
     friction: Vec<FrictionState>,
     /// Kinetic friction force of this step.
     friction_force: Vec<Vector3<f64>>,
-    /// Drag coefficient of each sliding contact's implicit friction, N·s/m.
-    friction_drag: Vec<f64>,
     /// Broad-phase boxes of the obstacles for this step.
     bounds: Vec<vertices::Bounds>,
     pinned: Vec<Option<usize>>,
@@ -359,7 +357,6 @@ impl Simulation {
             y: z.clone(),
             normals: z.clone(),
             friction_force: z.clone(),
-            friction_drag: vec![0.0; n],
             z,
             filter: vec![Filter::Free; n],
             contact_of: vec![None; n],
@@ -450,33 +447,9 @@ impl Simulation {
         let t_asm = Instant::now();
         self.assemble();
         for i in 0..n {
-            self.friction_drag[i] = 0.0;
             if self.friction_force[i] != Vector3::zeros() {
                 self.force[i] += self.friction_force[i];
                 self.b[i] += self.friction_force[i] * h;
-                // kinetic friction taken implicitly: the force −μ f_n t̂ at the
-                // step's start is the drag −c P_t (v − v_o) with c = |f| / |v_t|
-                // (Baraff & Witkin 1998 treat damping forces this way),
-                // whose velocity derivative enters A (A += h c P_t): the step
-                // can slow a sliding vertex to rest but never reverse it, as
-                // the explicit force did when the forces driving it changed
-                // from step to step (stiff seams pulling a vertex over a body)
-                if let Some((_, vo)) = self.contact_of[i] {
-                    let n = self.normals[i];
-                    let rel = self.cloth.v[i] - vo;
-                    let vt = rel - n * rel.dot(&n);
-                    let vtn = vt.norm();
-                    if vtn > 0.0 {
-                        // (at most 10 m/h: it already stops the vertex
-                        // within the step; more only stiffens the system)
-                        let c = (self.friction_force[i].norm() / vtn)
-                            .min(10.0 * self.cloth.mass[i] / h);
-                        self.friction_drag[i] = c;
-                        let d = self.a.diag[i];
-                        self.a.val[d] +=
-                            (nalgebra::Matrix3::identity() - n * n.transpose()) * (h * c);
-                    }
-                }
             }
         }
         let assemble_s = t_asm.elapsed().as_secs_f64();
@@ -816,12 +789,7 @@ impl Simulation {
         let h = self.params.dt;
         for i in 0..n {
             if self.contact_of[i].is_some() && self.pinned[i].is_none() {
-                // the friction at the end of the step: its start value less
-                // the implicit drag's change
-                let nn = self.normals[i];
-                let pt = self.dv[i] - nn * self.dv[i].dot(&nn);
-                out[i] =
-                    (adv[i] - self.b[i]) / h + self.friction_force[i] - pt * self.friction_drag[i];
+                out[i] = (adv[i] - self.b[i]) / h + self.friction_force[i];
             }
         }
         out

@@ -127,12 +127,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 // force that drives it along the surface (else it creeps on)
                 let along = driving - n * driving.dot(&n);
                 let holds = along.norm() * h <= mu * o.friction[k].impulse;
-                // in a crease (the armpit, between the legs) the nearest
-                // surface changes sides from one step to the next: the normal
-                // turned by more than 95°; the vertex, pinched, is held with
-                // the obstacle instead of being pushed to and fro
-                let pinched = o.normals[k].dot(&n) < -0.1;
-                if pinched || (o.friction[k].stick && mu > 0.0 && !landing && holds) {
+                if o.friction[k].stick && mu > 0.0 && !landing && holds {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
                     o.z[k] = pr.velocity - s.v[i];
@@ -166,7 +161,6 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
         }
         if !touching {
             o.friction[k] = FrictionState::default();
-            o.normals[k] = Vector3::zeros();
         }
     }
 }
