@@ -192,7 +192,7 @@ pub struct BodyCheck {
 /// Loads a body mesh and checks it can have an inside: every edge shared by
 /// exactly two triangles (no hole, no fin), positive enclosed volume (faces
 /// outward). Zero-area triangles are dropped (named in the check).
-pub fn load_body(path: &Path, scale: f64) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]>, BodyCheck)> {
+pub fn load_body(path: &Path, scale: f64) -> Result<(crate::collision::MeshData, BodyCheck)> {
     let (mut v, t) = crate::io::load_obj(path)?;
     if !(scale.is_finite() && scale > 0.0) {
         bail!("body scale {scale}: must be > 0");
@@ -252,14 +252,14 @@ pub fn load_body(path: &Path, scale: f64) -> Result<(Vec<[f64; 3]>, Vec<[u32; 3]
             p(0).dot(&p(1).cross(&p(2))) / 6.0
         })
         .sum();
-    if !(vol > 0.0) {
+    if vol.is_nan() || vol <= 0.0 {
         bail!(
             "body mesh {}: encloses a volume of {vol:.4} m³: its faces must face outward \
              (counter-clockwise seen from outside)",
             path.display()
         );
     }
-    Ok((v, kept, check))
+    Ok(((v, kept), check))
 }
 
 fn bbox(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
@@ -312,7 +312,7 @@ impl Trial {
             "a Coulomb coefficient",
         )?;
         let obj = dir.join(&b.obj);
-        let (v, t, _) = load_body(&obj, b.scale)?;
+        let ((v, t), _) = load_body(&obj, b.scale)?;
         let pose = b.pose.isometry(&what("pose"))?;
         let body = Obstacle::new(
             "body",
@@ -382,6 +382,7 @@ impl Trial {
             linear_solver: self.file.linear_solver.unwrap_or_default(),
             threads: ov.threads.or(self.file.threads).unwrap_or(0),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
+            friction_bound_now: true,
             ..Params::default()
         };
         let mut sim = Simulation::new(g.cloth.clone(), self.fabric.clone(), params)?;
@@ -541,7 +542,7 @@ pub fn run(
         split.collide += s.collide_s;
         iters += s.iterations;
         *steps += 1;
-        if *steps % every == 0 {
+        if (*steps).is_multiple_of(every) {
             trace.push([
                 sim.time,
                 sim.rms_speed(),

