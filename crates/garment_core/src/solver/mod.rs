@@ -15,6 +15,7 @@
 //! Pins and contacts act through the constraint filter (S, z) and the position
 //! correction y, never through penalty springs.
 
+pub mod amg;
 pub mod assemble;
 mod cpu;
 pub mod elements;
@@ -261,8 +262,17 @@ pub struct Simulation {
     pinned: Vec<Option<usize>>,
     pcg: linear::Pcg,
     direct: Option<linear::Direct>,
+    /// The multigrid hierarchy (built on first use).
+    amg: Option<amg::Amg>,
     /// `auto` mode is on the Cholesky (the PCG needed too many iterations).
     auto_on_direct: bool,
+    /// `auto`: the multigrid PCG failed its last try; when to try it next,
+    /// and the gap after that (as for the block-Jacobi PCG).
+    amg_failing: bool,
+    amg_next_probe: u64,
+    amg_probe_gap: u64,
+    /// Iterations of the multigrid PCG's last solve in `auto`, if it converged.
+    amg_last: Option<usize>,
     /// Step of the next try of the PCG while on the Cholesky, and the gap
     /// to the one after if it fails (doubled at each failure).
     auto_next_probe: u64,
@@ -327,7 +337,7 @@ impl Simulation {
         let slots = assemble::Slots::new(&a, &cloth);
         let direct = match params.linear_solver {
             LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
-            LinearSolverKind::Pcg | LinearSolverKind::Auto => None,
+            LinearSolverKind::Pcg | LinearSolverKind::Auto | LinearSolverKind::Amg => None,
         };
         let z = vec![Vector3::zeros(); n];
         Ok(Simulation {
@@ -358,7 +368,12 @@ impl Simulation {
             pinned: vec![None; n],
             pcg: linear::Pcg::default(),
             direct,
+            amg: None,
             auto_on_direct: false,
+            amg_failing: false,
+            amg_next_probe: 0,
+            amg_probe_gap: AUTO_PROBE,
+            amg_last: None,
             auto_next_probe: 0,
             auto_probe_gap: AUTO_PROBE,
         })
@@ -454,6 +469,7 @@ impl Simulation {
             }
             LinearSolverKind::Cholesky => self.solve_direct(),
             LinearSolverKind::Auto => self.solve_auto(),
+            LinearSolverKind::Amg => self.solve_amg_or_direct(),
         };
         let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
         let solve_s = t_solve.elapsed().as_secs_f64();
@@ -531,11 +547,96 @@ impl Simulation {
         Ok(1)
     }
 
-    /// Uses the PCG while it converges within the iterations that cost as
-    /// much as the Cholesky ([`linear::Direct::break_even_iterations`], from
-    /// operation counts), else the Cholesky (a single-precision factor
-    /// refined by the PCG, see [`Simulation::solve_factored`]); on the
-    /// Cholesky, the PCG is tried again after [`AUTO_PROBE`] steps, then
+    /// The multigrid hierarchy, built (patterns) on first use from the
+    /// springs and seam stitches.
+    fn amg(&mut self) -> Result<&mut amg::Amg> {
+        if self.amg.is_none() {
+            let c = &self.cloth;
+            let mut edges: Vec<[usize; 2]> = Vec::new();
+            edges.extend(c.tension.iter().map(|s| [s.a, s.b]));
+            edges.extend(c.shear.iter().map(|s| [s.a, s.b]));
+            for st in &c.seams {
+                edges.push([st.v[0], st.v[1]]);
+                edges.push([st.v[0], st.v[2]]);
+            }
+            self.amg = Some(amg::Amg::new(&self.a, &edges)?);
+        }
+        Ok(self.amg.as_mut().expect("multigrid built"))
+    }
+
+    /// The filtered PCG preconditioned by the multigrid hierarchy, refilled
+    /// for this step.
+    fn solve_amg(&mut self, cap: linear::Cap) -> Result<usize> {
+        self.amg()?;
+        let m = self.amg.as_mut().expect("multigrid built");
+        m.setup(&self.a, &self.filter, &self.cloth.mass, &self.cloth.x)?;
+        self.pcg.solve_factor(
+            &self.a,
+            &self.b,
+            &self.filter,
+            &self.z,
+            &mut self.dv,
+            self.params.cg_tolerance,
+            cap,
+            m,
+        )
+    }
+
+    /// `amg`: the multigrid PCG, or the exact Cholesky solve if it does not
+    /// converge within `cg_max_iterations`.
+    fn solve_amg_or_direct(&mut self) -> Result<usize> {
+        match self.solve_amg(linear::Cap::Hard(self.params.cg_max_iterations)) {
+            Ok(it) => Ok(it),
+            Err(_) => {
+                let spent = self.pcg.spent();
+                Ok(self.solve_direct()? + spent)
+            }
+        }
+    }
+
+    /// `auto` once the block-Jacobi PCG needs too many iterations: the
+    /// multigrid PCG while it converges within the iterations that cost as
+    /// much as the Cholesky (from operation counts: [`amg::Amg::cost`]
+    /// against [`linear::Direct::break_even_iterations`] on one thread, the
+    /// multigrid's), else the single-precision factor refined by the PCG; on
+    /// the factor the multigrid is tried again after gaps doubled at each
+    /// failed try, as the block-Jacobi PCG is ([`AUTO_PROBE`]).
+    fn solve_heavy(&mut self) -> Result<usize> {
+        if self.amg_failing && self.steps < self.amg_next_probe {
+            return self.solve_factored();
+        }
+        let blocks = self.a.col.len();
+        let pcg_its = self.direct()?.break_even_iterations(blocks, 1) as f64;
+        let (setup, cycle) = self.amg()?.cost();
+        let cap = ((pcg_its - setup) / cycle).floor();
+        let cap = if cap.is_finite() && cap > 0.0 {
+            (cap as usize).min(self.params.cg_max_iterations)
+        } else {
+            0
+        };
+        let mut spent = 0;
+        if cap >= AMG_MIN_CAP {
+            if let Ok(it) = self.solve_amg(linear::Cap::Reachable(cap)) {
+                self.amg_failing = false;
+                self.amg_probe_gap = AUTO_PROBE;
+                self.amg_last = Some(it);
+                return Ok(it);
+            }
+            spent = self.pcg.spent();
+        }
+        self.amg_failing = true;
+        self.amg_last = None;
+        self.amg_next_probe = self.steps + self.amg_probe_gap;
+        self.amg_probe_gap = (2 * self.amg_probe_gap).min(AUTO_PROBE_MAX);
+        Ok(self.solve_factored()? + spent)
+    }
+
+    /// Uses the block-Jacobi PCG while it converges within the iterations
+    /// that cost as much as the alternative (from operation counts: the
+    /// Cholesky, [`linear::Direct::break_even_iterations`], or the multigrid
+    /// PCG at its last iteration count if it converged on its last try, see
+    /// [`amg::Amg::cost`]), else the alternative ([`Simulation::solve_heavy`]);
+    /// on the alternative, the block-Jacobi PCG is tried again after [`AUTO_PROBE`] steps, then
     /// after gaps doubled at each failed try up to [`AUTO_PROBE_MAX`]
     /// (capped at the same count, and given up as soon as the convergence
     /// so far shows the cap is out of reach, [`linear::Cap::Reachable`]:
@@ -545,10 +646,13 @@ impl Simulation {
     fn solve_auto(&mut self) -> Result<usize> {
         let blocks = self.a.col.len();
         let threads = self.team.size();
-        let cap = self
-            .direct()?
-            .break_even_iterations(blocks, threads)
-            .min(self.params.cg_max_iterations);
+        let mut cap = self.direct()?.break_even_iterations(blocks, threads);
+        if let (Some(k), Some(m)) = (self.amg_last, self.amg.as_ref()) {
+            let (setup, cycle) = m.cost();
+            let speedup = 1.0 + 0.8 * (threads.max(1) - 1) as f64;
+            cap = cap.min(((setup + cycle * k as f64) * speedup).round().max(10.0) as usize);
+        }
+        let cap = cap.min(self.params.cg_max_iterations);
         let probe = self.steps >= self.auto_next_probe;
         if !self.auto_on_direct || probe {
             match self.solve_pcg(linear::Cap::Reachable(cap)) {
@@ -562,12 +666,12 @@ impl Simulation {
                     self.auto_next_probe = self.steps + self.auto_probe_gap;
                     self.auto_probe_gap = (2 * self.auto_probe_gap).min(AUTO_PROBE_MAX);
                     let spent = self.pcg.spent();
-                    let it = self.solve_factored()?;
+                    let it = self.solve_heavy()?;
                     return Ok(it + spent);
                 }
             }
         }
-        self.solve_factored()
+        self.solve_heavy()
     }
 
     /// The Cholesky factor of this step's `S A S + (I − S) m` in single
@@ -594,7 +698,7 @@ impl Simulation {
                 &self.z,
                 &mut self.dv,
                 self.params.cg_tolerance,
-                F32_REFINE_CAP,
+                linear::Cap::Hard(F32_REFINE_CAP),
                 d,
             ) {
                 return Ok(it);
@@ -958,6 +1062,10 @@ pub const F32_REFINE_CAP: usize = 20;
 /// Steps between two tries of the PCG while `auto` mode is on the Cholesky,
 /// at first: each failed try doubles the gap, up to [`AUTO_PROBE_MAX`].
 pub const AUTO_PROBE: u64 = 25;
+
+/// `auto` tries the multigrid PCG only when it may take at least this many
+/// iterations before it costs as much as the Cholesky.
+pub const AMG_MIN_CAP: usize = 4;
 
 /// Largest gap between two tries of the PCG (a failed try costs the
 /// break-even count of iterations: at most a few per cent of the time).
