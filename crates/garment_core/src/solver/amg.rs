@@ -8,12 +8,15 @@
 //!
 //! - Aggregates are fixed once: on the finest level from the cloth's springs
 //!   and seam stitches (the links that couple neighbours strongly), on the
-//!   coarser ones from the coarse matrix's pattern, greedily (Vaněk's three
-//!   passes). The patterns of the prolongators and coarse matrices follow,
-//!   with the position of every product term, so a step only fills values.
-//! - The tentative prolongator carries the three translations of each
-//!   aggregate, filtered on the finest level (`T_i = S_i`: a pinned vertex
-//!   contributes nothing, a contact vertex only its tangent plane); the
+//!   coarser ones from the links between the aggregates below, greedily
+//!   (Vaněk's three passes). The patterns of the prolongators and coarse
+//!   matrices follow, with the position of every product term, so a step
+//!   only fills values.
+//! - The first tentative prolongator carries the rigid motions of each
+//!   aggregate (two coarse nodes: its translations, and its rotations about
+//!   its centroid at the current positions), filtered (`S_i`, `−S_i [x_i −
+//!   c]×`: a pinned vertex contributes nothing, a contact vertex only its
+//!   tangent plane); the next ones each coarse node's three components. The
 //!   smoothed one is `P = (I − ω D⁻¹ Â) T` with `ω = 4 / (3 ρ(D⁻¹ Â))`, ρ
 //!   estimated by power iterations warm-started from the last step's vector.
 //! - Coarse matrices are Galerkin products `Pᵀ Â P`, made symmetric bit for
