@@ -48,9 +48,10 @@ enum Cmd {
         /// Simulated duration, s.
         #[arg(long, allow_negative_numbers = true)]
         duration: Option<f64>,
-        /// Linear solver: auto (default: PCG while it converges in fewer iterations than the
-        /// break-even count, else a single-precision Cholesky factor as its preconditioner),
-        /// pcg (block-Jacobi) or cholesky (exact, double precision).
+        /// Linear solver: auto (default: the block-Jacobi PCG while it converges in fewer
+        /// iterations than the break-even count, else a single-precision Cholesky factor as
+        /// the PCG's preconditioner), pcg (block-Jacobi), amg (PCG with smoothed-aggregation
+        /// multigrid) or cholesky (exact, double precision).
         #[arg(long)]
         solver: Option<LinearSolverKind>,
         /// Turn the hysteretic parts of the laws off.
