@@ -483,11 +483,10 @@ pub fn clamped_strip(
 pub fn side_view(rep: &CantileverReport) -> LinePlot {
     let mut p = LinePlot::new(
         &format!(
-            "cantilever {}: c {:.2} cm, B {:.4} gf·cm²/cm (fabric {:.4})",
+            "cantilever, {}: c {:.2} cm, B {:.4}",
             rep.direction.name(),
             rep.bending_length_m * PER_CM,
             rep.flexural_rigidity_gf_cm2_cm,
-            rep.fabric_b_gf_cm2_cm
         ),
         "horizontal from the edge (cm)",
         "height (cm)",
@@ -500,12 +499,15 @@ pub fn side_view(rep: &CantileverReport) -> LinePlot {
         Style::Line,
         [150, 150, 160],
     );
+    // the strip on the platform, then the overhang
+    let mut strip = vec![(-0.3 * span, 0.0)];
+    strip.extend(rep.profile_m.iter().map(|q| (q[0] * PER_CM, q[1] * PER_CM)));
     p.add(
-        &format!("strip, overhang {:.2} cm", l),
-        rep.profile_m
-            .iter()
-            .map(|q| (q[0] * PER_CM, q[1] * PER_CM))
-            .collect(),
+        &format!(
+            "strip, overhang {l:.2} cm (fabric B {:.4} gf·cm²/cm)",
+            rep.fabric_b_gf_cm2_cm
+        ),
+        strip,
         Style::Line,
     );
     let t = PEIRCE_ANGLE_DEG.to_radians();
