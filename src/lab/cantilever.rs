@@ -5,15 +5,15 @@
 //! edge until the line from the edge to the strip's tip falls 41.5° below the
 //! horizontal. With `l` the overhang at that moment, the bending length is
 //! `c = l/2` and the flexural rigidity per width `B = w c³`, `w` the fabric's
-//! weight per area (Peirce's relation `c³ = l³ cos(θ/2) / (8 tan θ)`, which
-//! gives `c = l/2` at θ = 41.5°).
+//! weight per area (the elastica of a clamped strip under its own weight
+//! puts the tip line of an overhang `2c` at 41.5°).
 //!
-//! In the simulation the strip is a warp/weft grid ([`Cloth::grid`], its single
-//! hinge per edge) and the platform is its supported part: every vertex
-//! behind the edge is pinned to the platform plane and moves with the slide,
-//! so the edge row and the row behind it hold the strip's tangent horizontal
-//! there (the clamp of Peirce's elastica; the instrument's weighted slide
-//! keeps the strip flat on the platform). The grid's rows leave the platform
+//! In the simulation the strip is a warp/weft grid ([`Cloth::grid`], hinges
+//! rebuilt as mirror-symmetric pairs, see below) and the platform is its
+//! supported part: the vertices on the platform are pinned to its plane and
+//! move with the slide, so the last two pinned rows hold the strip's tangent
+//! horizontal (the clamp of Peirce's elastica; the instrument's weighted
+//! slide keeps the strip flat on the platform). The grid's rows leave the platform
 //! one at a time, so the overhang of the discrete strip changes by whole row
 //! spacings, and it is read only when a row has just reached the edge:
 //!
@@ -24,7 +24,10 @@
 //!    free vertices below [`CantileverOptions::rest_speed`], default
 //!    0.01 mm/s, i.e. within a few µm of its equilibrium) — this is what makes
 //!    the reading quasi-static: the shape read does not depend on the slide
-//!    speed or the damping, only on the path of the (hysteretic) laws;
+//!    speed or the damping, only on the path of the (hysteretic) laws. Each
+//!    release is a step load: the overhang overshoots its rest shape and
+//!    swings back, which reverses the hysteretic memory along it (a
+//!    continuous slide loads every point monotonically);
 //! 3. the tip angle θ (the line from the edge to the middle of the tip row) is
 //!    read at overhang `(n + ½)·h` (see the clamp below); the slide goes on
 //!    until θ ≥ 41.5°.
