@@ -1,8 +1,9 @@
 //! Command-line front ends of the lab subcommands (`kes`, `fit-kes`,
-//! `drapemeter`): argument structs and one function each; the work is in
+//! `drapemeter`, `cantilever`): argument structs and one function each; the work is in
 //! [`garment_sim::lab`].
 
 use anyhow::{bail, Context, Result};
+use garment_sim::lab::cantilever::CantileverOptions;
 use garment_sim::lab::kes_lab::{self, Direction, KesTest, LabOptions, LabReport};
 use std::path::PathBuf;
 
@@ -174,6 +175,109 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
     );
     println!(
         "wrote              {}/report.json, top_view.png",
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// `garment_sim cantilever`: Peirce's cantilever bending test on a strip.
+#[derive(clap::Args)]
+pub struct CantileverArgs {
+    /// Fabric file, e.g. config/fabrics/wool_tropical.yaml
+    pub fabric: PathBuf,
+    /// Thread direction along the strip.
+    #[arg(long, default_value = "warp")]
+    pub dir: Direction,
+    /// Grid spacing along the strip (across it at most this), m.
+    #[arg(long, allow_negative_numbers = true, default_value_t = CantileverOptions::default().spacing)]
+    pub spacing: f64,
+    /// Strip width, m.
+    #[arg(long, allow_negative_numbers = true, default_value_t = CantileverOptions::default().width)]
+    pub width: f64,
+    /// Strip length, m.
+    #[arg(long, allow_negative_numbers = true, default_value_t = CantileverOptions::default().length)]
+    pub length: f64,
+    /// Fixed time step, s.
+    #[arg(long, allow_negative_numbers = true, default_value_t = CantileverOptions::default().dt)]
+    pub dt: f64,
+    /// Slide speed while a row moves onto the edge, m/s.
+    #[arg(long, allow_negative_numbers = true, default_value_t = CantileverOptions::default().slide_speed)]
+    pub speed: f64,
+    /// Leave out the hysteretic parts of the laws (a linearly elastic strip for a linear B).
+    #[arg(long)]
+    pub no_hysteresis: bool,
+    /// The grid's single skewed hinge per edge instead of mirror-symmetric pairs.
+    #[arg(long)]
+    pub single_hinges: bool,
+    /// Output directory (report.json, strip.png, readings.png).
+    #[arg(long, default_value = "out/cantilever")]
+    pub out: PathBuf,
+}
+
+pub fn cantilever(a: CantileverArgs) -> Result<()> {
+    use garment_sim::lab::cantilever;
+    let fabric = garment_sim::io::load_fabric(&a.fabric)?;
+    let opt = CantileverOptions {
+        width: a.width,
+        length: a.length,
+        spacing: a.spacing,
+        dt: a.dt,
+        slide_speed: a.speed,
+        hysteresis: !a.no_hysteresis,
+        symmetric_hinges: !a.single_hinges,
+        ..Default::default()
+    };
+    let mut pr = crate::progress_printer(format!(
+        "cantilever {} {}",
+        a.fabric.display(),
+        a.dir.name()
+    ));
+    let rep = cantilever::run(&fabric, a.dir, &opt, &mut pr)?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
+    let rp = a.out.join("report.json");
+    std::fs::write(&rp, serde_json::to_string_pretty(&rep)?)
+        .with_context(|| format!("cannot write {}", rp.display()))?;
+    cantilever::side_view(&rep).save_png(&a.out.join("strip.png"))?;
+    cantilever::readings_plot(&rep).save_png(&a.out.join("readings.png"))?;
+    println!("fabric             {}", rep.fabric);
+    println!(
+        "strip              {} × {} m along {}, grid {:.4} × {:.4} m ({} vertices), dt {} s, hysteresis {}",
+        opt.length,
+        opt.width,
+        a.dir.name(),
+        rep.spacing_m[0],
+        rep.spacing_m[1],
+        rep.vertices,
+        opt.dt,
+        if opt.hysteresis { "on" } else { "off" }
+    );
+    println!("readings at rest   overhang (cm)  tip angle (°)  elastica c (cm)  Peirce c (cm)");
+    for r in &rep.readings {
+        println!(
+            "                   {:>13.3}  {:>13.2}  {:>15.3}  {:>13.3}",
+            100.0 * r.overhang_m,
+            r.tip_angle_deg,
+            100.0 * r.bending_length_m,
+            100.0 * r.peirce_bending_length_m
+        );
+    }
+    println!(
+        "bending length     c = {:.3} cm (overhang {:.3} cm at {}°); the fabric's B gives {:.3} cm",
+        100.0 * rep.bending_length_m,
+        100.0 * rep.overhang_m,
+        cantilever::PEIRCE_ANGLE_DEG,
+        100.0 * rep.fabric_bending_length_m
+    );
+    println!(
+        "flexural rigidity  B = w c³ = {:.4} gf·cm²/cm; fabric B {:.4} gf·cm²/cm (2HB {:.4} gf·cm/cm): {:+.1} %",
+        rep.flexural_rigidity_gf_cm2_cm,
+        rep.fabric_b_gf_cm2_cm,
+        rep.fabric_2hb_gf_cm_cm,
+        100.0 * rep.relative_error
+    );
+    println!(
+        "wrote              {}/report.json, strip.png, readings.png",
         a.out.display()
     );
     Ok(())

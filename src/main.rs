@@ -140,6 +140,8 @@ enum Cmd {
     FitKes(cli_lab::FitKesArgs),
     /// Drapemeter: drape coefficient and nodes of a circular specimen on a disk.
     Drapemeter(cli_lab::DrapemeterArgs),
+    /// Cantilever bending test (Peirce; ASTM D1388): bending length and flexural rigidity of a strip.
+    Cantilever(cli_lab::CantileverArgs),
     /// Virtual garment trial: sew a garment from its pattern onto a body, drape it and
     /// report the fit (garment.obj, garment.ply, fit.json, fit_strain.png, fit_pressure.png).
     Trial(cli_trial::TrialArgs),
@@ -565,6 +567,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Kes(a) => cli_lab::kes(a),
         Cmd::FitKes(a) => cli_lab::fit_kes(a),
         Cmd::Drapemeter(a) => cli_lab::drapemeter(a),
+        Cmd::Cantilever(a) => cli_lab::cantilever(a),
         Cmd::Trial(a) => cli_trial::trial(a),
         Cmd::Bench {
             scene,

@@ -249,7 +249,7 @@ fn params(dt: f64) -> Params {
 
 /// Builds a specimen: gauge along +X (the direction tested), clamps along Y.
 /// Returns the cloth and, per vertex, its (gauge, width) material coordinates.
-fn specimen(
+pub(crate) fn specimen(
     fabric: &Fabric,
     dir: Direction,
     gauge: f64,

@@ -1,8 +1,9 @@
 //! The experiments of the thesis run on the simulator: the damping
 //! identification from a motion capture (ch. 5), the virtual Kawabata lab
-//! (§2.3.1, §4.5), the fitting of laws to KES curves (§3.4.2) and the
-//! drapemeter (§2.3.2).
+//! (§2.3.1, §4.5), the fitting of laws to KES curves (§3.4.2), the
+//! drapemeter (§2.3.2) and the cantilever bending test (Peirce; ASTM D1388).
 
+pub mod cantilever;
 pub mod drapemeter;
 pub mod fit_kes;
 pub mod identify;
