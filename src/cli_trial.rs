@@ -149,6 +149,9 @@ pub fn trial(a: TrialArgs) -> Result<()> {
             );
         }
     }
+    for w in &fit.warnings {
+        eprintln!("warning: {w}");
+    }
     println!("wrote {}", a.out.display());
     Ok(())
 }

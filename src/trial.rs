@@ -666,8 +666,16 @@ pub struct Fit {
     pub deepest_penetration_cm: f64,
     pub largest_seam_gap_mm: f64,
     pub largest_seam_gap_at: Option<String>,
+    /// What a designer should not miss: a panel stretched beyond
+    /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
+    /// garment that did not settle.
+    pub warnings: Vec<String>,
     pub run: RunStats,
 }
+
+/// Strain beyond which a panel is reported as overstretched (a pattern that
+/// does not fit the body, or cloth caught in a crease of it).
+pub const OVERSTRETCH: f64 = 0.5;
 
 /// Per-vertex fields of the fit (for the PLY, the pictures, the node).
 #[derive(Debug, Clone)]
@@ -833,6 +841,53 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             },
         );
     }
+    let mut warnings = Vec::new();
+    for (k, p) in g.panels.iter().enumerate() {
+        let worst = [(0, "warp"), (1, "weft"), (2, "bias")]
+            .into_iter()
+            .map(|(q, name)| (acc[k][q].0, name))
+            .fold(
+                (f64::NEG_INFINITY, ""),
+                |a, b| if b.0 > a.0 { b } else { a },
+            );
+        if worst.0 > OVERSTRETCH {
+            let (i, _) = (p.first..p.first + p.count).map(|i| (i, stretch[i])).fold(
+                (p.first, f64::NEG_INFINITY),
+                |a, b| if b.1 > a.1 { b } else { a },
+            );
+            warnings.push(format!(
+                "panel {:?} is stretched {:.0} % along {} (near ({:.3}, {:.3}, {:.3}) m): the \
+                 pattern does not fit the body there, or the cloth is caught in a crease",
+                p.name,
+                100.0 * worst.0,
+                worst.1,
+                x[i].x,
+                x[i].y,
+                x[i].z
+            ));
+        }
+    }
+    if gap > 2e-3 {
+        warnings.push(format!(
+            "seam {} is open by {:.1} mm",
+            at.map(|k| trial.garment.seam_names[k].as_str())
+                .unwrap_or("?"),
+            1e3 * gap
+        ));
+    }
+    if pen > 0 {
+        warnings.push(format!(
+            "{pen} vertices are inside the body (deepest {:.1} mm)",
+            1e3 * deepest
+        ));
+    }
+    if run.settle_time_s.is_none() {
+        warnings.push(format!(
+            "the garment did not settle (rms speed {:.3} m/s at the end): the fit is of a \
+             moving garment",
+            run.final_rms_speed_m_s
+        ));
+    }
     let fit = Fit {
         garment: trial.garment.name.clone(),
         fabric: sim.fabric.name.clone(),
@@ -856,6 +911,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         deepest_penetration_cm: 100.0 * deepest,
         largest_seam_gap_mm: 1e3 * gap,
         largest_seam_gap_at: at.map(|k| trial.garment.seam_names[k].clone()),
+        warnings,
         run,
     };
     let vf = VertexFit {

@@ -219,6 +219,12 @@ fn a_tube_sewn_on_both_sides_hangs_round_on_a_cylinder() {
     assert!(fit["run"]["settle_time_s"].is_number(), "{fit}");
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 1.0, "{fit}");
     assert_eq!(fit["body_penetrations"].as_u64(), Some(0));
+    assert_eq!(
+        fit["warnings"].as_array().unwrap().len(),
+        0,
+        "{}",
+        fit["warnings"]
+    );
     // round: every vertex at the contact distance (3 mm skin offset + 2 mm
     // cloth thickness) from the cylinder's surface, ±2 mm
     let pts = ply_points(&out.join("garment.ply"));
@@ -555,6 +561,12 @@ fn the_shipped_skirt_trial_settles_on_the_body_in_equilibrium() {
         fit["run"]
     );
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
+    assert_eq!(
+        fit["warnings"].as_array().unwrap().len(),
+        0,
+        "{}",
+        fit["warnings"]
+    );
     let w = fit["weight_n"].as_f64().unwrap();
     let f: Vec<f64> = fit["contact_force_n"]
         .as_array()
@@ -574,4 +586,39 @@ fn the_shipped_skirt_trial_settles_on_the_body_in_equilibrium() {
     assert_eq!(inside, 0, "{inside} vertices inside the body");
     let top = pts.iter().map(|p| p[2]).fold(f64::MIN, f64::max);
     assert!(top > 0.95, "the skirt's top is at {top} m");
+}
+
+#[test]
+fn a_garment_too_small_for_the_body_is_reported_not_silent() {
+    // a 60 cm tube for a 94 cm cylinder: the run ends (exit 0, the fit is
+    // written) and fit.json and the error output say what is wrong
+    let s = support::Scratch::new("garment_small");
+    let t = tube_files(&s, 0.30);
+    let out = s.join("out");
+    let o = support::garment_sim()
+        .args([
+            "trial",
+            t.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-time",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let fit = read_json(&out.join("fit.json"));
+    let w: Vec<String> = fit["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect();
+    assert!(
+        w.iter()
+            .any(|w| w.contains("stretched") || w.contains("is open by")),
+        "{w:?}"
+    );
+    assert!(err.contains("warning: "), "{err}");
 }

@@ -203,9 +203,10 @@ pub const PARAMETERS: &[Parameter] = &[
         name: "scene",
         kind: Kind::String,
         runtime: false,
-        description: "scene file, read at start and on `~/reset` (a new value takes effect at \
-                      the next reset); the default is taken from the working directory, else \
-                      from the source tree the binary was built from",
+        description: "scene file, or a garment trial file (sewn before the first step), read \
+                      at start and on `~/reset` (a new value takes effect at the next reset); \
+                      the default is taken from the working directory, else from the source \
+                      tree the binary was built from",
         get: |s| Value::Str(s.scene.clone()),
         put: |s, v| {
             s.scene = text(v);
