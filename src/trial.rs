@@ -990,35 +990,16 @@ fn centroid(l: &[[f64; 2]]) -> [f64; 2] {
     ]
 }
 
-fn contains(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = poly.len();
-    for k in 0..n {
-        let (a, b) = (poly[k], poly[(k + 1) % n]);
-        if (a[1] > p[1]) != (b[1] > p[1]) {
-            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-            if p[0] < x {
-                inside = !inside;
-            }
-        }
-    }
-    inside
-}
-
 /// The body's torso at height z: the largest loop of the section around
 /// the vertical axis x = y = 0 (the shipped bodies are centred on it), or
 /// the largest loop.
 fn torso_loop(v: &[[f64; 3]], t: &[[usize; 3]], z: f64) -> Option<Vec<[f64; 2]>> {
     let loops = slice_loops(v, t, z);
-    let area = |l: &Vec<[f64; 2]>| {
-        let n = l.len();
-        (0..n)
-            .map(|k| l[k][0] * l[(k + 1) % n][1] - l[(k + 1) % n][0] * l[k][1])
-            .sum::<f64>()
-            .abs()
-            / 2.0
-    };
-    let around: Vec<&Vec<[f64; 2]>> = loops.iter().filter(|l| contains(l, [0.0, 0.0])).collect();
+    let area = |l: &Vec<[f64; 2]>| crate::cloth::polygon_area(l).abs();
+    let around: Vec<&Vec<[f64; 2]>> = loops
+        .iter()
+        .filter(|l| crate::cloth::polygon_contains(l, [0.0, 0.0]))
+        .collect();
     let pick = if around.is_empty() {
         loops.iter().max_by(|a, b| area(a).total_cmp(&area(b)))
     } else {
@@ -1046,33 +1027,7 @@ fn section_points(v: &[[f64; 3]], t: &[[usize; 3]], z: f64) -> Vec<[f64; 2]> {
 
 /// Perimeter of the convex hull (a tape measure around the section), m.
 pub fn hull_perimeter(p: &[[f64; 2]]) -> f64 {
-    let mut pts = p.to_vec();
-    pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    pts.dedup();
-    if pts.len() < 3 {
-        return 0.0;
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
-    let mut hull: Vec<[f64; 2]> = Vec::new();
-    for pass in 0..2 {
-        let start = hull.len();
-        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(pts.iter())
-        } else {
-            Box::new(pts.iter().rev())
-        };
-        for &q in it {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
-            {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-    }
+    let hull = crate::cloth::convex_hull(p);
     let n = hull.len();
     (0..n)
         .map(|k| {

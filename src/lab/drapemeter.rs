@@ -191,43 +191,9 @@ impl StartPerturbation {
     }
 }
 
-/// Area of the convex hull of points in the plane (Andrew's monotone chain).
+/// Area of the convex hull of points in the plane.
 pub fn hull_area(pts: &[[f64; 2]]) -> f64 {
-    let mut p: Vec<[f64; 2]> = pts.to_vec();
-    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
-    p.dedup();
-    if p.len() < 3 {
-        return 0.0;
-    }
-    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
-        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
-    };
-    let mut hull: Vec<[f64; 2]> = Vec::new();
-    for pass in 0..2 {
-        let start = hull.len();
-        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
-            Box::new(p.iter())
-        } else {
-            Box::new(p.iter().rev())
-        };
-        for &q in it {
-            while hull.len() >= start + 2
-                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
-            {
-                hull.pop();
-            }
-            hull.push(q);
-        }
-        hull.pop();
-    }
-    let n = hull.len();
-    0.5 * (0..n)
-        .map(|k| {
-            let (a, b) = (hull[k], hull[(k + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum::<f64>()
-        .abs()
+    crate::cloth::polygon_area(&crate::cloth::convex_hull(pts)).abs()
 }
 
 /// The clamp's discrete edge. Clamping the vertices within the disks'

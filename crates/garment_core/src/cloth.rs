@@ -203,7 +203,7 @@ fn snap_border(
     }
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Cloth {
     pub nx: usize,
     pub ny: usize,
@@ -280,19 +280,9 @@ impl Outline {
                 (dx * dx + dy * dy).sqrt() <= radius + tol
             }
             Outline::Polygon(poly) => {
-                // even-odd rule, then the boundary band
-                let mut inside = false;
                 let n = poly.len();
-                for k in 0..n {
-                    let (a, b) = (poly[k], poly[(k + 1) % n]);
-                    if (a[1] > p[1]) != (b[1] > p[1]) {
-                        let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-                        if p[0] < x {
-                            inside = !inside;
-                        }
-                    }
-                }
-                inside || (0..n).any(|k| seg_dist(p, poly[k], poly[(k + 1) % n]) <= tol)
+                polygon_contains(poly, p)
+                    || (0..n).any(|k| seg_dist(p, poly[k], poly[(k + 1) % n]) <= tol)
             }
         }
     }
@@ -337,6 +327,56 @@ fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
         0.0
     };
     ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
+}
+
+/// Is the point inside the closed polygon (either orientation; even-odd
+/// rule)?
+pub fn polygon_contains(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    let n = poly.len();
+    for k in 0..n {
+        let (a, b) = (poly[k], poly[(k + 1) % n]);
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if p[0] < x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// The convex hull of points in the plane, counter-clockwise (Andrew's
+/// monotone chain); fewer than three distinct points give an empty hull.
+pub fn convex_hull(pts: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    let mut p: Vec<[f64; 2]> = pts.to_vec();
+    p.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    p.dedup();
+    if p.len() < 3 {
+        return Vec::new();
+    }
+    let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+    };
+    let mut hull: Vec<[f64; 2]> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let it: Box<dyn Iterator<Item = &[f64; 2]>> = if pass == 0 {
+            Box::new(p.iter())
+        } else {
+            Box::new(p.iter().rev())
+        };
+        for &q in it {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    hull
 }
 
 /// Signed shoelace area (positive counter-clockwise).
@@ -925,23 +965,10 @@ impl Cloth {
         };
         let (lc, lt) = (first.lc, first.lt);
         let mut c = Cloth {
-            nx: 0,
             ny: 1,
             lc,
             lt,
-            material: Vec::new(),
-            x: Vec::new(),
-            v: Vec::new(),
-            mass: Vec::new(),
-            tension: Vec::new(),
-            shear: Vec::new(),
-            hinges: Vec::new(),
-            tension_state: Vec::new(),
-            shear_state: Vec::new(),
-            hinge_state: Vec::new(),
-            triangles: Vec::new(),
-            grid_vertex: Vec::new(),
-            seams: Vec::new(),
+            ..Cloth::default()
         };
         for p in parts {
             let o = c.x.len();

@@ -472,12 +472,13 @@ impl Simulation {
             ) {
                 if self.friction_force[i] != Vector3::zeros() {
                     let rel = self.cloth.v[i] - vo;
-                    let vt = rel - nrm * rel.dot(&nrm);
-                    let vtn = vt.norm();
-                    let t = vt / vtn;
-                    let stop = self.cloth.mass[i] * vtn / h + self.force[i].dot(&t).max(0.0);
-                    let slide = mu * self.friction[i].impulse / h;
-                    self.friction_force[i] = -t * slide.min(stop);
+                    self.friction_force[i] = vertices::kinetic_friction(
+                        self.cloth.mass[i],
+                        rel - nrm * rel.dot(&nrm),
+                        self.force[i],
+                        mu * self.friction[i].impulse,
+                        h,
+                    );
                 }
             }
             if self.friction_force[i] != Vector3::zeros() {
@@ -494,16 +495,7 @@ impl Simulation {
             !(self.force[i].iter().all(|c| c.is_finite())
                 && self.b[i].iter().all(|c| c.is_finite()))
         }) {
-            bail!(
-                "the step diverged at vertex {i} (non-finite force{}) at t = {:.4} s; {}",
-                if self.pinned[i].is_some() {
-                    ", pinned"
-                } else {
-                    ""
-                },
-                self.time,
-                self.diagnose()
-            );
+            return Err(self.diverged(i, "force"));
         }
         // 3. solve
         let t_solve = Instant::now();
@@ -522,24 +514,10 @@ impl Simulation {
         // these positions by the assembly, as the next step's would be)
         for i in 0..n {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
-                bail!(
-                    "the step diverged at vertex {i} (non-finite velocity) at t = {:.4} s; {}",
-                    self.time,
-                    self.diagnose()
-                );
+                return Err(self.diverged(i, "velocity"));
             }
             if !self.y[i].iter().all(|c| c.is_finite()) {
-                bail!(
-                    "the step diverged at vertex {i} (non-finite position correction{}) \
-                     at t = {:.4} s; {}",
-                    if self.pinned[i].is_some() {
-                        ", pinned"
-                    } else {
-                        ""
-                    },
-                    self.time,
-                    self.diagnose()
-                );
+                return Err(self.diverged(i, "position correction"));
             }
         }
         // 4. obstacles move; velocities and positions, Coulomb stick/slip;
@@ -888,6 +866,21 @@ impl Simulation {
                 }
             })
             .collect()
+    }
+
+    /// The error of a step that diverged at vertex `i` (a non-finite
+    /// `what`), with [`Simulation::diagnose`].
+    fn diverged(&self, i: usize, what: &str) -> anyhow::Error {
+        anyhow::anyhow!(
+            "the step diverged at vertex {i} (non-finite {what}{}) at t = {:.4} s; {}",
+            if self.pinned[i].is_some() {
+                ", pinned"
+            } else {
+                ""
+            },
+            self.time,
+            self.diagnose()
+        )
     }
 
     /// What most likely drove a failed step, from the state at its start:

@@ -145,13 +145,14 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                     } else {
                         n * (-vrel).max(0.0)
                     };
-                    let vt = rel - n * vrel;
-                    let vtn = vt.norm();
-                    if vtn > 0.0 && mu > 0.0 {
-                        let t = vt / vtn;
-                        let stop = s.mass[i] * vtn / h + driving.dot(&t).max(0.0);
-                        let f = (mu * o.friction[k].impulse / h).min(stop);
-                        o.friction_force[k] = -t * f;
+                    if mu > 0.0 {
+                        o.friction_force[k] = kinetic_friction(
+                            s.mass[i],
+                            rel - n * vrel,
+                            driving,
+                            mu * o.friction[k].impulse,
+                            h,
+                        );
                     }
                 }
                 o.contact_of[k] = Some((mu, pr.velocity));
@@ -163,6 +164,27 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             o.friction[k] = FrictionState::default();
         }
     }
+}
+
+/// Kinetic friction on a vertex sliding at tangential velocity `vt`
+/// (relative to the obstacle) pressed with the normal impulse whose
+/// Coulomb limit is `limit` (μ × impulse, N·s): at most `limit / h`, and
+/// never more than what stops the tangential motion in one step against the
+/// force `driving` it along; zero for a vertex not sliding.
+pub(super) fn kinetic_friction(
+    mass: f64,
+    vt: Vector3<f64>,
+    driving: Vector3<f64>,
+    limit: f64,
+    h: f64,
+) -> Vector3<f64> {
+    let vtn = vt.norm();
+    if vtn.is_nan() || vtn <= 0.0 {
+        return Vector3::zeros();
+    }
+    let t = vt / vtn;
+    let stop = mass * vtn / h + driving.dot(&t).max(0.0);
+    -t * (limit / h).min(stop)
 }
 
 /// What the update after the solve reads.
