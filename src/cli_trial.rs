@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering;
 
 #[derive(clap::Args)]
 pub struct TrialArgs {
-    /// Trial file, e.g. examples/trials/skirt_on_anny.yaml
+    /// Trial file, e.g. config/trials/skirt_on_anny.yaml
     trial: PathBuf,
     /// Output directory.
     #[arg(long, default_value = "out/trial")]

@@ -694,48 +694,92 @@ pub struct VertexFit {
     pub force: Vec<Vector3<f64>>,
 }
 
+/// The strain of every tension and shear spring: (0 warp, 1 weft, 2 bias),
+/// its two vertices and its engineering strain l/l0 − 1.
+fn spring_strains(
+    c: &crate::cloth::Cloth,
+) -> impl Iterator<Item = (usize, usize, usize, f64)> + '_ {
+    let x = &c.x;
+    c.tension
+        .iter()
+        .map(move |s| {
+            (
+                usize::from(s.weft),
+                s.a,
+                s.b,
+                (x[s.b] - x[s.a]).norm() / s.l0 - 1.0,
+            )
+        })
+        .chain(
+            c.shear
+                .iter()
+                .map(move |s| (2, s.a, s.b, (x[s.b] - x[s.a]).norm() / s.l0 - 1.0)),
+        )
+}
+
+/// The per-vertex fit of the garment as it is now (what `garment.ply` and
+/// the node's point cloud carry): strains, contact pressure and force,
+/// distance from the body.
+pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
+    let c = &sim.cloth;
+    let n = c.len();
+    let mut fields = [
+        vec![f64::NEG_INFINITY; n],
+        vec![f64::NEG_INFINITY; n],
+        vec![f64::NEG_INFINITY; n],
+    ];
+    for (k, a, b, e) in spring_strains(c) {
+        fields[k][a] = fields[k][a].max(e);
+        fields[k][b] = fields[k][b].max(e);
+    }
+    for f in &mut fields {
+        f.iter_mut()
+            .filter(|e| !e.is_finite())
+            .for_each(|e| *e = 0.0);
+    }
+    let [warp, weft, bias] = fields;
+    let stretch: Vec<f64> = (0..n).map(|i| warp[i].max(weft[i]).max(bias[i])).collect();
+    // the force on the body is the opposite of the contacts' on the cloth;
+    // the pressure is its normal part over the vertex's area
+    let on_cloth = sim.contact_forces();
+    let normals = sim.contact_normals();
+    let rho = sim.fabric.areal_mass;
+    let force: Vec<Vector3<f64>> = on_cloth.iter().map(|f| -f).collect();
+    let pressure = (0..n)
+        .map(|i| {
+            if on_cloth[i] == Vector3::zeros() {
+                0.0
+            } else {
+                on_cloth[i].dot(&normals[i]).max(0.0) / (c.mass[i] / rho)
+            }
+        })
+        .collect();
+    VertexFit {
+        panel: (0..n).map(|i| g.panel_of(i)).collect(),
+        warp,
+        weft,
+        bias,
+        stretch,
+        pressure,
+        distance: c.x.iter().map(|p| body.proximity(p).distance).collect(),
+        force,
+    }
+}
+
 /// Measures the fit of the garment as it is now.
 pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit, VertexFit) {
     let c = &sim.cloth;
     let x = &c.x;
     let n = c.len();
-    let panel: Vec<usize> = (0..n).map(|i| g.panel_of(i)).collect();
+    let vf = vertex_fit(sim, g, &trial.body);
     let np = g.panels.len();
-    let mut warp = vec![f64::NEG_INFINITY; n];
-    let mut weft = vec![f64::NEG_INFINITY; n];
-    let mut bias = vec![f64::NEG_INFINITY; n];
     let mut acc = vec![[(f64::NEG_INFINITY, 0.0, 0usize); 3]; np];
-    let mut note = |k: usize, a: usize, b: usize, e: f64, field: &mut Vec<f64>| {
-        field[a] = field[a].max(e);
-        field[b] = field[b].max(e);
-        let s = &mut acc[panel[a]][k];
+    for (k, a, _, e) in spring_strains(c) {
+        let s = &mut acc[vf.panel[a]][k];
         s.0 = s.0.max(e);
         s.1 += e;
         s.2 += 1;
-    };
-    for s in &c.tension {
-        let e = (x[s.b] - x[s.a]).norm() / s.l0 - 1.0;
-        if s.weft {
-            note(1, s.a, s.b, e, &mut weft);
-        } else {
-            note(0, s.a, s.b, e, &mut warp);
-        }
     }
-    for s in &c.shear {
-        let e = (x[s.b] - x[s.a]).norm() / s.l0 - 1.0;
-        note(2, s.a, s.b, e, &mut bias);
-    }
-    let fin = |v: &mut Vec<f64>| {
-        v.iter_mut().for_each(|e| {
-            if !e.is_finite() {
-                *e = 0.0
-            }
-        })
-    };
-    fin(&mut warp);
-    fin(&mut weft);
-    fin(&mut bias);
-    let stretch: Vec<f64> = (0..n).map(|i| warp[i].max(weft[i]).max(bias[i])).collect();
     let stat = |s: (f64, f64, usize)| StrainStat {
         max_percent: if s.2 > 0 { 100.0 * s.0 } else { 0.0 },
         mean_percent: if s.2 > 0 {
@@ -757,33 +801,26 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             bias: stat(acc[k][2]),
         })
         .collect();
-    // contacts: the force on the body is the opposite of the contacts' on the cloth
-    let on_cloth = sim.contact_forces();
     let normals = sim.contact_normals();
     let rho = sim.fabric.areal_mass;
-    let mut pressure = vec![0.0; n];
-    let mut force = vec![Vector3::zeros(); n];
+    let (pressure, force, distance, stretch) = (&vf.pressure, &vf.force, &vf.distance, &vf.stretch);
     let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
         (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
     let mut pressure_force = Vector3::zeros();
     for i in 0..n {
-        if on_cloth[i] == Vector3::zeros() {
+        if force[i] == Vector3::zeros() {
             continue;
         }
-        force[i] = -on_cloth[i];
         total += force[i];
         let a = c.mass[i] / rho;
-        let fnorm = on_cloth[i].dot(&normals[i]).max(0.0);
-        pressure[i] = fnorm / a;
         pressure_force -= normals[i] * (pressure[i] * a);
-        normal_sum += fnorm;
+        normal_sum += pressure[i] * a;
         peak = peak.max(pressure[i]);
         area += a;
         nc += 1;
     }
-    let distance: Vec<f64> = x.iter().map(|p| trial.body.proximity(p).distance).collect();
     let mut hist = vec![0usize; 11];
-    for &d in &distance {
+    for &d in distance {
         hist[((d.max(0.0) * 100.0).floor() as usize).min(10)] += 1;
     }
     let (pen, deepest) = distance
@@ -913,16 +950,6 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         largest_seam_gap_at: at.map(|k| trial.garment.seam_names[k].clone()),
         warnings,
         run,
-    };
-    let vf = VertexFit {
-        panel,
-        warp,
-        weft,
-        bias,
-        stretch,
-        pressure,
-        distance,
-        force,
     };
     (fit, vf)
 }

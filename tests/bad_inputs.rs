@@ -758,7 +758,7 @@ fn random_extreme_messages_never_break_the_step() {
                 },
                 ..Default::default()
             };
-            (apply_pin(&mut sim, &m, "world"), format!("{m:?}"))
+            (apply_pin(&mut sim, None, &m, "world"), format!("{m:?}"))
         } else {
             let t = rng.random_range(1..5u8);
             let dims = match t {

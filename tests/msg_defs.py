@@ -76,6 +76,7 @@ def test_cdr_round_trip():
         vertices=np.array([0, 10], dtype=np.uint32),
         grid_i=np.array([], dtype=np.uint32),
         grid_j=np.array([], dtype=np.uint32),
+        panel="",
         targets=[Point(x=0.0, y=0.0, z=1.0), Point(x=0.5, y=0.0, z=1.0)],
         velocities=[],
     )

@@ -258,6 +258,7 @@ class Pin(IdlStruct, typename=ros("garment_sim_msgs", "msg", "Pin")):
     vertices: t.sequence[t.uint32] = field(default_factory=list)
     grid_i: t.sequence[t.uint32] = field(default_factory=list)
     grid_j: t.sequence[t.uint32] = field(default_factory=list)
+    panel: str = ""
     targets: t.sequence[Point] = field(default_factory=list)
     velocities: t.sequence[Vector3] = field(default_factory=list)
 

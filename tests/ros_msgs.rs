@@ -191,6 +191,7 @@ fn messages_match_rosbags_byte_for_byte() {
         vertices: vec![],
         grid_i: vec![0, 10],
         grid_j: vec![0, 0],
+        panel: String::new(),
         targets: vec![
             Point {
                 x: 0.0,

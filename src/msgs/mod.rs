@@ -479,6 +479,8 @@ pub struct Pin {
     pub vertices: Vec<u32>,
     pub grid_i: Vec<u32>,
     pub grid_j: Vec<u32>,
+    /// Garment trials: the panel whose grid `grid_i`/`grid_j` index.
+    pub panel: String,
     pub targets: Vec<Point>,
     pub velocities: Vec<Vector3>,
 }

@@ -30,9 +30,20 @@ pub const CLOUD_FIELDS: [&str; 5] = ["x", "y", "z", "strain", "speed"];
 
 /// The cloth vertices as an unorganised PointCloud2 (height 1), little-endian.
 pub fn cloud(sim: &Simulation, header: Header) -> PointCloud2 {
+    cloud_with(sim, header, &[])
+}
+
+/// [`cloud`] with more float32 fields after the [`CLOUD_FIELDS`]: (name,
+/// one value per vertex).
+pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) -> PointCloud2 {
     let n = sim.cloth.len();
     let strain = vertex_strain(sim);
-    let step = 4 * CLOUD_FIELDS.len();
+    let names: Vec<&str> = CLOUD_FIELDS
+        .iter()
+        .copied()
+        .chain(extra.iter().map(|e| e.0))
+        .collect();
+    let step = 4 * names.len();
     let mut data = Vec::with_capacity(n * step);
     for i in 0..n {
         let p = sim.cloth.x[i];
@@ -43,7 +54,7 @@ pub fn cloud(sim: &Simulation, header: Header) -> PointCloud2 {
             strain[i] as f32,
             sim.cloth.v[i].norm() as f32,
         ];
-        for v in vals {
+        for v in vals.into_iter().chain(extra.iter().map(|e| e.1[i] as f32)) {
             data.extend_from_slice(&v.to_le_bytes());
         }
     }
@@ -51,7 +62,7 @@ pub fn cloud(sim: &Simulation, header: Header) -> PointCloud2 {
         header,
         height: 1,
         width: n as u32,
-        fields: CLOUD_FIELDS
+        fields: names
             .iter()
             .enumerate()
             .map(|(k, name)| PointField {

@@ -4,6 +4,7 @@
 //! as it was.
 
 use crate::collision::{Obstacle, ShapeSpec, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS};
+use crate::garment::Garment;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
 use crate::msgs;
 use crate::solver::{Pin, PinPath, Simulation};
@@ -283,7 +284,13 @@ fn set_motion(
 }
 
 /// Applies a `pins` message. Returns a one-line account of what changed.
-pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<String, String> {
+/// `garment` is the scene's garment (a trial), whose panels `m.panel` names.
+pub fn apply_pin(
+    sim: &mut Simulation,
+    garment: Option<&Garment>,
+    m: &msgs::Pin,
+    frame_id: &str,
+) -> Result<String, String> {
     let fail = |e: String| format!("pins: {e}");
     check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
     if m.operation == msgs::Pin::RELEASE_ALL {
@@ -314,13 +321,30 @@ pub fn apply_pin(sim: &mut Simulation, m: &msgs::Pin, frame_id: &str) -> Result<
                 m.grid_j.len()
             )));
         }
+        // a garment's grid nodes are its panels'; a sheet has one grid
+        let panel = match (garment, m.panel.as_str()) {
+            (None, "") => None,
+            (None, name) => {
+                return Err(fail(format!(
+                    "panel {name:?} given, but the scene is a single sheet, not a garment (leave panel empty)"
+                )))
+            }
+            (Some(_), "") if !m.grid_i.is_empty() => {
+                return Err(fail(
+                    "the scene is a garment: grid_i/grid_j need the panel they index".into(),
+                ))
+            }
+            (Some(_), "") => None,
+            (Some(g), name) => Some(g.panel(name).map_err(|e| fail(e.to_string()))?),
+        };
         let mut v = Vec::with_capacity(m.grid_i.len());
         for (k, (&i, &j)) in m.grid_i.iter().zip(&m.grid_j).enumerate() {
-            v.push(
-                sim.cloth
-                    .index(i as usize, j as usize)
-                    .map_err(|e| fail(format!("grid (i, j)[{k}] = ({i}, {j}): {e}")))?,
-            );
+            let (i, j) = (i as usize, j as usize);
+            let at = match panel {
+                Some(p) => p.vertex(i, j),
+                None => sim.cloth.index(i, j),
+            };
+            v.push(at.map_err(|e| fail(format!("grid (i, j)[{k}] = ({i}, {j}): {e}")))?);
         }
         v
     };
@@ -639,7 +663,7 @@ mod tests {
             grid_j: vec![0],
             ..Default::default()
         };
-        apply_pin(&mut s, &m, "world").unwrap();
+        apply_pin(&mut s, None, &m, "world").unwrap();
         assert_eq!(
             s.pins.last().unwrap().path,
             PinPath::Fixed(s.cloth.x[corner])
@@ -655,7 +679,7 @@ mod tests {
             y: 0.0,
             z: 0.1,
         }];
-        apply_pin(&mut s, &m, "world").unwrap();
+        apply_pin(&mut s, None, &m, "world").unwrap();
         // the target is far: the pin travels there at PIN_TRAVEL_SPEED, then
         // moves on with the velocity
         let d = (Vector3::new(0.0, 0.0, 2.0) - s.cloth.x[corner]).norm();
@@ -669,7 +693,7 @@ mod tests {
             vertices: vec![n as u32],
             ..Default::default()
         };
-        assert!(apply_pin(&mut s, &bad, "world")
+        assert!(apply_pin(&mut s, None, &bad, "world")
             .unwrap_err()
             .contains("out of range"));
         let bad = msgs::Pin {
@@ -678,7 +702,7 @@ mod tests {
             targets: vec![msgs::Point::default()],
             ..Default::default()
         };
-        assert!(apply_pin(&mut s, &bad, "world")
+        assert!(apply_pin(&mut s, None, &bad, "world")
             .unwrap_err()
             .contains("not pinned"));
         let bad = msgs::Pin {
@@ -687,7 +711,7 @@ mod tests {
             targets: vec![msgs::Point::default()],
             ..Default::default()
         };
-        assert!(apply_pin(&mut s, &bad, "world")
+        assert!(apply_pin(&mut s, None, &bad, "world")
             .unwrap_err()
             .contains("1 targets for 2 vertices"));
         let bad = msgs::Pin {
@@ -696,12 +720,12 @@ mod tests {
             grid_j: vec![9999],
             ..Default::default()
         };
-        assert!(apply_pin(&mut s, &bad, "world")
+        assert!(apply_pin(&mut s, None, &bad, "world")
             .unwrap_err()
             .contains("grid (i, j)[0]"));
         assert_eq!(s.pins.len(), pinned);
         m.operation = msgs::Pin::RELEASE;
-        apply_pin(&mut s, &m, "world").unwrap();
+        apply_pin(&mut s, None, &m, "world").unwrap();
         assert_eq!(s.pins.len(), pinned - 1);
     }
 
@@ -756,7 +780,7 @@ mod tests {
                 "velocities[0]",
             ),
         ] {
-            let e = apply_pin(&mut s, &m, "world").unwrap_err();
+            let e = apply_pin(&mut s, None, &m, "world").unwrap_err();
             assert!(e.contains(why), "{e}");
             assert_eq!(s.pins.len(), n_pins);
         }
@@ -768,6 +792,7 @@ mod tests {
         let b = s.cloth.index(s.cloth.nx - 1, s.cloth.ny - 1).unwrap();
         apply_pin(
             &mut s,
+            None,
             &pin_msg(msgs::Pin::PIN, b as u32, None, None),
             "world",
         )
@@ -777,6 +802,7 @@ mod tests {
         let target = Some([goal.x, goal.y, goal.z]);
         apply_pin(
             &mut s,
+            None,
             &pin_msg(msgs::Pin::PIN, a as u32, target, None),
             "world",
         )
@@ -806,6 +832,7 @@ mod tests {
         let b = s.cloth.index(s.cloth.nx - 1, s.cloth.ny - 1).unwrap();
         apply_pin(
             &mut s,
+            None,
             &pin_msg(msgs::Pin::PIN, b as u32, None, None),
             "world",
         )
@@ -817,7 +844,7 @@ mod tests {
             Some([g.x, g.y, g.z]),
             Some([0.5, 0.0, 0.0]),
         );
-        apply_pin(&mut s, &m, "world").unwrap();
+        apply_pin(&mut s, None, &m, "world").unwrap();
         steps_ok(&mut s, 1700);
         let (p, v) = s.pins.last().unwrap().path.at(s.time);
         assert!(

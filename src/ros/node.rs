@@ -125,6 +125,15 @@ struct Loaded {
     sim: Simulation,
     registry: ObstacleRegistry,
     description: String,
+    /// A garment trial's garment and body.
+    worn: Option<Worn>,
+}
+
+/// The garment of a trial scene (its panels name pins' grid nodes) and the
+/// body it is worn on (the cloud's fit fields).
+struct Worn {
+    garment: crate::garment::Garment,
+    body: crate::collision::Obstacle,
 }
 
 fn load(s: &Settings) -> Result<Loaded> {
@@ -145,6 +154,10 @@ fn load(s: &Settings) -> Result<Loaded> {
             sim,
             registry,
             description,
+            worn: Some(Worn {
+                garment: g,
+                body: t.body.clone(),
+            }),
         });
     }
     let scene = Scene::load(&path)?;
@@ -156,7 +169,31 @@ fn load(s: &Settings) -> Result<Loaded> {
         sim,
         registry,
         description,
+        worn: None,
     })
+}
+
+/// The cloth as `cloud/points`; for a garment trial with the per-vertex
+/// fields of `fit.json` after the usual ones (the same names as in
+/// `garment.ply`).
+fn cloud(l: &Loaded, h: msgs::Header) -> msgs::PointCloud2 {
+    match &l.worn {
+        Some(w) => {
+            let f = crate::trial::vertex_fit(&l.sim, &w.garment, &w.body);
+            publish::cloud_with(
+                &l.sim,
+                h,
+                &[
+                    ("strain_warp", &f.warp),
+                    ("strain_weft", &f.weft),
+                    ("strain_bias", &f.bias),
+                    ("pressure", &f.pressure),
+                    ("distance", &f.distance),
+                ],
+            )
+        }
+        None => publish::cloud(&l.sim, h),
+    }
 }
 
 /// Takes what a subscription holds now: each message, `None` for each one
@@ -574,7 +611,12 @@ impl Node {
         let taken = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);
         let topic = self.names.pins.clone();
         self.apply_taken(taken, &topic, |node, m| {
-            control::apply_pin(&mut node.loaded.sim, m, &node.settings.frame_id)
+            control::apply_pin(
+                &mut node.loaded.sim,
+                node.loaded.worn.as_ref().map(|w| &w.garment),
+                m,
+                &node.settings.frame_id,
+            )
         });
         let c = &mut self.counters;
         if c.dropped_now > 0 && c.last_drop_log.elapsed() > Duration::from_secs(1) {
@@ -824,7 +866,7 @@ impl Node {
         self.last_publish = (now, sim.time);
         let t_pub = Instant::now();
         let h = publish::header(sim, &self.settings.frame_id);
-        let cloud = publish::cloud(sim, h.clone());
+        let cloud = cloud(&self.loaded, h.clone());
         let mesh = publish::cloth_marker(sim, h.clone());
         let obstacles = publish::obstacle_markers(sim, h.clone());
         let fig = publish::DiagnosticFigures {
@@ -992,6 +1034,138 @@ mod tests {
         assert!(l.sim.params.gravity.norm() > 9.0);
         assert!(l.description.contains("garment_sim/trial_description/1"));
         assert!(l.description.contains("skirt_front"));
+        // its cloud carries the fit fields; read back by field name and offset
+        let mut l = l;
+        for _ in 0..20 {
+            l.sim.step().unwrap();
+        }
+        let c = super::cloud(&l, crate::msgs::Header::default());
+        let names: Vec<&str> = c.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "x",
+                "y",
+                "z",
+                "strain",
+                "speed",
+                "strain_warp",
+                "strain_weft",
+                "strain_bias",
+                "pressure",
+                "distance"
+            ]
+        );
+        let field = |name: &str| -> Vec<f64> {
+            let f = c.fields.iter().find(|f| f.name == name).unwrap();
+            (0..c.width as usize)
+                .map(|i| {
+                    let o = i * c.point_step as usize + f.offset as usize;
+                    f32::from_le_bytes(c.data[o..o + 4].try_into().unwrap()) as f64
+                })
+                .collect()
+        };
+        let (z, d, p) = (field("z"), field("distance"), field("pressure"));
+        let w = l.worn.as_ref().unwrap();
+        for i in 0..l.sim.cloth.len() {
+            let x = l.sim.cloth.x[i];
+            assert!((z[i] - x.z).abs() < 1e-5);
+            // distance: the body's own projection, not the contacts'
+            let q = w.body.proximity(&x).distance;
+            assert!((d[i] - q).abs() < 1e-6, "{} vs {q}", d[i]);
+        }
+        // pressure × area sums to the normal force the contacts carry
+        let rho = l.sim.fabric.areal_mass;
+        let normals = l.sim.contact_normals();
+        let normal: f64 = l
+            .sim
+            .contact_forces()
+            .iter()
+            .zip(&normals)
+            .map(|(f, n)| f.dot(n).max(0.0))
+            .sum();
+        let integral: f64 = (0..p.len()).map(|i| p[i] * l.sim.cloth.mass[i] / rho).sum();
+        assert!(
+            normal > 0.0 && (integral / normal - 1.0).abs() < 1e-4,
+            "{integral} vs {normal}"
+        );
+    }
+
+    #[test]
+    fn a_garment_pin_names_its_panel_and_grid_node() {
+        use crate::msgs::{Header, Pin};
+        use crate::ros::control::apply_pin;
+        let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("config/trials/skirt_on_anny.yaml")
+            .display()
+            .to_string();
+        let s = super::Settings {
+            scene,
+            spacing: 0.04,
+            ..Default::default()
+        };
+        let mut l = super::load(&s).unwrap();
+        let g = l.worn.take().unwrap().garment;
+        let p = &g.panels[1];
+        // an inner node (two rings of nodes around it kept: none of its
+        // neighbours moved onto the outline) and its warp and weft neighbours
+        let [nx, ny] = p.grid;
+        let (i, j) = (2..ny.saturating_sub(2))
+            .flat_map(|j| (2..nx.saturating_sub(2)).map(move |i| (i, j)))
+            .find(|&(i, j)| {
+                (i - 2..=i + 2).all(|a| (j - 2..=j + 2).all(|b| p.vertex(a, b).is_ok()))
+            })
+            .unwrap();
+        let m = Pin {
+            header: Header {
+                frame_id: "world".into(),
+                ..Default::default()
+            },
+            operation: Pin::PIN,
+            grid_i: vec![i as u32, (i + 1) as u32, i as u32],
+            grid_j: vec![j as u32, j as u32, (j + 1) as u32],
+            panel: p.name.clone(),
+            ..Default::default()
+        };
+        apply_pin(&mut l.sim, Some(&g), &m, "world").unwrap();
+        let v: Vec<usize> = l.sim.pins.iter().map(|q| q.vertex).collect();
+        assert_eq!(v.len(), 3);
+        assert!(v.iter().all(|&k| k >= p.first && k < p.first + p.count));
+        // in the panel's coordinates, (i + 1, j) is one spacing along the
+        // grain from (i, j) and (i, j + 1) one spacing across it
+        let uv = |k: usize| p.uv[k - p.first];
+        let (a, b, c) = (uv(v[0]), uv(v[1]), uv(v[2]));
+        let along = [b[0] - a[0], b[1] - a[1]];
+        let across = [c[0] - a[0], c[1] - a[1]];
+        let h = 0.04;
+        assert!(
+            (along[0] - h * p.grain[0]).abs() < 1e-9 && (along[1] - h * p.grain[1]).abs() < 1e-9
+        );
+        assert!(
+            (across[0] + h * p.grain[1]).abs() < 1e-9 && (across[1] - h * p.grain[0]).abs() < 1e-9
+        );
+        // what is refused, and why
+        for (panel, gi, want) in [
+            ("sleeve", vec![i as u32], "no panel \"sleeve\""),
+            ("", vec![i as u32], "need the panel"),
+            (p.name.as_str(), vec![nx as u32], "outside panel"),
+        ] {
+            let bad = Pin {
+                panel: panel.into(),
+                grid_i: gi,
+                grid_j: vec![j as u32],
+                ..m.clone()
+            };
+            let e = apply_pin(&mut l.sim, Some(&g), &bad, "world").unwrap_err();
+            assert!(e.contains(want), "{e}");
+        }
+        let sheet = Pin {
+            grid_i: vec![0],
+            grid_j: vec![0],
+            ..m.clone()
+        };
+        let e = apply_pin(&mut l.sim, None, &sheet, "world").unwrap_err();
+        assert!(e.contains("single sheet"), "{e}");
     }
 
     #[test]

@@ -79,6 +79,35 @@ pub struct Panel {
     pub edge_lengths: Vec<f64>,
     pub grain: [f64; 2],
     pub area: f64,
+    /// Nodes of the panel's warp/weft grid along warp and weft. Its lines
+    /// pass through the panel's origin; node (0, 0) is the grid's corner at
+    /// or just outside the outline's lowest warp and weft coordinates, node
+    /// (i, j) lies `i` spacings from it along the grain and `j` across.
+    pub grid: [usize; 2],
+    /// Garment vertex of grid node `j·grid[0] + i`, or
+    /// [`crate::cloth::REMOVED`] for a node outside the outline.
+    pub grid_vertex: Vec<usize>,
+}
+
+impl Panel {
+    /// The garment vertex of this panel's grid node (i along warp, j along
+    /// weft).
+    pub fn vertex(&self, i: usize, j: usize) -> Result<usize> {
+        let [nx, ny] = self.grid;
+        if i >= nx || j >= ny {
+            bail!(
+                "grid node ({i}, {j}) is outside panel {:?}'s {nx} × {ny} grid",
+                self.name
+            );
+        }
+        match self.grid_vertex[j * nx + i] {
+            crate::cloth::REMOVED => bail!(
+                "grid node ({i}, {j}) of panel {:?} lies outside its outline",
+                self.name
+            ),
+            v => Ok(v),
+        }
+    }
 }
 
 /// A built seam: its stitches are `stitches` of the cloth's seams.
@@ -227,6 +256,21 @@ impl Garment {
         best
     }
 
+    /// The panel called `name`.
+    pub fn panel(&self, name: &str) -> Result<&Panel> {
+        match self.panels.iter().find(|p| p.name == name) {
+            Some(p) => Ok(p),
+            None => bail!(
+                "no panel {name:?} (the garment's panels: {})",
+                self.panels
+                    .iter()
+                    .map(|p| p.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    }
+
     /// The panel a vertex belongs to.
     pub fn panel_of(&self, v: usize) -> usize {
         self.panels
@@ -343,7 +387,17 @@ fn cut_panel(
         ev.sort_by(|a, b| a.1.total_cmp(&b.1));
     }
     let area = crate::cloth::polygon_area(&poly).abs();
+    let grid_vertex = (0..cloth.ny)
+        .flat_map(|j| (0..cloth.nx).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            cloth
+                .index(i, j)
+                .map_or(crate::cloth::REMOVED, |v| first + v)
+        })
+        .collect();
     let panel = Panel {
+        grid: [cloth.nx, cloth.ny],
+        grid_vertex,
         name: name.clone(),
         first,
         count: cloth.len(),
