@@ -31,6 +31,7 @@ from std_srvs.srv import SetBool, Trigger
 from visualization_msgs.msg import Marker, MarkerArray
 
 BIN = os.environ.get("GARMENT_SIM_BIN")
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RELIABLE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -405,6 +406,43 @@ def test_obstacles_and_pins(ros):
             n.wait("/cloth/points", PointCloud2, lambda c: xyz(c)[10, 2] < 1.0)  # falls once let go
         finally:
             ros.destroy_publisher(obstacles)
+            ros.destroy_publisher(pins)
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+
+
+def test_a_garment_trial_scene(ros):
+    """The shipped skirt trial as the node's scene: the cloud carries the fit fields, a pin
+    names a panel's grid node, a pin naming a panel the garment lacks is refused."""
+    trial = os.path.join(ROOT, "config/trials/skirt_on_anny.yaml")
+    n = Sim(ros, "-p", f"scene:={trial}", "-p", "spacing:=0.04", "-p", "real_time_factor:=0.0",
+            "-p", "publish_rate:=50.0")
+    try:
+        c = n.wait("/cloth/points", PointCloud2, timeout=60.0)
+        p = decode_cloud(c)
+        fit = ["strain_warp", "strain_weft", "strain_bias", "pressure", "distance"]
+        assert [f.name for f in c.fields] == ["x", "y", "z", "strain", "speed"] + fit
+        for f in fit:
+            assert np.isfinite(p[f]).all(), f
+        assert (p["pressure"] >= 0).all() and p["distance"].min() > -0.001
+        c = n.wait("/cloth/points", PointCloud2, lambda c: (decode_cloud(c)["pressure"] > 0).any())
+        pins = ros.create_publisher(Pin, "/pins", RELIABLE)
+        try:
+            n.until("the node's subscription matched", lambda: pins.get_subscription_count() > 0)
+            world = Header(frame_id="world")
+            # node (7, 5) of the front panel's 4 cm grid lies inside its outline
+            # (src/ros/node.rs a_garment_pin_names_its_panel_and_grid_node)
+            target = [0.0, -0.4, 0.8]
+            pins.publish(Pin(header=world, operation=Pin.PIN, panel="skirt_front", grid_i=[7], grid_j=[5],
+                             targets=[Point(x=target[0], y=target[1], z=target[2])]))
+            n.wait("/cloth/points", PointCloud2,
+                   lambda c: (np.abs(xyz(c) - target).max(axis=1) < 1e-5).sum() == 1, timeout=30.0)
+            pins.publish(Pin(header=world, operation=Pin.PIN, panel="sleeve", grid_i=[0], grid_j=[0]))
+            d = n.wait("/diagnostics", DiagnosticArray,
+                       lambda d: {kv.key: kv.value for kv in d.status[0].values}["rejected_messages"] == "1")
+            assert "no panel" in d.status[0].message, d.status[0].message
+        finally:
             ros.destroy_publisher(pins)
     finally:
         code, out = n.stop()
