@@ -459,14 +459,15 @@ fn a_strip_cut_on_the_bias_stretches_as_its_shear_and_tensile_laws_predict() {
         eb * 1e3,
         et * 1e3
     );
-    // On the bias the staircase of the side edges leaves a border band whose
-    // cells lost a corner (a three-corner cell has no shear springs, and on
-    // the bias the load goes through shear): it carries less, and the middle
-    // stretches more, by about 0.7 spacing / width (7 % at 1 cm, 3.8 % at
-    // 0.5 cm; half that on a strip twice as wide). That excess is first
-    // order in the spacing, so extrapolating the two grids to zero spacing
-    // leaves the closed form's error and the clamp's reach, which the
-    // 1.5 % bounds.
+    // On the bias the middle stretches more than the closed form, by about
+    // 0.7 spacing / width: 7 % at 1 cm, 3.8 % at 0.5 cm, and 3.8 % at 1 cm
+    // on a strip twice as wide (and long). So the border carries less than
+    // its share: the side edges cut the 45° grid's cells in a staircase, a
+    // cell left with three corners has no shear springs, and on the bias the
+    // load goes through shear. The excess is first order in the spacing:
+    // extrapolated to zero spacing from the two grids, what is left (its
+    // second-order part, the reach of the clamp and of the free end into
+    // the compared span) is within 1.5 %.
     for (r, s) in [(r1, 0.01), (r05, 0.005)] {
         assert!(
             r > 1.0 && r - 1.0 < s / w,
