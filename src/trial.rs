@@ -167,7 +167,10 @@ pub struct Trial {
     pub file: TrialFile,
     pub path: PathBuf,
     pub garment: GarmentDef,
-    pub fabric: Fabric,
+    /// The garment's fabrics (the trial's `fabric`, if given, alone).
+    pub fabrics: Vec<Fabric>,
+    /// Each panel's fabric, an index into `fabrics`.
+    pub fabric_of: Vec<u16>,
     pub body: Obstacle,
 }
 
@@ -288,11 +291,14 @@ impl Trial {
     pub fn from_file(file: TrialFile, path: &Path) -> Result<Trial> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let garment = GarmentDef::load(&dir.join(&file.garment))?;
-        let fabric_path = match &file.fabric {
-            Some(f) => dir.join(f),
-            None => garment.fabric.clone(),
+        let (paths, fabric_of) = match &file.fabric {
+            Some(f) => (vec![dir.join(f)], vec![0; garment.cuts.len()]),
+            None => (garment.fabrics.clone(), garment.fabric_of.clone()),
         };
-        let fabric = crate::io::load_fabric(&fabric_path)?;
+        let fabrics = paths
+            .iter()
+            .map(|p| crate::io::load_fabric(p))
+            .collect::<Result<Vec<_>>>()?;
         let b = &file.body;
         let what = |f: &str| format!("trial file {}: body.{f}", path.display());
         crate::limits::check_range(
@@ -328,7 +334,8 @@ impl Trial {
             file,
             path: path.to_path_buf(),
             garment,
-            fabric,
+            fabrics,
+            fabric_of,
             body,
         })
     }
@@ -346,11 +353,13 @@ impl Trial {
         )?;
         let dt = ov.dt.unwrap_or(self.file.dt);
         crate::limits::check_dt("dt", dt)?;
-        let g = Garment::build(
+        let masses: Vec<f64> = self.fabrics.iter().map(|f| f.areal_mass).collect();
+        let g = Garment::build_with_fabrics(
             &self.garment.cuts,
+            &self.fabric_of,
             &self.garment.seams,
             spacing,
-            self.fabric.areal_mass,
+            &masses,
         )
         .with_context(|| format!("garment {}", self.garment.source.display()))?;
         // no panel may start inside the body
@@ -385,7 +394,7 @@ impl Trial {
             friction_bound_now: true,
             ..Params::default()
         };
-        let mut sim = Simulation::new(g.cloth.clone(), self.fabric.clone(), params)?;
+        let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
         sim.obstacles.push(self.body.clone());
         Ok((sim, g))
     }
@@ -521,13 +530,15 @@ pub fn run(
     let mut trace: Vec<[f64; 4]> = Vec::new();
     let every = ((0.05 / sim.params.dt).round() as u64).max(1);
     let gravity = sim.params.gravity;
-    let alpha = sim.fabric.damping.alpha;
+    let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
     let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
     // 1. sewing
     if !sew.gravity {
         sim.params.gravity = Vector3::zeros();
     }
-    sim.fabric.damping.alpha = alpha.min(-sew.drag);
+    for f in sim.fabrics_mut() {
+        f.damping.alpha = f.damping.alpha.min(-sew.drag);
+    }
     for s in sim.cloth.seams.iter_mut() {
         s.k *= sew.stiffness_factor;
         s.d *= sew.stiffness_factor;
@@ -562,7 +573,9 @@ pub fn run(
     let sewing_s = sim.time;
     // 2. drape
     sim.params.gravity = gravity;
-    sim.fabric.damping.alpha = alpha;
+    for (f, a) in sim.fabrics_mut().zip(alphas) {
+        f.damping.alpha = a;
+    }
     for (s, (k, d)) in sim.cloth.seams.iter_mut().zip(own) {
         s.k = k;
         s.d = d;
@@ -743,14 +756,13 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
     // the pressure is its normal part over the vertex's area
     let on_cloth = sim.contact_forces();
     let normals = sim.contact_normals();
-    let rho = sim.fabric.areal_mass;
     let force: Vec<Vector3<f64>> = on_cloth.iter().map(|f| -f).collect();
     let pressure = (0..n)
         .map(|i| {
             if on_cloth[i] == Vector3::zeros() {
                 0.0
             } else {
-                on_cloth[i].dot(&normals[i]).max(0.0) / (c.mass[i] / rho)
+                on_cloth[i].dot(&normals[i]).max(0.0) / (c.mass[i] / sim.fabric_of(i).areal_mass)
             }
         })
         .collect();
@@ -802,7 +814,8 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         })
         .collect();
     let normals = sim.contact_normals();
-    let rho = sim.fabric.areal_mass;
+    // each vertex's area of cloth
+    let area_of = |i: usize| c.mass[i] / sim.fabric_of(i).areal_mass;
     let (pressure, force, distance, stretch) = (&vf.pressure, &vf.force, &vf.distance, &vf.stretch);
     let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
         (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
@@ -812,7 +825,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             continue;
         }
         total += force[i];
-        let a = c.mass[i] / rho;
+        let a = area_of(i);
         pressure_force -= normals[i] * (pressure[i] * a);
         normal_sum += pressure[i] * a;
         peak = peak.max(pressure[i]);
@@ -927,7 +940,11 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
     }
     let fit = Fit {
         garment: trial.garment.name.clone(),
-        fabric: sim.fabric.name.clone(),
+        fabric: sim
+            .fabrics()
+            .map(|f| f.name.as_str())
+            .collect::<Vec<_>>()
+            .join(" + "),
         vertices: n,
         spacing_m: c.lc,
         dt_s: sim.params.dt,
@@ -940,7 +957,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         contact_force_magnitude_n: total.norm(),
         mean_pressure_pa: if area > 0.0 { normal_sum / area } else { 0.0 },
         peak_pressure_pa: peak,
-        pressure_integral_n: (0..n).map(|i| pressure[i] * c.mass[i] / rho).sum(),
+        pressure_integral_n: (0..n).map(|i| pressure[i] * area_of(i)).sum(),
         pressure_force_n: pressure_force.into(),
         distance_histogram_cm: hist,
         girths,

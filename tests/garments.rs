@@ -489,6 +489,162 @@ fn a_strip_cut_on_the_bias_stretches_as_its_shear_and_tensile_laws_predict() {
     );
 }
 
+/// The vertices of panel `k` of `g` at panel coordinates `corners` (within
+/// 1 µm).
+fn at_panel_points(g: &Garment, k: usize, corners: &[[f64; 2]]) -> Vec<usize> {
+    let p = &g.panels[k];
+    corners
+        .iter()
+        .map(|c| {
+            p.first
+                + p.uv
+                    .iter()
+                    .position(|u| (u[0] - c[0]).abs() < 1e-6 && (u[1] - c[1]).abs() < 1e-6)
+                    .expect("a vertex at the corner")
+        })
+        .collect()
+}
+
+/// Runs `steps` steps of `sim` holding `held` where they start; the positions.
+fn drop_from(mut sim: Simulation, held: &[usize], steps: usize) -> Vec<Vector3<f64>> {
+    let pins = held
+        .iter()
+        .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.x[i])))
+        .collect();
+    sim.set_pins(pins).unwrap();
+    for _ in 0..steps {
+        sim.step().unwrap();
+    }
+    sim.cloth.x.clone()
+}
+
+#[test]
+fn panels_of_two_fabrics_each_move_as_their_own_fabric_alone() {
+    // two unsewn 20 cm squares side by side, each falling from the two
+    // corners of one edge: the left wool tropical, the right cotton
+    // broadcloth (another areal mass and bending) with another α. Nothing
+    // joins them, so in one garment each must move as it does alone in a
+    // simulation of its own fabric: every spring, hinge and vertex takes
+    // its panel's fabric
+    let wool = fabric("wool_tropical");
+    let mut cotton = fabric("cotton_broadcloth");
+    cotton.damping.alpha = -3.0;
+    assert!(cotton.areal_mass != wool.areal_mass);
+    // flat, 50 cm up: they swing down from the held corners
+    let mut left = rect("left", 0.2, 0.2, [0.0, 0.0, 0.0], 90.0);
+    let mut right = rect("right", 0.2, 0.2, [0.0, 0.0, 0.0], 90.0);
+    left.placement = Isometry3::translation(0.0, 0.0, 0.5);
+    right.placement = Isometry3::translation(0.3, 0.0, 0.5);
+    let top = [[0.0, 0.2], [0.2, 0.2]];
+    let steps = 150;
+    let g = Garment::build_with_fabrics(
+        &[left.clone(), right.clone()],
+        &[0, 1],
+        &[],
+        0.02,
+        &[wool.areal_mass, cotton.areal_mass],
+    )
+    .unwrap();
+    let held: Vec<usize> = [0, 1]
+        .iter()
+        .flat_map(|&k| at_panel_points(&g, k, &top))
+        .collect();
+    let (l, r) = (&g.panels[0], &g.panels[1]);
+    let mass = |p: &garment_sim::garment::Panel| -> f64 {
+        g.cloth.mass[p.first..p.first + p.count].iter().sum()
+    };
+    assert!((mass(l) / (0.04 * wool.areal_mass) - 1.0).abs() < 1e-9);
+    assert!((mass(r) / (0.04 * cotton.areal_mass) - 1.0).abs() < 1e-9);
+    let sim = Simulation::with_fabrics(
+        g.cloth.clone(),
+        vec![wool.clone(), cotton.clone()],
+        params(0.005),
+    )
+    .unwrap();
+    let both = drop_from(sim, &held, steps);
+    let alone = |cut: &PanelCut, f: &Fabric| {
+        let g = Garment::build(std::slice::from_ref(cut), &[], 0.02, f.areal_mass).unwrap();
+        let held = at_panel_points(&g, 0, &top);
+        drop_from(
+            Simulation::new(g.cloth, f.clone(), params(0.005)).unwrap(),
+            &held,
+            steps,
+        )
+    };
+    let gap = |a: &[Vector3<f64>], b: &[Vector3<f64>]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).norm())
+            .fold(0.0, f64::max)
+    };
+    let wool_alone = alone(&left, &wool);
+    let cotton_alone = alone(&right, &cotton);
+    let gl = gap(&both[l.first..l.first + l.count], &wool_alone);
+    let gr = gap(&both[r.first..r.first + r.count], &cotton_alone);
+    // the right square in wool, moved onto the left: how far the fabrics
+    // part (what a panel given the wrong fabric would be off by)
+    let shift = Vector3::new(0.3, 0.0, 0.0);
+    let apart = gap(
+        &alone(&right, &wool)
+            .iter()
+            .map(|p| p - shift)
+            .collect::<Vec<_>>(),
+        &cotton_alone.iter().map(|p| p - shift).collect::<Vec<_>>(),
+    );
+    eprintln!("left {gl:.3e} m, right {gr:.3e} m off alone; the fabrics {apart:.3e} m apart");
+    assert!(apart > 1e-3, "the two fabrics move alike: {apart}");
+    assert!(gl < 1e-6 && gr < 1e-6, "{gl} {gr}");
+}
+
+#[test]
+fn a_garment_file_gives_a_panel_its_own_fabric() {
+    // the tube's back panel in cotton broadcloth, its front in the
+    // garment's wool tropical; the trial's own `fabric` puts every panel in one
+    let s = support::Scratch::new("garment_fabrics");
+    let t = tube_files(&s, 0.5);
+    let g = s.join("tube.garment.yaml");
+    let text = std::fs::read_to_string(&g).unwrap().replace(
+        "    rotation_deg: [90, 0, 180]\n",
+        &format!(
+            "    rotation_deg: [90, 0, 180]\n    fabric: {}\n",
+            root()
+                .join("config/fabrics/cotton_broadcloth.yaml")
+                .display()
+        ),
+    );
+    std::fs::write(&g, text).unwrap();
+    let trial = trial::Trial::load(&t).unwrap();
+    assert_eq!(trial.garment.fabrics.len(), 2);
+    let (sim, garment) = trial.build(&Default::default()).unwrap();
+    let (wool, cotton) = (fabric("wool_tropical"), fabric("cotton_broadcloth"));
+    for p in &garment.panels {
+        let want = if p.name == "back" { &cotton } else { &wool };
+        for v in p.first..p.first + p.count {
+            assert_eq!(sim.fabric_of(v).name, want.name, "{} vertex {v}", p.name);
+        }
+        let m: f64 = sim.cloth.mass[p.first..p.first + p.count].iter().sum();
+        assert!(
+            (m / (p.area * want.areal_mass) - 1.0).abs() < 1e-9,
+            "{}: {m} kg",
+            p.name
+        );
+    }
+    // the trial's fabric overrides the panels'
+    let one = s.join("one.trial.yaml");
+    let text = std::fs::read_to_string(&t).unwrap()
+        + &format!(
+            "fabric: {}\n",
+            root().join("config/fabrics/acrylic.yaml").display()
+        );
+    std::fs::write(&one, text).unwrap();
+    let (sim, _) = trial::Trial::load(&one)
+        .unwrap()
+        .build(&Default::default())
+        .unwrap();
+    assert!(sim.other_fabrics.is_empty());
+    assert_eq!(sim.fabric.name, fabric("acrylic").name);
+}
+
 /// Writes a closed vertical cylinder (radius r, height h, base at z = 0) as OBJ.
 fn cylinder_obj(path: &Path, r: f64, h: f64) {
     let n = 48;

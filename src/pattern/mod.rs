@@ -39,8 +39,8 @@ pub struct PanelFile {
     /// vertical, the usual grainline).
     #[serde(default)]
     pub grain_deg: Option<f64>,
-    /// Fabric file of this panel (every panel of a garment must use one
-    /// fabric for now).
+    /// Fabric file of this panel, relative to the garment file (default:
+    /// the garment's).
     #[serde(default)]
     pub fabric: Option<PathBuf>,
 }
@@ -92,7 +92,10 @@ pub struct GarmentDef {
     pub seams: Vec<SeamSpec>,
     /// Seam names "panel:edge ↔ panel:edge" for reports.
     pub seam_names: Vec<String>,
-    pub fabric: PathBuf,
+    /// The fabric files: the garment's, then the others its panels name.
+    pub fabrics: Vec<PathBuf>,
+    /// Each cut's fabric, an index into `fabrics`.
+    pub fabric_of: Vec<u16>,
     /// Where each cut came from, for error messages.
     pub source: PathBuf,
 }
@@ -145,11 +148,7 @@ impl GarmentDef {
                 pending.push((s.a.0.clone(), s.a.1, s.b.0.clone(), s.b.1));
             }
         }
-        let mut fabrics: Vec<PathBuf> = vec![dir.join(&file.fabric)];
         for (name, pf) in &file.panels {
-            if let Some(f) = &pf.fabric {
-                fabrics.push(dir.join(f));
-            }
             if cuts.iter().any(|c| &c.name == name) {
                 if pf.vertices.is_some() || pf.translation.is_some() || pf.rotation_deg.is_some() {
                     bail!(
@@ -193,13 +192,24 @@ impl GarmentDef {
                 ),
             });
         }
-        if let Some(other) = fabrics.iter().find(|f| **f != fabrics[0]) {
-            bail!(
-                "panels use two fabrics ({} and {}): a garment of several fabrics is not \
-                 supported yet; use one fabric file",
-                fabrics[0].display(),
-                other.display()
-            );
+        // each panel's fabric: the garment's unless the panel names its own
+        let mut fabrics: Vec<PathBuf> = vec![dir.join(&file.fabric)];
+        let mut fabric_of = Vec::with_capacity(cuts.len());
+        for c in &cuts {
+            let k = match file.panels.get(&c.name).and_then(|p| p.fabric.as_ref()) {
+                None => 0,
+                Some(f) => {
+                    let f = dir.join(f);
+                    match fabrics.iter().position(|g| *g == f) {
+                        Some(k) => k,
+                        None => {
+                            fabrics.push(f);
+                            fabrics.len() - 1
+                        }
+                    }
+                }
+            };
+            fabric_of.push(k as u16);
         }
         if cuts.is_empty() {
             bail!("no panels: give a garmentcode pattern or panels with vertices");
@@ -263,7 +273,8 @@ impl GarmentDef {
             cuts,
             seams,
             seam_names,
-            fabric: fabrics[0].clone(),
+            fabrics,
+            fabric_of,
             source: path.to_path_buf(),
         })
     }

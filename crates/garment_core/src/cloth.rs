@@ -228,6 +228,10 @@ pub struct Cloth {
     pub grid_vertex: Vec<usize>,
     /// Seam stitches joining panels of a garment (empty for a single piece).
     pub seams: Vec<Stitch>,
+    /// The fabric of each vertex, an index into the simulation's fabrics
+    /// (a garment whose panels are cut from several); empty: all the first.
+    /// Every spring and hinge lies within one panel and takes its fabric.
+    pub vertex_fabric: Vec<u16>,
 }
 
 /// Marks a grid node that a clipped cloth does not keep.
@@ -641,6 +645,7 @@ impl Cloth {
             triangles,
             grid_vertex: Vec::new(),
             seams: Vec::new(),
+            vertex_fabric: Vec::new(),
         };
         Ok(cloth)
     }
@@ -950,6 +955,7 @@ impl Cloth {
             triangles,
             grid_vertex,
             seams: Vec::new(),
+            vertex_fabric: Vec::new(),
         })
     }
 
@@ -970,8 +976,16 @@ impl Cloth {
             lt,
             ..Cloth::default()
         };
+        let several = parts.iter().any(|p| !p.vertex_fabric.is_empty());
         for p in parts {
             let o = c.x.len();
+            if several {
+                if p.vertex_fabric.is_empty() {
+                    c.vertex_fabric.extend(std::iter::repeat_n(0, p.len()));
+                } else {
+                    c.vertex_fabric.extend(&p.vertex_fabric);
+                }
+            }
             c.material.extend(p.material);
             c.x.extend(p.x);
             c.v.extend(p.v);

@@ -138,14 +138,46 @@ impl Garment {
         spacing: f64,
         areal_mass: f64,
     ) -> Result<Garment> {
+        Garment::build_with_fabrics(cuts, &vec![0; cuts.len()], seams, spacing, &[areal_mass])
+    }
+
+    /// [`Garment::build`] for panels cut from several fabrics: panel `k`
+    /// from fabric `fabric_of[k]`, whose areal mass is
+    /// `areal_masses[fabric_of[k]]`. With more than one fabric the cloth's
+    /// `vertex_fabric` says whose each vertex is (for
+    /// [`crate::solver::Simulation::with_fabrics`]).
+    pub fn build_with_fabrics(
+        cuts: &[PanelCut],
+        fabric_of: &[u16],
+        seams: &[SeamSpec],
+        spacing: f64,
+        areal_masses: &[f64],
+    ) -> Result<Garment> {
         if cuts.is_empty() {
             bail!("a garment needs at least one panel");
+        }
+        if fabric_of.len() != cuts.len() {
+            bail!(
+                "{} panels but {} fabric indices",
+                cuts.len(),
+                fabric_of.len()
+            );
         }
         let mut parts = Vec::new();
         let mut panels = Vec::new();
         let mut first = 0;
-        for cut in cuts {
-            let (cloth, panel) = cut_panel(cut, spacing, areal_mass, first)?;
+        for (cut, &k) in cuts.iter().zip(fabric_of) {
+            let Some(&areal_mass) = areal_masses.get(usize::from(k)) else {
+                bail!(
+                    "panel {:?}: fabric {k}, but there are {} fabrics",
+                    cut.name,
+                    areal_masses.len()
+                );
+            };
+            let (mut cloth, panel) = cut_panel(cut, spacing, areal_mass, first)?;
+            if areal_masses.len() > 1 {
+                cloth.vertex_fabric = vec![k; cloth.len()];
+            }
             first += cloth.len();
             parts.push(cloth);
             panels.push(panel);

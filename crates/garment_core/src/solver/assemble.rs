@@ -11,7 +11,7 @@ use super::elements::*;
 use super::sparse::BlockMatrix;
 use super::team::Team;
 use crate::cloth::Cloth;
-use crate::fabric::{Damping, Fabric, LawState};
+use crate::fabric::{Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
 use std::ops::Range;
 
@@ -194,8 +194,9 @@ pub fn add_seams(
 /// What every thread reads.
 struct Ctx<'a> {
     h: f64,
-    d: Damping,
-    f: &'a Fabric,
+    /// The simulation's fabrics, and each vertex's (empty: all the first).
+    fabrics: &'a [&'a Fabric],
+    vertex_fabric: &'a [u16],
     c: &'a ClothView<'a>,
     y: &'a [Vector3<f64>],
     slots: &'a Slots,
@@ -204,6 +205,15 @@ struct Ctx<'a> {
     row_ptr: &'a [usize],
     diag: &'a [usize],
     span: usize,
+}
+
+impl Ctx<'_> {
+    /// The fabric of vertex `v` (and of every element whose lowest vertex
+    /// it is: an element lies within one panel).
+    #[inline(always)]
+    fn fabric(&self, v: usize) -> &Fabric {
+        self.fabrics[self.vertex_fabric.get(v).map_or(0, |&k| usize::from(k))]
+    }
 }
 
 /// The read-only part of the cloth.
@@ -233,8 +243,9 @@ struct Out<'a> {
 /// diagonal, zero elsewhere; gravity and α damping in the force.
 #[inline(always)]
 fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
-    let (h, al) = (ctx.h, ctx.d.alpha);
+    let h = ctx.h;
     for i in rows {
+        let al = ctx.fabric(i).damping.alpha;
         let m = ctx.mass[i];
         let v = ctx.c.v[i];
         o.force[i - o.voff] = ctx.gravity * m + v * (al * m);
@@ -335,12 +346,13 @@ fn elements_range(
     h0: usize,
     o: &mut Out,
 ) {
-    let (h, d, f, c, y) = (ctx.h, ctx.d, ctx.f, ctx.c, ctx.y);
+    let (h, c, y) = (ctx.h, ctx.c, ctx.y);
     let v = c.v;
     let (bo, vo) = (o.boff, o.voff);
     for k in tr {
         let s = &c.tension[k];
         let st = &mut o.tstate[k - t0];
+        let f = ctx.fabric(s.a);
         let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
         let law = &f.dir(s.weft).tensile;
         law.commit(st, l / s.l0 - 1.0);
@@ -353,13 +365,14 @@ fn elements_range(
             dts,
             l,
             dir,
-            beta: d.beta_tension,
+            beta: f.damping.beta_tension,
         };
         axial_element(ctx, o, &ctx.slots.tension[k], &sp);
     }
     for k in sr {
         let s = &c.shear[k];
         let st = &mut o.sstate[k - s0];
+        let f = ctx.fabric(s.a);
         let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
         f.shear.commit(st, s.strain(l));
         let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
@@ -371,13 +384,15 @@ fn elements_range(
             dts,
             l,
             dir,
-            beta: d.beta_shear,
+            beta: f.damping.beta_shear,
         };
         axial_element(ctx, o, &ctx.slots.shear[k], &sp);
     }
     for k in hr {
         let hg = &c.hinges[k];
         let st = &mut o.hstate[k - h0];
+        let f = ctx.fabric(hg.v[0]);
+        let d = f.damping;
         let law = &f.dir(hg.weft).bending;
         let (theta, g) = dihedral_and_grad(hinge_positions(hg, c.x));
         law.commit(st, theta / hg.h);
@@ -478,7 +493,7 @@ fn scatter(val: &mut [Matrix3<f64>], off: usize, sl: &[usize; 4], p: &Matrix3<f6
 pub fn assemble(
     h: f64,
     gravity: Vector3<f64>,
-    fabric: &Fabric,
+    fabrics: &[&Fabric],
     cloth: &mut Cloth,
     y: &[Vector3<f64>],
     slots: &Slots,
@@ -488,7 +503,6 @@ pub fn assemble(
     rhs: &mut [Vector3<f64>],
     team: &mut Team,
 ) -> f64 {
-    let d = fabric.damping;
     let mut power = 0.0;
     let Cloth {
         x,
@@ -500,6 +514,7 @@ pub fn assemble(
         shear_state,
         hinge_state,
         mass,
+        vertex_fabric,
         ..
     } = cloth;
     let view = ClothView {
@@ -511,8 +526,8 @@ pub fn assemble(
     };
     let ctx = Ctx {
         h,
-        d,
-        f: fabric,
+        fabrics,
+        vertex_fabric,
         c: &view,
         y,
         slots,

@@ -19,13 +19,18 @@ impl Simulation {
     /// Elastic + hysteretic forces of one family (no damping).
     pub fn family_forces(&self, fam: Family) -> Vec<Vector3<f64>> {
         let c = &self.cloth;
-        let f = &self.fabric;
         let mut out = vec![Vector3::zeros(); c.len()];
         match fam {
             Family::Tension => {
                 for (s, st) in c.tension.iter().zip(&c.tension_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+                    let (t, _, _) = tension_law(
+                        s,
+                        &self.fabric_of(s.a).dir(s.weft).tensile,
+                        &self.fabric_of(s.a).shear,
+                        st,
+                        l,
+                    );
                     out[s.a] += dir * t;
                     out[s.b] -= dir * t;
                 }
@@ -33,14 +38,15 @@ impl Simulation {
             Family::Shear => {
                 for (s, st) in c.shear.iter().zip(&c.shear_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, _) = shear_law(s, &f.shear, st, l);
+                    let (t, _, _) = shear_law(s, &self.fabric_of(s.a).shear, st, l);
                     out[s.a] += dir * t;
                     out[s.b] -= dir * t;
                 }
             }
             Family::Bending => {
                 for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let (_, _, s, _, g) = hinge_eval(hg, &f.dir(hg.weft).bending, st, &c.x);
+                    let (_, _, s, _, g) =
+                        hinge_eval(hg, &self.fabric_of(hg.v[0]).dir(hg.weft).bending, st, &c.x);
                     for p in 0..4 {
                         out[hg.v[p]] -=
                             Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]) * (hg.len * s);
@@ -54,7 +60,6 @@ impl Simulation {
     /// `∂f/∂x` of one family: exact, or the projected `−K̃` the solver uses.
     pub fn family_jacobian(&self, fam: Family, projected: bool) -> BlockMatrix {
         let c = &self.cloth;
-        let f = &self.fabric;
         let mut k = self.a.clone();
         k.clear();
         let axial_add = |k: &mut BlockMatrix, a: usize, b: usize, p: Matrix3<f64>| {
@@ -68,7 +73,13 @@ impl Simulation {
             Family::Tension => {
                 for (s, st) in c.tension.iter().zip(&c.tension_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, dt, _) = tension_law(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+                    let (t, dt, _) = tension_law(
+                        s,
+                        &self.fabric_of(s.a).dir(s.weft).tensile,
+                        &self.fabric_of(s.a).shear,
+                        st,
+                        l,
+                    );
                     axial_add(
                         &mut k,
                         s.a,
@@ -80,7 +91,7 @@ impl Simulation {
             Family::Shear => {
                 for (s, st) in c.shear.iter().zip(&c.shear_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, dt, _) = shear_law(s, &f.shear, st, l);
+                    let (t, dt, _) = shear_law(s, &self.fabric_of(s.a).shear, st, l);
                     axial_add(
                         &mut k,
                         s.a,
@@ -91,7 +102,7 @@ impl Simulation {
             }
             Family::Bending => {
                 for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let law = &f.dir(hg.weft).bending;
+                    let law = &self.fabric_of(hg.v[0]).dir(hg.weft).bending;
                     let j = if projected {
                         let (_, _, _, ds, g) = hinge_eval(hg, law, st, &c.x);
                         -(g * g.transpose()) * (hg.len * ds.max(0.0) / hg.h)
@@ -117,7 +128,6 @@ impl Simulation {
     /// needs it to write the step's own equation on captured shapes.
     pub fn family_step_jacobian(&self, fam: Family) -> BlockMatrix {
         let c = &self.cloth;
-        let f = &self.fabric;
         let mut k = self.a.clone();
         k.clear();
         let mut axial_add = |a: usize, b: usize, t: f64, dts: f64, l: f64, dir: Vector3<f64>| {
@@ -132,21 +142,26 @@ impl Simulation {
             Family::Tension => {
                 for (s, st) in c.tension.iter().zip(&c.tension_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, dts, _) =
-                        tension_law_step(s, &f.dir(s.weft).tensile, &f.shear, st, l);
+                    let (t, _, dts, _) = tension_law_step(
+                        s,
+                        &self.fabric_of(s.a).dir(s.weft).tensile,
+                        &self.fabric_of(s.a).shear,
+                        st,
+                        l,
+                    );
                     axial_add(s.a, s.b, t, dts, l, dir);
                 }
             }
             Family::Shear => {
                 for (s, st) in c.shear.iter().zip(&c.shear_state) {
                     let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, dts, _) = shear_law_step(s, &f.shear, st, l);
+                    let (t, _, dts, _) = shear_law_step(s, &self.fabric_of(s.a).shear, st, l);
                     axial_add(s.a, s.b, t, dts, l, dir);
                 }
             }
             Family::Bending => {
                 for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let law = &f.dir(hg.weft).bending;
+                    let law = &self.fabric_of(hg.v[0]).dir(hg.weft).bending;
                     let (theta, g) = dihedral_and_grad(hinge_positions(hg, &c.x));
                     let (_, _, dss) = law.eval_for_step(st, theta / hg.h);
                     let ks = hg.len * dss.max(0.0) / hg.h;
@@ -164,7 +179,8 @@ impl Simulation {
     }
 
     /// Total force including gravity and damping at velocities `v` (for the
-    /// ∂f/∂v check): `f_el + M g + C v`.
+    /// ∂f/∂v check): `f_el + M g + C v`, with the (first) fabric's damping:
+    /// the damping identification works on a cloth of one fabric.
     pub fn total_force_at_velocity(&self, v: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
         let d = self.fabric.damping;
         let mut out = self.internal_forces();
@@ -189,7 +205,8 @@ impl Simulation {
         out
     }
 
-    /// The damping matrix `∂f/∂v = C = αM + Σ β_k K̃_k` as assembled by the solver.
+    /// The damping matrix `∂f/∂v = C = αM + Σ β_k K̃_k` as assembled by the
+    /// solver for a cloth of one fabric (its first fabric's α and β).
     pub fn damping_matrix(&self) -> BlockMatrix {
         let d = self.fabric.damping;
         let mut c = self.a.clone();

@@ -237,7 +237,11 @@ impl Energies {
 #[derive(Debug)]
 pub struct Simulation {
     pub cloth: Cloth,
+    /// The fabric (a garment of several fabrics: its first).
     pub fabric: Fabric,
+    /// A garment's further fabrics: `cloth.vertex_fabric` indexes
+    /// `fabric`, then these (see [`Simulation::with_fabrics`]).
+    pub other_fabrics: Vec<Fabric>,
     pub obstacles: Vec<Obstacle>,
     pub pins: Vec<Pin>,
     pub params: Params,
@@ -353,6 +357,7 @@ impl Simulation {
         Ok(Simulation {
             cloth,
             fabric,
+            other_fabrics: Vec::new(),
             obstacles: Vec::new(),
             pins: Vec::new(),
             params,
@@ -383,6 +388,68 @@ impl Simulation {
             auto_next_probe: 0,
             auto_probe_gap: AUTO_PROBE,
         })
+    }
+
+    /// A cloth cut from several fabrics (a garment whose panels differ):
+    /// `cloth.vertex_fabric` gives each vertex's fabric as an index into
+    /// `fabrics`; every spring and hinge takes the fabric of its vertices
+    /// (they lie within one panel), every vertex its own α.
+    pub fn with_fabrics(cloth: Cloth, fabrics: Vec<Fabric>, params: Params) -> Result<Simulation> {
+        let mut rest = fabrics.into_iter();
+        let Some(first) = rest.next() else {
+            bail!("a simulation needs at least one fabric");
+        };
+        let rest: Vec<Fabric> = rest.collect();
+        let vf = &cloth.vertex_fabric;
+        if !vf.is_empty() && vf.len() != cloth.len() {
+            bail!(
+                "vertex_fabric has {} entries for {} vertices",
+                vf.len(),
+                cloth.len()
+            );
+        }
+        if let Some((v, k)) = vf
+            .iter()
+            .enumerate()
+            .find(|(_, &k)| usize::from(k) > rest.len())
+        {
+            bail!(
+                "vertex {v} names fabric {k}, but there are {} fabrics",
+                rest.len() + 1
+            );
+        }
+        let hysteresis = params.hysteresis;
+        let mut sim = Simulation::new(cloth, first, params)?;
+        sim.other_fabrics = rest
+            .into_iter()
+            .map(|f| {
+                if hysteresis {
+                    f
+                } else {
+                    f.without_hysteresis()
+                }
+            })
+            .collect();
+        Ok(sim)
+    }
+
+    /// Every fabric: `fabric`, then `other_fabrics`.
+    pub fn fabrics(&self) -> impl Iterator<Item = &Fabric> {
+        std::iter::once(&self.fabric).chain(&self.other_fabrics)
+    }
+
+    /// Every fabric, to change (the trial's sewing phase sets their α).
+    pub fn fabrics_mut(&mut self) -> impl Iterator<Item = &mut Fabric> {
+        std::iter::once(&mut self.fabric).chain(&mut self.other_fabrics)
+    }
+
+    /// The fabric of vertex `v` (and of the springs and hinges at it).
+    #[inline]
+    pub fn fabric_of(&self, v: usize) -> &Fabric {
+        match self.cloth.vertex_fabric.get(v) {
+            Some(&k) if k > 0 => &self.other_fabrics[usize::from(k) - 1],
+            _ => &self.fabric,
+        }
     }
 
     /// Threads of the assembly, the PCG and the contacts.
@@ -780,19 +847,23 @@ impl Simulation {
     }
 
     fn commit_laws(&mut self) {
+        let fabrics: Vec<&Fabric> = std::iter::once(&self.fabric)
+            .chain(&self.other_fabrics)
+            .collect();
         let c = &mut self.cloth;
-        let f = &self.fabric;
+        let vf = &c.vertex_fabric;
+        let f = |v: usize| fabrics[vf.get(v).map_or(0, |&k| usize::from(k))];
         for (s, st) in c.tension.iter().zip(c.tension_state.iter_mut()) {
             let l = (c.x[s.b] - c.x[s.a]).norm();
-            f.dir(s.weft).tensile.commit(st, l / s.l0 - 1.0);
+            f(s.a).dir(s.weft).tensile.commit(st, l / s.l0 - 1.0);
         }
         for (s, st) in c.shear.iter().zip(c.shear_state.iter_mut()) {
             let l = (c.x[s.b] - c.x[s.a]).norm();
-            f.shear.commit(st, s.strain(l));
+            f(s.a).shear.commit(st, s.strain(l));
         }
         for (hg, st) in c.hinges.iter().zip(c.hinge_state.iter_mut()) {
             let th = dihedral(hinge_positions(hg, &c.x));
-            f.dir(hg.weft).bending.commit(st, th / hg.h);
+            f(hg.v[0]).dir(hg.weft).bending.commit(st, th / hg.h);
         }
     }
 
@@ -802,10 +873,13 @@ impl Simulation {
     /// shape (the end of the previous step), in the same pass, and adds the
     /// energy the damping dissipates over this step (`−h vᵀ C v`).
     fn assemble(&mut self) {
+        let fabrics: Vec<&Fabric> = std::iter::once(&self.fabric)
+            .chain(&self.other_fabrics)
+            .collect();
         let power = assemble::assemble(
             self.params.dt,
             self.params.gravity,
-            &self.fabric,
+            &fabrics,
             &mut self.cloth,
             &self.y,
             &self.slots,
@@ -890,7 +964,6 @@ impl Simulation {
     /// farthest this step. Computed only when a step fails.
     pub fn diagnose(&self) -> String {
         let c = &self.cloth;
-        let f = &self.fabric;
         let mut parts = Vec::new();
         let worst = c
             .tension
@@ -900,7 +973,7 @@ impl Simulation {
             .filter(|(_, _, e)| e.is_finite())
             .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
         if let Some((k, s, e)) = worst {
-            let (_, tangent) = f.dir(s.weft).tensile.elastic.eval(e);
+            let (_, tangent) = self.fabric_of(s.a).dir(s.weft).tensile.elastic.eval(e);
             parts.push(format!(
                 "most stretched: tension spring {k} ({} vertices {}–{}) at strain {e:.3e}, \
                  tensile law tangent {tangent:.3e} N/m{}",
@@ -922,7 +995,7 @@ impl Simulation {
             .filter(|(_, _, e)| e.is_finite())
             .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
         if let Some((k, s, e)) = worst {
-            let (_, tangent) = f.shear.elastic.eval(e);
+            let (_, tangent) = self.fabric_of(s.a).shear.elastic.eval(e);
             parts.push(format!(
                 "most sheared: diagonal {k} (vertices {}–{}) at sin θ = {e:.3e}, shear law \
                  tangent {tangent:.3e} N/m",
@@ -950,7 +1023,7 @@ impl Simulation {
     /// Energies of the current state (elastic parts of the laws).
     pub fn energies(&self) -> Energies {
         let c = &self.cloth;
-        let f = &self.fabric;
+        let f = |v: usize| self.fabric_of(v);
         let mut e = Energies {
             dissipated_damping: self.dissipated,
             ..Default::default()
@@ -962,18 +1035,18 @@ impl Simulation {
         for s in &c.tension {
             e.tension += tension_energy(
                 s,
-                &f.dir(s.weft).tensile,
-                &f.shear,
+                &f(s.a).dir(s.weft).tensile,
+                &f(s.a).shear,
                 (c.x[s.b] - c.x[s.a]).norm(),
             );
         }
         for s in &c.shear {
-            e.shear += shear_energy(s, &f.shear, (c.x[s.b] - c.x[s.a]).norm());
+            e.shear += shear_energy(s, &f(s.a).shear, (c.x[s.b] - c.x[s.a]).norm());
         }
         for hg in &c.hinges {
             e.bending += hinge_energy(
                 hg,
-                &f.dir(hg.weft).bending,
+                &f(hg.v[0]).dir(hg.weft).bending,
                 dihedral(hinge_positions(hg, &c.x)),
             );
         }
