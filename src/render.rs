@@ -734,7 +734,20 @@ impl FieldPicture {
             plot::BLACK,
         );
         img.text(bx + 18, y0 + bh - 6, &val(0.0), 1, plot::BLACK);
-        img.text(bx - 6, y0 - 20, &self.label.0, 1, plot::BLACK);
+        // the name above the bar, in lines that fit the legend's width
+        let mut lines: Vec<String> = Vec::new();
+        for word in self.label.0.split_whitespace() {
+            match lines.last_mut() {
+                Some(l) if plot::text_width(&format!("{l} {word}"), 1) <= legend_w as i64 - 12 => {
+                    l.push(' ');
+                    l.push_str(word);
+                }
+                _ => lines.push(word.to_string()),
+            }
+        }
+        for (k, l) in lines.iter().rev().enumerate() {
+            img.text(bx - 6, y0 - 20 - 12 * k as i64, l, 1, plot::BLACK);
+        }
         img
     }
 

@@ -625,6 +625,8 @@ pub struct StrainStat {
 #[derive(Debug, Clone, Serialize)]
 pub struct PanelFit {
     pub name: String,
+    /// The name of the panel's fabric.
+    pub fabric: String,
     pub vertices: usize,
     pub area_m2: f64,
     pub warp: StrainStat,
@@ -806,6 +808,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         .enumerate()
         .map(|(k, p)| PanelFit {
             name: p.name.clone(),
+            fabric: sim.fabric_of(p.first).name.clone(),
             vertices: p.count,
             area_m2: p.area,
             warp: stat(acc[k][0]),

@@ -643,6 +643,29 @@ fn a_garment_file_gives_a_panel_its_own_fabric() {
         .unwrap();
     assert!(sim.other_fabrics.is_empty());
     assert_eq!(sim.fabric.name, fabric("acrylic").name);
+    // fit.json names each panel's fabric
+    let out = s.join("out");
+    let o = support::garment_sim()
+        .args([
+            "trial",
+            t.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--max-time",
+            "0.1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit = read_json(&out.join("fit.json"));
+    for p in fit["panels"].as_array().unwrap() {
+        let want = if p["name"] == "back" { &cotton } else { &wool };
+        assert_eq!(p["fabric"].as_str().unwrap(), want.name, "{p}");
+    }
+    assert_eq!(
+        fit["fabric"].as_str().unwrap(),
+        format!("{} + {}", wool.name, cotton.name)
+    );
 }
 
 /// Writes a closed vertical cylinder (radius r, height h, base at z = 0) as OBJ.
