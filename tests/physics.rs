@@ -266,6 +266,38 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
     );
 }
 
+#[test]
+fn table_drape_shape_converges_at_least_linearly_with_the_grid() {
+    // issue 24: the mean distance of thesis eq. 6.2 between the drapes on
+    // nested grids (2, 1 and 0.5 cm: every node of a grid is a node of the
+    // next) shrinks at least as fast as the spacing, e(1 cm → 0.5 cm) ≤
+    // ½ e(2 cm → 1 cm); at the interactive step, 1/120 s
+    let dt = 1.0 / 120.0;
+    let d: Vec<Drape> = [0.02, 0.01, 0.005]
+        .iter()
+        .map(|&h| drape(h, dt, 3.0))
+        .collect();
+    let e21 = mean_distance(&d[0].sim, &d[1].sim);
+    let e105 = mean_distance(&d[1].sim, &d[2].sim);
+    let settle: Vec<f64> = d.iter().map(|d| d.settle.expect("settles")).collect();
+    println!(
+        "e(2 cm, 1 cm) = {:.2} mm, e(1 cm, 0.5 cm) = {:.2} mm (ratio {:.2}); settle {:.2} / {:.2} / {:.2} s",
+        e21 * 1e3,
+        e105 * 1e3,
+        e105 / e21,
+        settle[0],
+        settle[1],
+        settle[2]
+    );
+    assert!(e105 <= 0.5 * e21, "{e105} against {e21}");
+    // every grid settles within 3 s, their settle times within 30 % of each other
+    let (lo, hi) = (
+        settle.iter().cloned().fold(f64::INFINITY, f64::min),
+        settle.iter().cloned().fold(0.0, f64::max),
+    );
+    assert!(hi < 3.0 && (hi - lo) / hi < 0.3, "{settle:?}");
+}
+
 /// A pin following a waypoint path is exactly on its target after every step
 /// (the filter and the position correction y, not a penalty spring).
 #[test]
