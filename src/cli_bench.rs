@@ -1,0 +1,164 @@
+//! `garment_sim bench`: ms per step and real-time factor of a scene across
+//! grids, steps and solvers.
+
+use anyhow::{Context, Result};
+use garment_sim::scene::{Overrides, Scene};
+use garment_sim::solver::LinearSolverKind;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Scene to benchmark.
+    #[arg(long, default_value = "config/scenes/table_drape.yaml")]
+    pub scene: PathBuf,
+    /// Grid spacings, m (comma separated).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.02, 0.01, 0.005])]
+    pub spacing: Vec<f64>,
+    /// Time steps, s (comma separated).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![1e-3, 1e-4])]
+    pub dt: Vec<f64>,
+    /// Solvers (comma separated).
+    #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky", "auto"])]
+    pub solver: Vec<LinearSolverKind>,
+    /// Steps per measurement (after the warm-up of the same count).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
+    pub steps: u64,
+    /// Repetitions; the median is reported.
+    #[arg(long, default_value_t = 3, value_parser = crate::cli_lab::at_least_one)]
+    pub repeat: usize,
+    /// Simulated time before measuring (the cloth is mid-drape; at most
+    /// 3 × steps are run), s.
+    #[arg(long, default_value_t = 0.2, allow_negative_numbers = true,
+              value_parser = crate::cli_lab::seconds)]
+    pub warmup: f64,
+    /// Threads of the assembly, the PCG and the contacts (default: one per core
+    /// from 500 vertices; 1 for one core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// Runs `bench`.
+pub fn bench(a: BenchArgs) -> Result<()> {
+    let BenchArgs {
+        scene,
+        spacing,
+        dt,
+        solver,
+        steps,
+        repeat,
+        warmup,
+        threads,
+    } = a;
+    let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
+    println!(
+        "scene {} ; {} steps per run, median of {} runs, after {} s of simulated warm-up",
+        scene.display(),
+        steps,
+        repeat,
+        warmup
+    );
+    println!(
+        "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11} {:>7}",
+        "spacing",
+        "grid",
+        "dt",
+        "solver",
+        "ms/step",
+        "assembly",
+        "solve",
+        "contacts",
+        "RTF",
+        "iters",
+        "peak RSS MB",
+        "threads"
+    );
+    for &sp in &spacing {
+        for &h in &dt {
+            for &so in &solver {
+                let ov = Overrides {
+                    spacing: Some(sp),
+                    dt: Some(h),
+                    solver: Some(so),
+                    threads,
+                    ..Default::default()
+                };
+                let mut sim = sc.build(&ov)?;
+                let wsteps = (warmup / h).round() as u64;
+                // per run: ms per step in all, then in assembly, solve
+                // and contacts (the step's own timers)
+                let mut ms: Vec<[f64; 4]> = Vec::new();
+                let mut it = 0.0;
+                let measured = (|| -> Result<()> {
+                    for _ in 0..wsteps.min(steps * 3) {
+                        sim.step()?;
+                    }
+                    for _ in 0..repeat.max(1) {
+                        let t = std::time::Instant::now();
+                        let mut iters = 0;
+                        let mut phase = [0.0; 3];
+                        for _ in 0..steps {
+                            let st = sim.step()?;
+                            iters += st.iterations;
+                            phase[0] += st.assemble_s;
+                            phase[1] += st.solve_s;
+                            phase[2] += st.collide_s;
+                        }
+                        let per = |x: f64| 1e3 * x / steps as f64;
+                        ms.push([
+                            per(t.elapsed().as_secs_f64()),
+                            per(phase[0]),
+                            per(phase[1]),
+                            per(phase[2]),
+                        ]);
+                        it = iters as f64 / steps as f64;
+                    }
+                    Ok(())
+                })();
+                if let Err(e) = measured {
+                    println!(
+                        "{:>8} {:>9} {:>10} {:>8}   failed: {e:#}",
+                        sp,
+                        format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                        format!("{h:.4e}"),
+                        format!("{so:?}").to_lowercase()
+                    );
+                    continue;
+                }
+                // the median run, with its own phase split
+                ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
+                let med = ms[ms.len() / 2];
+                println!(
+                    "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7}",
+                    sp,
+                    format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                    format!("{h:.4e}"),
+                    format!("{so:?}").to_lowercase(),
+                    med[0],
+                    med[1],
+                    med[2],
+                    med[3],
+                    h * 1e3 / med[0],
+                    it,
+                    peak_rss_mb(),
+                    sim.threads()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Peak resident memory of this process so far (Linux VmHWM), MB.
+fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| {
+                l.split_whitespace()
+                    .nth(1)
+                    .and_then(|v| v.parse::<f64>().ok())
+            })
+        })
+        .map(|kb| kb / 1024.0)
+        .unwrap_or(f64::NAN)
+}

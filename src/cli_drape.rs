@@ -1,0 +1,313 @@
+//! `garment_sim drape`: a scene run headless, its outputs and figures, with
+//! an optional rosbag2 bag and a live view in Foxglove.
+
+use crate::progress_printer;
+use anyhow::Result;
+use garment_sim::run;
+use garment_sim::scene::{Overrides, Scene};
+use garment_sim::solver::LinearSolverKind;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct DrapeArgs {
+    /// Scene file, e.g. config/scenes/table_drape.yaml
+    pub scene: PathBuf,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    pub out: PathBuf,
+    /// Grid spacing (both directions), m.
+    #[arg(long, allow_negative_numbers = true)]
+    pub spacing: Option<f64>,
+    /// Fixed time step, s.
+    #[arg(long, allow_negative_numbers = true)]
+    pub dt: Option<f64>,
+    /// Simulated duration, s.
+    #[arg(long, allow_negative_numbers = true)]
+    pub duration: Option<f64>,
+    /// Linear solver: auto (default: the block-Jacobi PCG while it converges in fewer
+    /// iterations than the break-even count, else a single-precision Cholesky factor as
+    /// the PCG's preconditioner), pcg (block-Jacobi), amg (PCG with smoothed-aggregation
+    /// multigrid) or cholesky (exact, double precision).
+    #[arg(long)]
+    pub solver: Option<LinearSolverKind>,
+    /// Turn the hysteretic parts of the laws off.
+    #[arg(long)]
+    pub no_hysteresis: bool,
+    /// Relative tolerance of the PCG, in (0, 1).
+    #[arg(long, allow_negative_numbers = true)]
+    pub cg_tolerance: Option<f64>,
+    /// Threads of the assembly, the PCG and the contacts (default: one per core
+    /// from 500 vertices; 1 for one core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    #[command(flatten)]
+    pub bag: BagArgs,
+    #[command(flatten)]
+    pub live: LiveArgs,
+}
+
+/// Recording a drape as a rosbag2 bag.
+#[derive(clap::Args)]
+pub struct BagArgs {
+    /// Record the drape into this new rosbag2 bag directory (MCAP + metadata.yaml).
+    #[arg(long)]
+    pub bag: Option<PathBuf>,
+    /// Frames per simulated second in the bag (any rate ≥ 1/dt records every step).
+    #[arg(long, default_value_t = 30.0)]
+    pub bag_rate: f64,
+    /// Chunk compression: zstd, lz4 or none.
+    #[arg(long, default_value = "zstd")]
+    pub bag_compression: garment_sim::bag::Compression,
+    /// Chunk size, bytes (a crash loses at most the chunk being filled).
+    #[arg(long, default_value_t = 1 << 20)]
+    pub bag_chunk_size: u64,
+}
+
+/// Showing a drape live in Foxglove.
+#[derive(clap::Args)]
+pub struct LiveArgs {
+    /// Serve a live view for Foxglove (Open connection → Foxglove WebSocket) on ADDR:PORT
+    /// (without a value 127.0.0.1:8765; a bare PORT is on 127.0.0.1; put it after the scene).
+    /// Waits for a viewer before the first step, paces the run and keeps serving the final
+    /// state while a viewer stays connected (Ctrl-C ends it).
+    #[arg(long, value_name = "ADDR:PORT", num_args = 0..=1,
+          default_missing_value = "127.0.0.1:8765", value_parser = garment_sim::live::parse_addr)]
+    pub foxglove: Option<std::net::SocketAddr>,
+    /// With --foxglove: simulated seconds per wall-clock second (1: real time; 0: as fast as
+    /// the solver goes).
+    #[arg(long, default_value_t = 1.0, requires = "foxglove")]
+    pub pace: f64,
+    /// With --foxglove: seconds to wait for a viewer to subscribe before the first step
+    /// (default: until one does; 0: start at once).
+    #[arg(long, value_name = "SECONDS", requires = "foxglove")]
+    pub foxglove_wait: Option<f64>,
+}
+
+/// Starts the live view of `drape --foxglove`, tells how to open it and
+/// waits for a viewer as `args` says.
+fn start_live_view(
+    addr: std::net::SocketAddr,
+    args: &LiveArgs,
+) -> Result<garment_sim::live::LiveView> {
+    use std::time::Duration;
+    if let Some(w) = args.foxglove_wait {
+        anyhow::ensure!(
+            w.is_finite() && w >= 0.0,
+            "--foxglove-wait {w}: must be ≥ 0 s"
+        );
+    }
+    anyhow::ensure!(
+        args.pace == 0.0 || (args.pace.is_finite() && args.pace >= 1e-3),
+        "--pace {}: must be 0 (as fast as possible) or at least 0.001",
+        args.pace
+    );
+    let view = garment_sim::live::LiveView::start(addr, "world")?;
+    eprintln!("live view: {}", view.url());
+    eprintln!(
+        "  in Foxglove: Open connection → Foxglove WebSocket → {}, then a 3D panel showing /cloth/mesh (fixed frame: world)",
+        view.url()
+    );
+    eprintln!("  or in a browser: {}", view.app_url());
+    if !view.addr().ip().is_loopback() {
+        eprintln!(
+            "  warning: {} is reachable from the network and has no authentication",
+            view.addr()
+        );
+    }
+    if args.foxglove_wait != Some(0.0) {
+        match args.foxglove_wait {
+            Some(w) => eprintln!("waiting up to {w} s for a viewer to subscribe (Ctrl-C to stop)"),
+            None => eprintln!("waiting for a viewer to subscribe (Ctrl-C to stop)"),
+        }
+        let stop = garment_sim::run::stop_flag()?;
+        let timeout = args.foxglove_wait.map(Duration::from_secs_f64);
+        if view.wait_for_subscriber(timeout, Duration::from_millis(500), &stop) {
+            eprintln!("viewer subscribed: running");
+        } else if stop.load(std::sync::atomic::Ordering::Relaxed) {
+            anyhow::bail!("stopped by a signal before the run started");
+        } else {
+            eprintln!("no viewer subscribed: running anyway");
+        }
+    }
+    Ok(view)
+}
+
+/// Runs `drape`.
+pub fn drape(a: DrapeArgs) -> Result<()> {
+    let DrapeArgs {
+        scene,
+        out,
+        spacing,
+        dt,
+        duration,
+        solver,
+        no_hysteresis,
+        cg_tolerance,
+        threads,
+        bag,
+        live,
+    } = a;
+    let sc = Scene::load(&scene)?;
+    let ov = Overrides {
+        spacing,
+        dt,
+        duration,
+        solver,
+        hysteresis: if no_hysteresis { Some(false) } else { None },
+        cg_tolerance,
+        threads,
+    };
+    let view = live
+        .foxglove
+        .map(|a| start_live_view(a, &live))
+        .transpose()?;
+    let stop = match bag.bag.is_some() || view.is_some() {
+        true => Some(garment_sim::run::stop_flag()?),
+        false => None,
+    };
+    let no_stop = std::sync::atomic::AtomicBool::new(false);
+    let stop_ref = stop.as_deref().unwrap_or(&no_stop);
+    let mut live_run = match &view {
+        Some(v) => {
+            let opts = garment_sim::live::LiveOptions {
+                rate_hz: sc.file.output_rate,
+                pace: live.pace,
+                end_time: sc.duration(&ov),
+            };
+            Some(garment_sim::live::LiveRun::new(v, opts, stop_ref)?)
+        }
+        None => None,
+    };
+    let mut also = |s: &garment_sim::solver::Simulation| match live_run.as_mut() {
+        Some(r) => r.observe(s),
+        None => Ok(run::Control::Continue),
+    };
+    let mut pr = progress_printer(format!("drape {}", scene.display()));
+    let (s, recorded) = match &bag.bag {
+        None if view.is_none() => (run::drape(&sc, &ov, &out, &mut pr)?.1, None),
+        None => {
+            let sim = sc.build(&ov)?;
+            (
+                run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
+                None,
+            )
+        }
+        Some(dir) => {
+            use garment_sim::bag as gb;
+            let mut rec = gb::DrapeBag::new(dir);
+            rec.rate_hz = bag.bag_rate;
+            rec.options.compression = bag.bag_compression;
+            rec.options.chunk_size = bag.bag_chunk_size;
+            let r = gb::drape_recorded_with(&sc, &ov, &out, &mut pr, &rec, stop_ref, &mut also)?;
+            (r.summary.clone(), Some(r))
+        }
+    };
+    let e = &s.final_energies;
+    println!("scene            {}", s.scene);
+    println!("fabric           {}", s.fabric);
+    println!(
+        "grid             {} × {} ({} vertices), spacing {:.4} × {:.4} m",
+        s.grid[0], s.grid[1], s.vertices, s.spacing_m[0], s.spacing_m[1]
+    );
+    println!(
+        "solver           {}, dt = {} s, {} thread{}",
+        s.linear_solver,
+        s.dt_s,
+        s.threads,
+        if s.threads == 1 { "" } else { "s" }
+    );
+    println!(
+        "simulated        {:.3} s in {} steps",
+        s.simulated_s, s.steps
+    );
+    println!(
+        "wall time        {:.2} s ({:.3} ms/step, real-time factor {:.3})",
+        s.wall_s, s.ms_per_step, s.real_time_factor
+    );
+    println!(
+        "  per step       assemble {:.3} ms, solve {:.3} ms, collide {:.3} ms",
+        s.time_split_ms_per_step.assemble,
+        s.time_split_ms_per_step.solve,
+        s.time_split_ms_per_step.collide
+    );
+    println!(
+        "solver iters     mean {:.2}, max {}",
+        s.mean_solver_iterations, s.max_solver_iterations
+    );
+    match s.settle_time_s {
+        Some(t) => println!(
+            "settle time      {t:.3} s (rms speed < {} m/s from then on)",
+            s.settle_speed_m_s
+        ),
+        None => println!(
+            "settle time      not settled (rms speed ≥ {} m/s at the end)",
+            s.settle_speed_m_s
+        ),
+    }
+    if s.final_contacts > 0 {
+        println!(
+            "contacts         {} vertices at the end, {} held by static friction",
+            s.final_contacts, s.final_contacts_held
+        );
+    }
+    println!(
+        "final energies   kinetic {:.3e} J, tension {:.3e} J, shear {:.3e} J, bending {:.3e} J, dissipated (damping) {:.3e} J",
+        e.kinetic, e.tension, e.shear, e.bending, e.dissipated
+    );
+    println!(
+        "wrote            {}/final.ply, final.png, energy.csv, summary.json",
+        out.display()
+    );
+    let mut bag_error = None;
+    if let Some(r) = recorded {
+        if let Some(b) = &r.bag {
+            println!(
+                "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
+                b.dir.display(),
+                r.frames,
+                b.message_count,
+                b.bytes as f64 / (1024.0 * 1024.0),
+                1e3 * r.record_s / r.frames.max(1) as f64,
+                100.0 * r.record_s / s.wall_s.max(1e-12),
+                if r.stopped {
+                    ", stopped by a signal: bag finished"
+                } else {
+                    ""
+                }
+            );
+        }
+        if r.stopped && r.bag.is_some() {
+            eprintln!(
+                "stopped by a signal at t = {:.4} s; the bag is complete{}",
+                s.simulated_s,
+                if garment_sim::run::interrupted_again() {
+                    " (interrupted again while it was being closed: it was finished first)"
+                } else {
+                    ""
+                }
+            );
+        }
+        bag_error = r.bag_error;
+    }
+    if let (Some(v), Some(r)) = (&view, &live_run) {
+        println!(
+            "live view        {} ({} frames published)",
+            v.url(),
+            r.frames
+        );
+        if bag.bag.is_none() && stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+            eprintln!("stopped by a signal at t = {:.4} s", s.simulated_s);
+        }
+        if v.clients() > 0 && !stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+            eprintln!(
+                "live view: the run is over; serving its final state while a viewer is connected (Ctrl-C to end)"
+            );
+            v.linger(stop_ref);
+        }
+    }
+    match bag_error {
+        // the outputs are written; the bag is not whole
+        Some(e) => anyhow::bail!("{e}"),
+        None => Ok(()),
+    }
+}
