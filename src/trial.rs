@@ -707,6 +707,10 @@ pub struct VertexFit {
     pub distance: Vec<f64>,
     /// Force of the garment on the body at each vertex, N.
     pub force: Vec<Vector3<f64>>,
+    /// The contact's normal at each vertex (zero where none).
+    pub normal: Vec<Vector3<f64>>,
+    /// Each vertex's area of cloth (its mass over its fabric's areal mass), m².
+    pub area: Vec<f64>,
 }
 
 /// The strain of every tension and shear spring: (0 warp, 1 weft, 2 bias),
@@ -759,12 +763,15 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
     let on_cloth = sim.contact_forces();
     let normals = sim.contact_normals();
     let force: Vec<Vector3<f64>> = on_cloth.iter().map(|f| -f).collect();
+    let area: Vec<f64> = (0..n)
+        .map(|i| c.mass[i] / sim.fabric_of(i).areal_mass)
+        .collect();
     let pressure = (0..n)
         .map(|i| {
             if on_cloth[i] == Vector3::zeros() {
                 0.0
             } else {
-                on_cloth[i].dot(&normals[i]).max(0.0) / (c.mass[i] / sim.fabric_of(i).areal_mass)
+                on_cloth[i].dot(&normals[i]).max(0.0) / area[i]
             }
         })
         .collect();
@@ -777,6 +784,8 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
         pressure,
         distance: c.x.iter().map(|p| body.proximity(p).distance).collect(),
         force,
+        normal: normals,
+        area,
     }
 }
 
@@ -816,9 +825,6 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             bias: stat(acc[k][2]),
         })
         .collect();
-    let normals = sim.contact_normals();
-    // each vertex's area of cloth
-    let area_of = |i: usize| c.mass[i] / sim.fabric_of(i).areal_mass;
     let (pressure, force, distance, stretch) = (&vf.pressure, &vf.force, &vf.distance, &vf.stretch);
     let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
         (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
@@ -828,8 +834,8 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             continue;
         }
         total += force[i];
-        let a = area_of(i);
-        pressure_force -= normals[i] * (pressure[i] * a);
+        let a = vf.area[i];
+        pressure_force -= vf.normal[i] * (pressure[i] * a);
         normal_sum += pressure[i] * a;
         peak = peak.max(pressure[i]);
         area += a;
@@ -960,7 +966,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         contact_force_magnitude_n: total.norm(),
         mean_pressure_pa: if area > 0.0 { normal_sum / area } else { 0.0 },
         peak_pressure_pa: peak,
-        pressure_integral_n: (0..n).map(|i| pressure[i] * area_of(i)).sum(),
+        pressure_integral_n: (0..n).map(|i| pressure[i] * vf.area[i]).sum(),
         pressure_force_n: pressure_force.into(),
         distance_histogram_cm: hist,
         girths,

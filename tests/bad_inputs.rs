@@ -292,6 +292,19 @@ fn a_closed_pipe_ends_quietly() {
     );
 }
 
+/// Runs the shell `script` in a mount namespace of the test's own
+/// (`unshare -rm`, where it may mount a small tmpfs); its output and errors.
+fn in_mount_namespace(script: &str) -> (String, String) {
+    let o = Command::new("unshare")
+        .args(["-rm", "sh", "-c", script])
+        .output()
+        .expect("unshare (util-linux) runs");
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
 /// A full disk under `drape --out`: the error names the file, and no
 /// truncated output is left (a tmpfs of 8 KiB in a mount namespace of the
 /// test's own, `unshare -rm`).
@@ -304,12 +317,7 @@ fn a_full_disk_names_the_file_and_leaves_no_truncated_output() {
          else echo EXIT=$?; fi; ls -A \"$d/out\" | sed 's/^/FILE /'",
         bin = support::garment_sim_path()
     );
-    let o = Command::new("unshare")
-        .args(["-rm", "sh", "-c", &script])
-        .output()
-        .expect("unshare (util-linux) runs");
-    let out = String::from_utf8_lossy(&o.stdout);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let (out, err) = in_mount_namespace(&script);
     assert!(out.contains("EXIT=1"), "{out}\n{err}");
     assert!(
         err.contains("cannot write") && err.contains("out/final.ply") && err.contains("No space"),
@@ -352,12 +360,7 @@ fn a_full_disk_under_the_bag_stops_the_recording_not_the_run() {
         dir = d.display(),
         bin = support::garment_sim_path()
     );
-    let o = Command::new("unshare")
-        .args(["-rm", "sh", "-c", &script])
-        .output()
-        .expect("unshare (util-linux) runs");
-    let out = String::from_utf8_lossy(&o.stdout);
-    let err = String::from_utf8_lossy(&o.stderr);
+    let (out, err) = in_mount_namespace(&script);
     assert!(out.contains("EXIT=1"), "{out}\n{err}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(
@@ -832,13 +835,7 @@ fn random_extreme_messages_never_break_the_step() {
 #[test]
 fn every_law_keeps_a_positive_tangent_outside_its_measured_range() {
     use garment_sim::fabric::{Law, LawState};
-    let mut files: Vec<PathBuf> = std::fs::read_dir("config/fabrics")
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
-        .collect();
-    files.sort();
-    assert!(files.len() >= 5, "{files:?}");
+    let files = support::shipped_fabrics();
     let reach = |c: &garment_sim::fabric::kes::KesCurve| {
         c.load
             .iter()

@@ -2,20 +2,10 @@
 //! fabric, and a clamped strip at rest against the elastica of a linearly
 //! elastic strip under its own weight, solved here independently.
 
+mod support;
 use garment_sim::fabric::kes::GF_CM2_PER_CM;
 use garment_sim::lab::cantilever::*;
 use garment_sim::lab::kes_lab::Direction;
-
-fn shipped() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir("config/fabrics")
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 5, "{v:?}");
-    v
-}
 
 /// The elastica of a clamped, inextensible, linearly elastic strip of length
 /// `l` under its own weight: `θ'' = −(w/B)(l − s) cos θ`, `θ(0) = 0`,
@@ -128,7 +118,7 @@ fn elastica_gap(
 #[test]
 fn clamped_strip_at_rest_matches_the_elastica() {
     let mut report = String::new();
-    for path in shipped() {
+    for path in support::shipped_fabrics() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
         for dir in Direction::ALL {
             // the overhang of the 41.5° reading, and a shorter one
@@ -169,7 +159,7 @@ fn single_skewed_hinges_make_the_strip_droop() {
 fn cantilever_converges_to_the_fabric_b_without_hysteresis() {
     let mut report = String::new();
     let mut worst = 0.0f64;
-    for path in shipped() {
+    for path in support::shipped_fabrics() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
         let f = garment_sim::io::load_fabric(&path).unwrap();
         for dir in Direction::ALL {
@@ -211,7 +201,7 @@ fn cantilever_converges_to_the_fabric_b_without_hysteresis() {
 fn every_shipped_fabric_gives_back_its_b_at_1_cm() {
     let mut report = String::new();
     let mut worst = 0.0f64;
-    for path in shipped() {
+    for path in support::shipped_fabrics() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
         let f = garment_sim::io::load_fabric(&path).unwrap();
         for dir in Direction::ALL {

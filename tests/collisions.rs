@@ -426,21 +426,16 @@ fn obj_with_a_face_on_a_missing_vertex_is_rejected() {
 /// its numbers come from.
 #[test]
 fn shipped_fabrics_load_and_cite_a_source() {
-    let mut n = 0;
-    for e in std::fs::read_dir("config/fabrics").unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().and_then(|x| x.to_str()) != Some("yaml") {
-            continue;
-        }
+    let files = support::shipped_fabrics();
+    for p in &files {
         let f =
-            garment_sim::io::load_fabric(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
+            garment_sim::io::load_fabric(p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
         assert!(
             f.file.source.trim().len() > 20,
             "{} has no source",
             p.display()
         );
         assert!(f.areal_mass > 0.0 && f.damping.alpha < 0.0);
-        n += 1;
     }
-    assert!(n >= 5, "{n} fabrics");
+    assert!(files.len() >= 5, "{} fabrics", files.len());
 }

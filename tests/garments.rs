@@ -644,20 +644,7 @@ fn a_garment_file_gives_a_panel_its_own_fabric() {
     assert!(sim.other_fabrics.is_empty());
     assert_eq!(sim.fabric.name, fabric("acrylic").name);
     // fit.json names each panel's fabric
-    let out = s.join("out");
-    let o = support::garment_sim()
-        .args([
-            "trial",
-            t.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--max-time",
-            "0.1",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit = read_json(&out.join("fit.json"));
+    let (fit, _) = run_trial(&t, &s.join("out"), &["--max-time", "0.1"]);
     for p in fit["panels"].as_array().unwrap() {
         let want = if p["name"] == "back" { &cotton } else { &wool };
         assert_eq!(p["fabric"].as_str().unwrap(), want.name, "{p}");
@@ -759,21 +746,11 @@ fn a_tube_sewn_on_both_sides_hangs_round_on_a_cylinder() {
     let s = support::Scratch::new("garment_tube");
     let t = tube_files(&s, 0.46);
     let out = s.join("out");
-    let o = support::garment_sim()
-        .args(["trial", t.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit = read_json(&out.join("fit.json"));
-    assert!(fit["run"]["settle_time_s"].is_number(), "{fit}");
+    let (fit, _) = run_trial(&t, &out, &[]);
+    assert_settled(&fit);
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 1.0, "{fit}");
     assert_eq!(fit["body_penetrations"].as_u64(), Some(0));
-    assert_eq!(
-        fit["warnings"].as_array().unwrap().len(),
-        0,
-        "{}",
-        fit["warnings"]
-    );
+    assert_no_warnings(&fit);
     // round: every vertex at the contact distance (3 mm skin offset + 2 mm
     // cloth thickness) from the cylinder's surface, ±2 mm
     let pts = ply_points(&out.join("garment.ply"));
@@ -794,6 +771,42 @@ fn a_tube_sewn_on_both_sides_hangs_round_on_a_cylinder() {
     for f in ["garment.obj", "fit_strain.png", "fit_pressure.png"] {
         assert!(out.join(f).exists(), "{f}");
     }
+}
+
+/// Runs `garment_sim trial TRIAL --out OUT EXTRA…`, which must succeed;
+/// its fit.json and its error output.
+fn run_trial(trial: &Path, out: &Path, extra: &[&str]) -> (serde_json::Value, String) {
+    let o = support::garment_sim()
+        .arg("trial")
+        .arg(trial)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "{err}");
+    (read_json(&out.join("fit.json")), err)
+}
+
+/// The trial came to rest (its run figures printed).
+fn assert_settled(fit: &serde_json::Value) {
+    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
+    assert!(
+        fit["run"]["settle_time_s"].is_number(),
+        "not settled: {}",
+        fit["run"]
+    );
+}
+
+/// fit.json has no warning.
+fn assert_no_warnings(fit: &serde_json::Value) {
+    assert_eq!(
+        fit["warnings"].as_array().unwrap().len(),
+        0,
+        "{}",
+        fit["warnings"]
+    );
 }
 
 /// Runs `trial` and checks the refusal names every needle.
@@ -1049,18 +1062,8 @@ fn the_shipped_skirt_settles_on_a_frictionless_body_in_equilibrium() {
     )
     .unwrap();
     let out = s.join("out");
-    let o = support::garment_sim()
-        .args(["trial", t.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit = read_json(&out.join("fit.json"));
-    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
-    assert!(
-        fit["run"]["settle_time_s"].is_number(),
-        "not settled: {}",
-        fit["run"]
-    );
+    let (fit, _) = run_trial(&t, &out, &[]);
+    assert_settled(&fit);
     assert!(fit["run"]["final_rms_speed_m_s"].as_f64().unwrap() < 0.005);
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
     // equilibrium: the force on the body is the skirt's weight, straight down
@@ -1089,32 +1092,10 @@ fn the_shipped_skirt_trial_settles_on_the_body_in_equilibrium() {
     let s = support::Scratch::new("garment_skirt_trial");
     let out = s.join("out");
     let t = root().join("config/trials/skirt_on_anny.yaml");
-    let o = support::garment_sim()
-        .args([
-            "trial",
-            t.to_str().unwrap(),
-            "--spacing",
-            "0.02",
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit = read_json(&out.join("fit.json"));
-    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
-    assert!(
-        fit["run"]["settle_time_s"].is_number(),
-        "not settled: {}",
-        fit["run"]
-    );
+    let (fit, _) = run_trial(&t, &out, &["--spacing", "0.02"]);
+    assert_settled(&fit);
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
-    assert_eq!(
-        fit["warnings"].as_array().unwrap().len(),
-        0,
-        "{}",
-        fit["warnings"]
-    );
+    assert_no_warnings(&fit);
     let w = fit["weight_n"].as_f64().unwrap();
     let f = numbers(&fit["contact_force_n"]);
     let size = fit["contact_force_magnitude_n"].as_f64().unwrap();
@@ -1130,26 +1111,11 @@ fn the_shipped_tshirt_trial_settles_on_the_body_in_equilibrium() {
     let s = support::Scratch::new("garment_tshirt_trial");
     let out = s.join("out");
     let t = root().join("config/trials/tshirt_on_anny.yaml");
-    let o = support::garment_sim()
-        .args(["trial", t.to_str().unwrap(), "--out", out.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit = read_json(&out.join("fit.json"));
-    eprintln!("{}", serde_json::to_string_pretty(&fit["run"]).unwrap());
-    assert!(
-        fit["run"]["settle_time_s"].is_number(),
-        "not settled: {}",
-        fit["run"]
-    );
+    let (fit, _) = run_trial(&t, &out, &[]);
+    assert_settled(&fit);
     assert!(fit["run"]["final_rms_speed_m_s"].as_f64().unwrap() < 0.005);
     assert!(fit["largest_seam_gap_mm"].as_f64().unwrap() < 2.0, "{fit}");
-    assert_eq!(
-        fit["warnings"].as_array().unwrap().len(),
-        0,
-        "{}",
-        fit["warnings"]
-    );
+    assert_no_warnings(&fit);
     // the body carries the shirt's weight, straight down
     let w = fit["weight_n"].as_f64().unwrap();
     let f = numbers(&fit["contact_force_n"]);
@@ -1166,21 +1132,7 @@ fn a_garment_too_small_for_the_body_is_reported_not_silent() {
     // written) and fit.json and the error output say what is wrong
     let s = support::Scratch::new("garment_small");
     let t = tube_files(&s, 0.30);
-    let out = s.join("out");
-    let o = support::garment_sim()
-        .args([
-            "trial",
-            t.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--max-time",
-            "1",
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    let fit = read_json(&out.join("fit.json"));
+    let (fit, err) = run_trial(&t, &s.join("out"), &["--max-time", "1"]);
     let w: Vec<String> = fit["warnings"]
         .as_array()
         .unwrap()

@@ -9,17 +9,6 @@ use garment_sim::lab::fit_kes::{curve_set, fit_fabric, FitMeta};
 use garment_sim::lab::kes_lab::*;
 use std::path::Path;
 
-fn shipped() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir("config/fabrics")
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
-        .collect();
-    v.sort();
-    assert!(v.len() >= 5, "{v:?}");
-    v
-}
-
 fn all_runs(f: &Fabric, opt: &LabOptions) -> Vec<KesRun> {
     let mut out = Vec::new();
     for t in KesTest::ALL {
@@ -34,7 +23,7 @@ fn all_runs(f: &Fabric, opt: &LabOptions) -> Vec<KesRun> {
 fn every_shipped_fabric_gives_back_its_kes_values() {
     let opt = LabOptions::default();
     let mut table = String::new();
-    for path in shipped() {
+    for path in support::shipped_fabrics() {
         let stem = path.file_stem().unwrap().to_string_lossy().to_string();
         let f = garment_sim::io::load_fabric(&path).unwrap();
         for r in all_runs(&f, &opt) {

@@ -1007,18 +1007,23 @@ impl Node {
 mod tests {
     use super::drain;
 
-    #[test]
-    fn a_garment_trial_is_a_scene_the_node_loads_sewn() {
+    /// The shipped skirt trial as the node's scene, at 4 cm.
+    fn skirt_trial() -> super::Loaded {
         let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("config/trials/skirt_on_anny.yaml")
             .display()
             .to_string();
-        let s = super::Settings {
+        super::load(&super::Settings {
             scene,
             spacing: 0.04,
             ..Default::default()
-        };
-        let l = super::load(&s).unwrap();
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn a_garment_trial_is_a_scene_the_node_loads_sewn() {
+        let l = skirt_trial();
         // sewn: every stitch closed within 2 mm; the body is the obstacle
         let worst = l
             .sim
@@ -1095,16 +1100,7 @@ mod tests {
     fn a_garment_pin_names_its_panel_and_grid_node() {
         use crate::msgs::{Header, Pin};
         use crate::ros::control::apply_pin;
-        let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("config/trials/skirt_on_anny.yaml")
-            .display()
-            .to_string();
-        let s = super::Settings {
-            scene,
-            spacing: 0.04,
-            ..Default::default()
-        };
-        let mut l = super::load(&s).unwrap();
+        let mut l = skirt_trial();
         let g = l.worn.take().unwrap().garment;
         let p = &g.panels[1];
         // an inner node (two rings of nodes around it kept: none of its

@@ -140,3 +140,17 @@ pub fn pytest_in(python: &str, file: &str, netns: bool, envs: &[(&str, &OsStr)],
     assert!(out.status.success(), "{text}");
     assert!(text.contains(expect) && !text.contains("skipped"), "{text}");
 }
+
+/// The shipped fabric files (`config/fabrics/*.yaml`), sorted; there are at
+/// least five.
+pub fn shipped_fabrics() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/fabrics");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "yaml"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 5, "{v:?}");
+    v
+}

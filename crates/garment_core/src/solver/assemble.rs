@@ -10,6 +10,7 @@
 use super::elements::*;
 use super::sparse::BlockMatrix;
 use super::team::Team;
+use super::Fabrics;
 use crate::cloth::Cloth;
 use crate::fabric::{Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
@@ -194,9 +195,7 @@ pub fn add_seams(
 /// What every thread reads.
 struct Ctx<'a> {
     h: f64,
-    /// The simulation's fabrics, and each vertex's (empty: all the first).
-    fabrics: &'a [&'a Fabric],
-    vertex_fabric: &'a [u16],
+    fabrics: Fabrics<'a>,
     c: &'a ClothView<'a>,
     y: &'a [Vector3<f64>],
     slots: &'a Slots,
@@ -205,15 +204,6 @@ struct Ctx<'a> {
     row_ptr: &'a [usize],
     diag: &'a [usize],
     span: usize,
-}
-
-impl Ctx<'_> {
-    /// The fabric of vertex `v` (and of every element whose lowest vertex
-    /// it is: an element lies within one panel).
-    #[inline(always)]
-    fn fabric(&self, v: usize) -> &Fabric {
-        self.fabrics[self.vertex_fabric.get(v).map_or(0, |&k| usize::from(k))]
-    }
 }
 
 /// The read-only part of the cloth.
@@ -245,7 +235,7 @@ struct Out<'a> {
 fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
     let h = ctx.h;
     for i in rows {
-        let al = ctx.fabric(i).damping.alpha;
+        let al = ctx.fabrics.at(i).damping.alpha;
         let m = ctx.mass[i];
         let v = ctx.c.v[i];
         o.force[i - o.voff] = ctx.gravity * m + v * (al * m);
@@ -352,7 +342,7 @@ fn elements_range(
     for k in tr {
         let s = &c.tension[k];
         let st = &mut o.tstate[k - t0];
-        let f = ctx.fabric(s.a);
+        let f = ctx.fabrics.at(s.a);
         let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
         let law = &f.dir(s.weft).tensile;
         law.commit(st, l / s.l0 - 1.0);
@@ -372,7 +362,7 @@ fn elements_range(
     for k in sr {
         let s = &c.shear[k];
         let st = &mut o.sstate[k - s0];
-        let f = ctx.fabric(s.a);
+        let f = ctx.fabrics.at(s.a);
         let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
         f.shear.commit(st, s.strain(l));
         let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
@@ -391,7 +381,7 @@ fn elements_range(
     for k in hr {
         let hg = &c.hinges[k];
         let st = &mut o.hstate[k - h0];
-        let f = ctx.fabric(hg.v[0]);
+        let f = ctx.fabrics.at(hg.v[0]);
         let d = f.damping;
         let law = &f.dir(hg.weft).bending;
         let (theta, g) = dihedral_and_grad(hinge_positions(hg, c.x));
@@ -493,7 +483,8 @@ fn scatter(val: &mut [Matrix3<f64>], off: usize, sl: &[usize; 4], p: &Matrix3<f6
 pub fn assemble(
     h: f64,
     gravity: Vector3<f64>,
-    fabrics: &[&Fabric],
+    fabric: &Fabric,
+    other_fabrics: &[Fabric],
     cloth: &mut Cloth,
     y: &[Vector3<f64>],
     slots: &Slots,
@@ -526,8 +517,11 @@ pub fn assemble(
     };
     let ctx = Ctx {
         h,
-        fabrics,
-        vertex_fabric,
+        fabrics: Fabrics {
+            first: fabric,
+            others: other_fabrics,
+            of: vertex_fabric,
+        },
         c: &view,
         y,
         slots,

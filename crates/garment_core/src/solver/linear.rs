@@ -1087,7 +1087,9 @@ mod tests {
         spd_grid_sized(6, 5, seed)
     }
 
-    fn spd_grid_sized(nx: usize, ny: usize, seed: u64) -> (BlockMatrix, Vec<f64>) {
+    /// The springs of an `nx` × `ny` grid: each vertex to its right, upper
+    /// and diagonal neighbour.
+    fn grid_edges(nx: usize, ny: usize) -> Vec<[usize; 2]> {
         let id = |i: usize, j: usize| j * nx + i;
         let mut edges = Vec::new();
         for j in 0..ny {
@@ -1099,6 +1101,11 @@ mod tests {
                 }
             }
         }
+        edges
+    }
+
+    fn spd_grid_sized(nx: usize, ny: usize, seed: u64) -> (BlockMatrix, Vec<f64>) {
+        let edges = grid_edges(nx, ny);
         let n = nx * ny;
         let mut a = BlockMatrix::from_cliques(n, edges.iter().map(|e| e.as_slice()));
         let mut state = seed;
@@ -1459,16 +1466,7 @@ mod tests {
         let (a, mass) = spd_grid_sized(nx, ny, 17);
         let n = a.n;
         let (filter, b, z) = mixed_constraints(n);
-        let mut edges = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                for (di, dj) in [(1, 0), (0, 1), (1, 1)] {
-                    if i + di < nx && j + dj < ny {
-                        edges.push([j * nx + i, (j + dj) * nx + i + di]);
-                    }
-                }
-            }
-        }
+        let edges = grid_edges(nx, ny);
         let x: Vec<Vector3<f64>> = (0..n)
             .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
             .collect();

@@ -233,6 +233,27 @@ impl Energies {
     }
 }
 
+/// A cloth's fabrics as a per-vertex lookup sees them: the first, the
+/// others, and each vertex's index into them (empty: all the first). Every
+/// spring and hinge lies within one panel and takes its vertices' fabric.
+#[derive(Clone, Copy)]
+pub(crate) struct Fabrics<'a> {
+    pub first: &'a Fabric,
+    pub others: &'a [Fabric],
+    pub of: &'a [u16],
+}
+
+impl<'a> Fabrics<'a> {
+    /// The fabric of vertex `v`.
+    #[inline(always)]
+    pub fn at(&self, v: usize) -> &'a Fabric {
+        match self.of.get(v) {
+            Some(&k) if k > 0 => &self.others[usize::from(k) - 1],
+            _ => self.first,
+        }
+    }
+}
+
 /// A cloth, its fabric and its scene, advanced at a fixed step.
 #[derive(Debug)]
 pub struct Simulation {
@@ -446,10 +467,12 @@ impl Simulation {
     /// The fabric of vertex `v` (and of the springs and hinges at it).
     #[inline]
     pub fn fabric_of(&self, v: usize) -> &Fabric {
-        match self.cloth.vertex_fabric.get(v) {
-            Some(&k) if k > 0 => &self.other_fabrics[usize::from(k) - 1],
-            _ => &self.fabric,
+        Fabrics {
+            first: &self.fabric,
+            others: &self.other_fabrics,
+            of: &self.cloth.vertex_fabric,
         }
+        .at(v)
     }
 
     /// Threads of the assembly, the PCG and the contacts.
@@ -847,12 +870,13 @@ impl Simulation {
     }
 
     fn commit_laws(&mut self) {
-        let fabrics: Vec<&Fabric> = std::iter::once(&self.fabric)
-            .chain(&self.other_fabrics)
-            .collect();
         let c = &mut self.cloth;
-        let vf = &c.vertex_fabric;
-        let f = |v: usize| fabrics[vf.get(v).map_or(0, |&k| usize::from(k))];
+        let fabrics = Fabrics {
+            first: &self.fabric,
+            others: &self.other_fabrics,
+            of: &c.vertex_fabric,
+        };
+        let f = |v: usize| fabrics.at(v);
         for (s, st) in c.tension.iter().zip(c.tension_state.iter_mut()) {
             let l = (c.x[s.b] - c.x[s.a]).norm();
             f(s.a).dir(s.weft).tensile.commit(st, l / s.l0 - 1.0);
@@ -873,13 +897,11 @@ impl Simulation {
     /// shape (the end of the previous step), in the same pass, and adds the
     /// energy the damping dissipates over this step (`−h vᵀ C v`).
     fn assemble(&mut self) {
-        let fabrics: Vec<&Fabric> = std::iter::once(&self.fabric)
-            .chain(&self.other_fabrics)
-            .collect();
         let power = assemble::assemble(
             self.params.dt,
             self.params.gravity,
-            &fabrics,
+            &self.fabric,
+            &self.other_fabrics,
             &mut self.cloth,
             &self.y,
             &self.slots,
