@@ -395,7 +395,7 @@ impl Trial {
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
-        sim.obstacles.push(self.body.clone());
+        sim.add_obstacle(self.body.clone());
         Ok((sim, g))
     }
 }

@@ -195,7 +195,7 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
     let d1 = drape(0.01, 1e-3, 3.0);
     // 1. the 2 cm drape: on the board, overhang down, settled within 3 s
     let sim = &d2.sim;
-    let board = &sim.obstacles[0];
+    let board = &sim.obstacles()[0];
     let e = board.thickness + sim.params.cloth_thickness;
     let up = board.pose.rotation * Vector3::z();
     let top = board.pose.translation.vector + up * 0.0025;
@@ -310,7 +310,7 @@ fn pins_follow_their_path_exactly() {
         (0.2, p0 + Vector3::new(0.0, 0.1, 0.05)),
         (0.4, p0 + Vector3::new(0.1, 0.1, 0.0)),
     ]);
-    let mut pins = sim.pins.clone();
+    let mut pins = sim.pins().as_slice().to_vec();
     pins[0] = Pin::new(a, path.clone());
     sim.set_pins(pins).unwrap();
     let mut worst: f64 = 0.0;
@@ -322,6 +322,61 @@ fn pins_follow_their_path_exactly() {
     }
     println!("pin path: worst distance to target {worst:.2e} m");
     assert!(worst < 1e-9, "{worst}");
+}
+
+/// Pins and obstacles are sets with handles: removing one by its handle
+/// leaves the others (and their handles) as they were, and the vertex it held
+/// is free at once; a handle is never given to another pin.
+#[test]
+fn pins_and_obstacles_are_addressed_by_handles() {
+    let mut sim = swinging(fixture(), 1e-3);
+    let a = sim.cloth.index(0, 0).unwrap();
+    let b = sim.cloth.index(10, 0).unwrap();
+    let c = sim.cloth.index(5, 0).unwrap();
+    let held = sim
+        .set_pins(
+            [a, b, c]
+                .iter()
+                .map(|&v| Pin::new(v, PinPath::Fixed(sim.cloth.x[v])))
+                .collect(),
+        )
+        .unwrap();
+    assert!(sim.is_pinned(a) && sim.is_pinned(b) && sim.is_pinned(c));
+    // the middle pin goes: a and c stay pinned under their handles
+    assert_eq!(sim.remove_pin(held[2]).map(|p| p.vertex), Some(c));
+    assert!(sim.is_pinned(a) && sim.is_pinned(b) && !sim.is_pinned(c));
+    assert_eq!(sim.pins().get(held[0]).map(|p| p.vertex), Some(a));
+    assert_eq!(sim.pins().get(held[1]).map(|p| p.vertex), Some(b));
+    assert!(sim.remove_pin(held[2]).is_none());
+    assert!(sim
+        .set_pin_path(held[2], PinPath::Fixed(Vector3::zeros()))
+        .is_err());
+    // b's new path is followed exactly; a stays where it was
+    let (xa, xb) = (sim.cloth.x[a], sim.cloth.x[b]);
+    let to = xb + Vector3::new(0.0, 0.0, 0.01);
+    sim.set_pin_path(held[1], PinPath::Fixed(to)).unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    assert_eq!(sim.cloth.x[a], xa);
+    assert!((sim.cloth.x[b] - to).norm() < 1e-12);
+    // the freed vertex falls
+    assert!(sim.cloth.x[c].z < xa.z - 1e-3);
+    // obstacles: a floor added under the cloth, removed by its handle
+    let floor = garment_sim::collision::Obstacle::new(
+        "floor",
+        garment_sim::collision::ShapeSpec::Box {
+            size: [2.0, 2.0, 0.1],
+        },
+        Isometry3::translation(0.0, 0.0, 0.5),
+        0.0,
+        0.3,
+    )
+    .unwrap();
+    let h = sim.add_obstacle(floor);
+    assert_eq!(sim.obstacles().get(h).map(|o| o.id.as_str()), Some("floor"));
+    assert!(sim.remove_obstacle(h).is_some());
+    assert!(sim.obstacles().is_empty() && sim.obstacles().get(h).is_none());
 }
 
 /// The default solver decides on iteration counts, not on measured time: two

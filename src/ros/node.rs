@@ -1034,8 +1034,8 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(!l.sim.cloth.seams.is_empty());
         assert!(worst < 2e-3, "seam gap {worst} m after sewing");
-        assert_eq!(l.sim.obstacles.len(), 1);
-        assert_eq!(l.sim.obstacles[0].id, "body");
+        assert_eq!(l.sim.obstacles().len(), 1);
+        assert_eq!(l.sim.obstacles()[0].id, "body");
         assert!(l.sim.params.gravity.norm() > 9.0);
         assert!(l.description.contains("garment_sim/trial_description/1"));
         assert!(l.description.contains("skirt_front"));
@@ -1124,7 +1124,7 @@ mod tests {
             ..Default::default()
         };
         apply_pin(&mut l.sim, Some(&g), &m, "world").unwrap();
-        let v: Vec<usize> = l.sim.pins.iter().map(|q| q.vertex).collect();
+        let v: Vec<usize> = l.sim.pins().iter().map(|q| q.vertex).collect();
         assert_eq!(v.len(), 3);
         assert!(v.iter().all(|&k| k >= p.first && k < p.first + p.count));
         // in the panel's coordinates, (i + 1, j) is one spacing along the

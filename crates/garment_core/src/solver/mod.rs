@@ -29,6 +29,7 @@ mod vertices;
 use crate::cloth::Cloth;
 use crate::collision::Obstacle;
 use crate::fabric::Fabric;
+use crate::set::{Handle, Set};
 use anyhow::{bail, Result};
 use elements::*;
 pub use linear::{Filter, LinearSolverKind};
@@ -263,8 +264,11 @@ pub struct Simulation {
     /// A garment's further fabrics: `cloth.vertex_fabric` indexes
     /// `fabric`, then these (see [`Simulation::with_fabrics`]).
     pub other_fabrics: Vec<Fabric>,
-    pub obstacles: Vec<Obstacle>,
-    pub pins: Vec<Pin>,
+    /// Read with [`Simulation::obstacles`]; changed through the simulation.
+    obstacles: Set<Obstacle>,
+    /// Read with [`Simulation::pins`]; changed through the simulation, which
+    /// keeps `pinned` in step with it.
+    pins: Set<Pin>,
     pub params: Params,
     /// Simulated time, s.
     pub time: f64,
@@ -379,8 +383,8 @@ impl Simulation {
             cloth,
             fabric,
             other_fabrics: Vec::new(),
-            obstacles: Vec::new(),
-            pins: Vec::new(),
+            obstacles: Set::new(),
+            pins: Set::new(),
             params,
             time: 0.0,
             steps: 0,
@@ -488,8 +492,46 @@ impl Simulation {
         self.team.rest();
     }
 
-    /// Replaces the pins (checks the vertex indices).
-    pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<()> {
+    /// The obstacles, in the order they were added.
+    pub fn obstacles(&self) -> &Set<Obstacle> {
+        &self.obstacles
+    }
+
+    /// Adds an obstacle; its handle.
+    pub fn add_obstacle(&mut self, o: Obstacle) -> Handle<Obstacle> {
+        self.obstacles.insert(o)
+    }
+
+    /// Removes an obstacle (the others keep their handles).
+    pub fn remove_obstacle(&mut self, h: Handle<Obstacle>) -> Option<Obstacle> {
+        self.obstacles.remove(h)
+    }
+
+    /// An obstacle to move or change.
+    pub fn obstacle_mut(&mut self, h: Handle<Obstacle>) -> Option<&mut Obstacle> {
+        self.obstacles.get_mut(h)
+    }
+
+    /// Replaces every obstacle by `obstacles` (a set taken from
+    /// [`Simulation::obstacles`] keeps its handles).
+    pub fn set_obstacles(&mut self, obstacles: Set<Obstacle>) {
+        self.obstacles.replace(obstacles);
+    }
+
+    /// The pins, in the order they were set.
+    pub fn pins(&self) -> &Set<Pin> {
+        &self.pins
+    }
+
+    /// Replaces the pins (checks the vertex indices); their handles, in order.
+    pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<Vec<Handle<Pin>>> {
+        self.set_pin_set(pins.into_iter().collect())?;
+        Ok(self.pins.with_handles().map(|(h, _)| h).collect())
+    }
+
+    /// Replaces the pins by `pins` (a set taken from [`Simulation::pins`]
+    /// keeps its handles); checks the vertex indices first.
+    pub fn set_pin_set(&mut self, pins: Set<Pin>) -> Result<()> {
         for p in &pins {
             if p.vertex >= self.cloth.len() {
                 bail!(
@@ -499,12 +541,36 @@ impl Simulation {
                 );
             }
         }
+        self.pins.replace(pins);
+        self.index_pins();
+        Ok(())
+    }
+
+    /// Gives a pin a new path.
+    pub fn set_pin_path(&mut self, h: Handle<Pin>, path: PinPath) -> Result<()> {
+        match self.pins.get_mut(h) {
+            Some(p) => {
+                p.path = path;
+                Ok(())
+            }
+            None => bail!("no pin {h:?}"),
+        }
+    }
+
+    /// Lets a pin go.
+    pub fn remove_pin(&mut self, h: Handle<Pin>) -> Option<Pin> {
+        let p = self.pins.remove(h)?;
+        self.index_pins();
+        Some(p)
+    }
+
+    /// `pinned` from `pins`: each vertex's pin (the last one when several
+    /// pin a vertex).
+    fn index_pins(&mut self) {
         self.pinned.iter_mut().for_each(|p| *p = None);
-        for (k, p) in pins.iter().enumerate() {
+        for (k, p) in self.pins.iter().enumerate() {
             self.pinned[p.vertex] = Some(k);
         }
-        self.pins = pins;
-        Ok(())
     }
 
     /// The direct solver, built (symbolic analysis) on first use.
@@ -526,18 +592,11 @@ impl Simulation {
         self.pcg
             .set_scale(&self.cloth.mass, self.params.gravity * h);
         // pins whose release time has come let go
-        if self
-            .pins
-            .iter()
-            .any(|p| p.release_at.is_some_and(|r| r <= self.time))
-        {
-            let keep: Vec<Pin> = self
-                .pins
-                .iter()
-                .filter(|p| !p.release_at.is_some_and(|r| r <= self.time))
-                .cloned()
-                .collect();
-            self.set_pins(keep)?;
+        let now = self.time;
+        let due = |p: &Pin| p.release_at.is_some_and(|r| r <= now);
+        if self.pins.iter().any(due) {
+            self.pins.retain(|p| !due(p));
+            self.index_pins();
         }
         // 1. constraints for this step: pins, then contacts (filter, z, y)
         self.bounds.clear();
@@ -788,9 +847,9 @@ impl Simulation {
             h,
             t1,
             cloth_thickness: self.params.cloth_thickness,
-            obstacles: &self.obstacles,
+            obstacles: self.obstacles.as_slice(),
             bounds: &self.bounds,
-            pins: &self.pins,
+            pins: self.pins.as_slice(),
             pinned: &self.pinned,
             x: &self.cloth.x,
             v: &self.cloth.v,
@@ -849,7 +908,7 @@ impl Simulation {
             contact_of: &self.contact_of,
             normals: &self.normals,
             pinned: &self.pinned,
-            obstacles: &self.obstacles,
+            obstacles: self.obstacles.as_slice(),
             bounds: &self.bounds,
         };
         let bounds = &self.part.bounds;
