@@ -17,8 +17,12 @@ use std::collections::HashMap;
 /// moved together, each with its pose relative to the obstacle frame.
 #[derive(Debug, Default, Clone)]
 pub struct ObstacleRegistry {
-    parts: HashMap<String, Vec<(Handle<Obstacle>, Isometry3<f64>)>>,
+    parts: HashMap<String, Vec<Part>>,
 }
+
+/// One shape of a message obstacle: its simulation obstacle and its pose in
+/// the obstacle frame.
+type Part = (Handle<Obstacle>, Isometry3<f64>);
 
 impl ObstacleRegistry {
     /// Registers the scene's own obstacles (one shape each).
