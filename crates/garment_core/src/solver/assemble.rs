@@ -1,13 +1,14 @@
 //! Assembly of the implicit step's matrix and right-hand side, on the
 //! simulation's team of threads ([`super::team::Team`]) without locks: the
-//! vertices are cut into contiguous chunks, each spring or hinge whose
-//! vertices all lie in one chunk is assembled by that chunk's thread into its
-//! own rows, and the few that straddle two chunks are
-//! assembled afterwards on one thread. Elements are stored grouped that way
-//! (the order of springs changes nothing else), so every thread also owns a
-//! contiguous slice of the hysteresis memories.
+//! vertices are cut into contiguous chunks, each element of a
+//! [`Stage::Tiles`] set whose vertices all lie in one chunk is assembled by
+//! that chunk's thread into its own rows, and the few that straddle two
+//! chunks are assembled afterwards on one thread; the [`Stage::Last`] sets
+//! follow on that thread. Elements are stored grouped that way (the order of
+//! springs changes nothing else), so every thread also owns a contiguous
+//! slice of each set's memories.
 
-use super::elements::*;
+use super::sets::{self, Element, Stage, StepIn, StepOut, Visit, VisitMut, SETS};
 use super::sparse::BlockMatrix;
 use super::team::Team;
 use super::Fabrics;
@@ -16,188 +17,125 @@ use crate::fabric::{Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};
 use std::ops::Range;
 
-/// Element groups: `ranges[t]` for chunk t, the last entry for the straddling ones.
+/// Element groups of each set: `ranges[s][t]` for chunk t, the last entry
+/// for the straddling ones (all empty for a [`Stage::Last`] set).
 #[derive(Debug, Clone, Default)]
 pub struct Partition {
     /// Vertex chunk boundaries: chunk t owns vertices `bounds[t]..bounds[t + 1]`.
     pub bounds: Vec<usize>,
-    pub tension: Vec<Range<usize>>,
-    pub shear: Vec<Range<usize>>,
-    pub hinge: Vec<Range<usize>>,
+    pub ranges: [Vec<Range<usize>>; SETS],
     /// Largest vertex-index distance within one element.
     pub span: usize,
 }
 
-/// Reorders the cloth's springs and hinges (with their memories) into
-/// per-chunk groups and returns the groups.
+/// Reorders the elements of the [`Stage::Tiles`] sets (with their memories)
+/// into per-chunk groups and returns the groups.
 pub fn partition(cloth: &mut Cloth, threads: usize) -> Partition {
     let n = cloth.len();
     let t = threads.max(1);
     let bounds: Vec<usize> = (0..=t).map(|k| k * n / t).collect();
-    let chunk = |v: usize| bounds.partition_point(|&b| b <= v) - 1;
-    let group = |vs: &[usize]| -> usize {
-        let c0 = chunk(vs[0]);
-        if vs.iter().all(|&v| chunk(v) == c0) {
-            c0
-        } else {
-            t
-        }
-    };
-    fn regroup<E: Copy>(
-        els: &mut Vec<E>,
-        st: &mut Vec<LawState>,
-        key: impl Fn(&E) -> usize,
-        low: impl Fn(&E) -> usize,
-        groups: usize,
-    ) -> Vec<Range<usize>> {
-        let mut idx: Vec<usize> = (0..els.len()).collect();
-        // by group, then by lowest vertex: [`elements`] walks the three
-        // families in step through vertex tiles, so the blocks they add into
-        // stay in cache
-        idx.sort_by_key(|&k| (key(&els[k]), low(&els[k])));
-        *els = idx.iter().map(|&k| els[k]).collect();
-        *st = idx.iter().map(|&k| st[k]).collect();
-        let mut r = Vec::with_capacity(groups + 1);
-        let mut start = 0;
-        for g in 0..=groups {
-            let end = start + els[start..].iter().take_while(|e| key(e) == g).count();
-            r.push(start..end);
-            start = end;
-        }
-        r
+    struct Regroup<'a> {
+        bounds: &'a [usize],
+        t: usize,
+        part: [Vec<Range<usize>>; SETS],
+        span: usize,
     }
-    let tension = regroup(
-        &mut cloth.tension,
-        &mut cloth.tension_state,
-        |s| group(&[s.a, s.b]),
-        |s| s.a.min(s.b),
+    impl Regroup<'_> {
+        fn chunk(&self, v: usize) -> usize {
+            self.bounds.partition_point(|&b| b <= v) - 1
+        }
+        fn group(&self, vs: &[usize]) -> usize {
+            let c0 = self.chunk(vs[0]);
+            if vs.iter().all(|&v| self.chunk(v) == c0) {
+                c0
+            } else {
+                self.t
+            }
+        }
+    }
+    impl VisitMut for Regroup<'_> {
+        fn set<E: Element>(&mut self, i: usize, els: &mut Vec<E>, st: &mut Vec<LawState>) {
+            let groups = self.t;
+            if E::STAGE != Stage::Tiles {
+                self.part[i] = vec![0..0; groups + 1];
+                return;
+            }
+            let key = |e: &E| self.group(e.clique().as_ref());
+            let mut idx: Vec<usize> = (0..els.len()).collect();
+            // by group, then by lowest vertex: [`elements`] walks the sets in
+            // step through vertex tiles, so the blocks they add into stay in
+            // cache
+            idx.sort_by_key(|&k| (key(&els[k]), els[k].lowest()));
+            *els = idx.iter().map(|&k| els[k]).collect();
+            if E::MEMORY {
+                *st = idx.iter().map(|&k| st[k]).collect();
+            }
+            let mut r = Vec::with_capacity(groups + 1);
+            let mut start = 0;
+            for g in 0..=groups {
+                let end = start + els[start..].iter().take_while(|e| key(e) == g).count();
+                r.push(start..end);
+                start = end;
+            }
+            self.part[i] = r;
+            for e in els.iter() {
+                let c = e.clique();
+                let c = c.as_ref();
+                let (lo, hi) = (c.iter().min().unwrap_or(&0), c.iter().max().unwrap_or(&0));
+                self.span = self.span.max(hi - lo);
+            }
+        }
+    }
+    let mut g = Regroup {
+        bounds: &bounds,
         t,
-    );
-    let shear = regroup(
-        &mut cloth.shear,
-        &mut cloth.shear_state,
-        |s| group(&[s.a, s.b]),
-        |s| s.a.min(s.b),
-        t,
-    );
-    let hinge = regroup(
-        &mut cloth.hinges,
-        &mut cloth.hinge_state,
-        |h| group(&h.v),
-        |h| h.v.iter().copied().min().unwrap_or(0),
-        t,
-    );
-    let span = cloth
-        .tension
-        .iter()
-        .map(|s| s.a.abs_diff(s.b))
-        .chain(cloth.shear.iter().map(|s| s.a.abs_diff(s.b)))
-        .chain(cloth.hinges.iter().map(|h| {
-            let (lo, hi) = (
-                h.v.iter().min().unwrap_or(&0),
-                h.v.iter().max().unwrap_or(&0),
-            );
-            hi - lo
-        }))
-        .max()
-        .unwrap_or(0);
+        part: Default::default(),
+        span: 0,
+    };
+    sets::each_mut(cloth, &mut g);
+    let (ranges, span) = (g.part, g.span);
     Partition {
         bounds,
-        tension,
-        shear,
-        hinge,
+        ranges,
         span,
     }
 }
 
-/// Block positions of each element in the system matrix.
+/// Block positions of each element in the system matrix: for set `s`,
+/// element `k`'s block `(p, q)` of its clique at `of[s][N² k + N p + q]`.
 #[derive(Debug, Clone)]
 pub struct Slots {
-    pub tension: Vec<[usize; 4]>,
-    pub shear: Vec<[usize; 4]>,
-    pub hinge: Vec<[usize; 16]>,
-    /// Blocks (p, q) of each seam stitch's three vertices, at `3p + q`.
-    pub seam: Vec<[usize; 9]>,
+    pub of: [Vec<usize>; SETS],
 }
 
 impl Slots {
     pub fn new(a: &BlockMatrix, c: &Cloth) -> Slots {
-        let pair =
-            |i: usize, j: usize| [a.index(i, i), a.index(i, j), a.index(j, i), a.index(j, j)];
-        Slots {
-            tension: c.tension.iter().map(|s| pair(s.a, s.b)).collect(),
-            shear: c.shear.iter().map(|s| pair(s.a, s.b)).collect(),
-            hinge: c
-                .hinges
-                .iter()
-                .map(|h| {
-                    let mut r = [0; 16];
-                    for p in 0..4 {
-                        for q in 0..4 {
-                            r[4 * p + q] = a.index(h.v[p], h.v[q]);
+        struct Make<'a>(&'a BlockMatrix, [Vec<usize>; SETS]);
+        impl Visit for Make<'_> {
+            fn set<E: Element>(&mut self, i: usize, els: &[E], _: &[LawState]) {
+                let out = &mut self.1[i];
+                out.reserve(els.len() * E::N * E::N);
+                for e in els {
+                    let c = e.clique();
+                    for &p in c.as_ref() {
+                        for &q in c.as_ref() {
+                            out.push(self.0.index(p, q));
                         }
                     }
-                    r
-                })
-                .collect(),
-            seam: c
-                .seams
-                .iter()
-                .map(|st| {
-                    let mut r = [0; 9];
-                    for p in 0..3 {
-                        for q in 0..3 {
-                            r[3 * p + q] = a.index(st.v[p], st.v[q]);
-                        }
-                    }
-                    r
-                })
-                .collect(),
-        }
-    }
-}
-
-/// Adds the seam stitches ([`crate::cloth::Stitch`]) to the assembled step:
-/// each is a linear spring on its gap `g = Σ c_k x_k` with damping on `ġ`,
-/// so `∂f/∂x = −k c cᵀ`, `∂f/∂v = −d c cᵀ` exactly; `A += (h² k + h d) c cᵀ`,
-/// `f += −c (k g + d ġ)` and `rhs += h (f − c (h k ġ + k ĝ_y))` with `ĝ_y`
-/// the gap of the position correction `y` (the terms of
-/// [`super::Simulation`]'s formula). Returns the damping power `−d |ġ|²`.
-pub fn add_seams(
-    h: f64,
-    cloth: &Cloth,
-    y: &[Vector3<f64>],
-    slots: &Slots,
-    a: &mut BlockMatrix,
-    force: &mut [Vector3<f64>],
-    rhs: &mut [Vector3<f64>],
-) -> f64 {
-    let mut power = 0.0;
-    for (st, sl) in cloth.seams.iter().zip(&slots.seam) {
-        let g = st.gap(&cloth.x);
-        let gv = st.gap(&cloth.v);
-        let gy = st.gap(y);
-        let f = -(g * st.k + gv * st.d);
-        let r = (f - (gv * (h * st.k) + gy * st.k)) * h;
-        power -= st.d * gv.norm_squared();
-        let w = h * h * st.k + h * st.d;
-        for p in 0..3 {
-            force[st.v[p]] += f * st.c[p];
-            rhs[st.v[p]] += r * st.c[p];
-            for q in 0..3 {
-                a.val[sl[3 * p + q]] += Matrix3::identity() * (w * st.c[p] * st.c[q]);
+                }
             }
         }
+        let mut m = Make(a, Default::default());
+        sets::each(c, &mut m);
+        Slots { of: m.1 }
     }
-    power
 }
 
 /// What every thread reads.
 struct Ctx<'a> {
-    h: f64,
-    fabrics: Fabrics<'a>,
-    c: &'a ClothView<'a>,
-    y: &'a [Vector3<f64>],
+    step: StepIn<'a>,
+    /// The elements (their memories are in [`Out`]).
+    cloth: &'a Cloth,
     slots: &'a Slots,
     gravity: Vector3<f64>,
     mass: &'a [f64],
@@ -206,38 +144,22 @@ struct Ctx<'a> {
     span: usize,
 }
 
-/// The read-only part of the cloth.
-struct ClothView<'a> {
-    x: &'a [Vector3<f64>],
-    v: &'a [Vector3<f64>],
-    tension: &'a [crate::cloth::TensionSpring],
-    shear: &'a [crate::cloth::ShearSpring],
-    hinges: &'a [crate::cloth::Hinge],
-}
-
 /// What one thread writes: rows `voff..` of the matrix blocks (starting at
 /// block `boff`), forces and right-hand sides; memories of its element ranges.
-struct Out<'a> {
-    val: &'a mut [Matrix3<f64>],
-    boff: usize,
-    force: &'a mut [Vector3<f64>],
-    rhs: &'a mut [Vector3<f64>],
-    voff: usize,
-    tstate: &'a mut [LawState],
-    sstate: &'a mut [LawState],
-    hstate: &'a mut [LawState],
-    power: f64,
+struct Out<'a, 'm> {
+    acc: StepOut<'a>,
+    mem: [&'m mut [LawState]; SETS],
 }
 
 /// Starts rows `rows` of the step: mass and Rayleigh-α terms on the
 /// diagonal, zero elsewhere; gravity and α damping in the force.
 #[inline(always)]
-fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
-    let h = ctx.h;
+fn init_rows(ctx: &Ctx, o: &mut StepOut, rows: Range<usize>) {
+    let h = ctx.step.h;
     for i in rows {
-        let al = ctx.fabrics.at(i).damping.alpha;
+        let al = ctx.step.fabrics.at(i).damping.alpha;
         let m = ctx.mass[i];
-        let v = ctx.c.v[i];
+        let v = ctx.step.v[i];
         o.force[i - o.voff] = ctx.gravity * m + v * (al * m);
         o.power += al * m * v.norm_squared();
         o.rhs[i - o.voff] = Vector3::zeros();
@@ -248,237 +170,125 @@ fn init_rows(ctx: &Ctx, o: &mut Out, rows: Range<usize>) {
     }
 }
 
-/// Assembles the given element ranges into `o`; with `init`, `o`'s rows
-/// are started (see [`init_rows`]) just ahead of the tiles that add to them,
-/// so the matrix is walked once. The same code compiled for AVX2 where the
-/// CPU has it (no FMA: the same roundings, the same results).
-fn elements(
-    ctx: &Ctx,
-    tr: Range<usize>,
-    sr: Range<usize>,
-    hr: Range<usize>,
-    o: &mut Out,
-    init: bool,
-) {
+/// Assembles the given element ranges of the [`Stage::Tiles`] sets into
+/// `o`; with `init`, `o`'s rows are started (see [`init_rows`]) just ahead
+/// of the tiles that add to them, so the matrix is walked once. The same
+/// code compiled for AVX2 where the CPU has it (no FMA: the same roundings,
+/// the same results).
+fn elements(ctx: &Ctx, r: &[Range<usize>; SETS], o: &mut Out, init: bool) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked just above).
-        unsafe { elements_avx2(ctx, tr, sr, hr, o, init) };
+        unsafe { elements_avx2(ctx, r, o, init) };
         return;
     }
-    elements_impl(ctx, tr, sr, hr, o, init)
+    elements_impl(ctx, r, o, init)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn elements_avx2(
-    ctx: &Ctx,
-    tr: Range<usize>,
-    sr: Range<usize>,
-    hr: Range<usize>,
-    o: &mut Out,
-    init: bool,
-) {
-    elements_impl(ctx, tr, sr, hr, o, init)
+fn elements_avx2(ctx: &Ctx, r: &[Range<usize>; SETS], o: &mut Out, init: bool) {
+    elements_impl(ctx, r, o, init)
 }
 
 #[inline(always)]
-fn elements_impl(
-    ctx: &Ctx,
-    tr: Range<usize>,
-    sr: Range<usize>,
-    hr: Range<usize>,
-    o: &mut Out,
-    init: bool,
-) {
-    // the three families advance together through tiles of vertices (the
-    // elements of each group are sorted by lowest vertex), so each tile's
-    // matrix rows are loaded into cache once instead of once per family
-    let c = ctx.c;
-    let (mut t, mut s, mut h) = (tr.start, sr.start, hr.start);
-    let vend = o.voff + o.force.len();
-    let mut started = o.voff;
+fn elements_impl(ctx: &Ctx, r: &[Range<usize>; SETS], o: &mut Out, init: bool) {
+    // the sets advance together through tiles of vertices (the elements of
+    // each group are sorted by lowest vertex), so each tile's matrix rows
+    // are loaded into cache once instead of once per set
+    let mut at: [usize; SETS] = std::array::from_fn(|s| r[s].start);
+    let vend = o.acc.voff + o.acc.force.len();
+    let mut started = o.acc.voff;
     let mut bound = 0;
-    while t < tr.end || s < sr.end || h < hr.end {
+    while (0..SETS).any(|s| at[s] < r[s].end) {
         bound += TILE;
         if init {
             // this tile's elements reach rows below bound + span
             let upto = (bound + ctx.span).min(vend);
             if upto > started {
-                init_rows(ctx, o, started..upto);
+                init_rows(ctx, &mut o.acc, started..upto);
                 started = upto;
             }
         }
-        let t1 = t + c.tension[t..tr.end].partition_point(|e| e.a.min(e.b) < bound);
-        let s1 = s + c.shear[s..sr.end].partition_point(|e| e.a.min(e.b) < bound);
-        let h1 = h + c.hinges[h..hr.end]
-            .partition_point(|e| e.v.iter().copied().min().unwrap_or(0) < bound);
-        elements_range(ctx, t..t1, s..s1, h..h1, tr.start, sr.start, hr.start, o);
-        (t, s, h) = (t1, s1, h1);
+        sets::each(
+            ctx.cloth,
+            &mut Tile {
+                ctx,
+                r,
+                at: &mut at,
+                bound,
+                o,
+            },
+        );
     }
     if init && started < vend {
-        init_rows(ctx, o, started..vend);
+        init_rows(ctx, &mut o.acc, started..vend);
     }
 }
 
 /// Vertices per assembly tile (a few grid rows: their blocks fit in L2).
 const TILE: usize = 256;
 
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn elements_range(
-    ctx: &Ctx,
-    tr: Range<usize>,
-    sr: Range<usize>,
-    hr: Range<usize>,
-    t0: usize,
-    s0: usize,
-    h0: usize,
-    o: &mut Out,
-) {
-    let (h, c, y) = (ctx.h, ctx.c, ctx.y);
-    let v = c.v;
-    let (bo, vo) = (o.boff, o.voff);
-    for k in tr {
-        let s = &c.tension[k];
-        let st = &mut o.tstate[k - t0];
-        let f = ctx.fabrics.at(s.a);
-        let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-        let law = &f.dir(s.weft).tensile;
-        law.commit(st, l / s.l0 - 1.0);
-        let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
-        let sp = AxialStep {
-            a: s.a,
-            b: s.b,
-            t,
-            dt,
-            dts,
-            l,
-            dir,
-            beta: f.damping.beta_tension,
-        };
-        axial_element(ctx, o, &ctx.slots.tension[k], &sp);
-    }
-    for k in sr {
-        let s = &c.shear[k];
-        let st = &mut o.sstate[k - s0];
-        let f = ctx.fabrics.at(s.a);
-        let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-        f.shear.commit(st, s.strain(l));
-        let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
-        let sp = AxialStep {
-            a: s.a,
-            b: s.b,
-            t,
-            dt,
-            dts,
-            l,
-            dir,
-            beta: f.damping.beta_shear,
-        };
-        axial_element(ctx, o, &ctx.slots.shear[k], &sp);
-    }
-    for k in hr {
-        let hg = &c.hinges[k];
-        let st = &mut o.hstate[k - h0];
-        let f = ctx.fabrics.at(hg.v[0]);
-        let d = f.damping;
-        let law = &f.dir(hg.weft).bending;
-        let (theta, g) = dihedral_and_grad(hinge_positions(hg, c.x));
-        law.commit(st, theta / hg.h);
-        let (s, ds, dss) = law.eval_for_step(st, theta / hg.h);
-        let kd = hg.len * ds.max(0.0) / hg.h;
-        let ks = hg.len * dss.max(0.0) / hg.h;
-        let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
-        let gp = [gs(0), gs(1), gs(2), gs(3)];
-        let mut gv = 0.0;
-        let mut gy = 0.0;
-        for p in 0..4 {
-            gv += gp[p].dot(&v[hg.v[p]]);
-            gy += gp[p].dot(&y[hg.v[p]]);
+/// One tile of [`elements_impl`]: each set's elements from `at` whose
+/// lowest vertex is below `bound`.
+struct Tile<'c, 'o, 'a, 'm> {
+    ctx: &'c Ctx<'c>,
+    r: &'c [Range<usize>; SETS],
+    at: &'c mut [usize; SETS],
+    bound: usize,
+    o: &'o mut Out<'a, 'm>,
+}
+
+impl Visit for Tile<'_, '_, '_, '_> {
+    #[inline(always)]
+    fn set<E: Element>(&mut self, s: usize, els: &[E], _: &[LawState]) {
+        if E::STAGE != Stage::Tiles {
+            return;
         }
-        o.power += d.beta_bend * kd * gv * gv;
-        let sl = &ctx.slots.hinge[k];
-        let cm = h * h * ks - h * d.beta_bend * kd;
-        for p in 0..4 {
-            // elastic −L σ ∇θ; damping β K̃ v with K̃ v = kd g (g·v)
-            o.force[hg.v[p] - vo] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
-            o.rhs[hg.v[p] - vo] -= gp[p] * (ks * (h * gv + gy));
-            if cm != 0.0 {
-                // symmetric: block (q, p) is the transpose of (p, q), bit for bit
-                o.val[sl[5 * p] - bo] += gp[p] * gp[p].transpose() * cm;
-                for q in p + 1..4 {
-                    let m = gp[p] * gp[q].transpose() * cm;
-                    o.val[sl[4 * p + q] - bo] += m;
-                    o.val[sl[4 * q + p] - bo] += m.transpose();
-                }
-            }
+        let (r, k0) = (&self.r[s], self.at[s]);
+        let k1 = k0 + els[k0..r.end].partition_point(|e| e.lowest() < self.bound);
+        let m = E::N * E::N;
+        let slots = &self.ctx.slots.of[s];
+        let Out { acc, mem } = &mut *self.o;
+        let mem = &mut mem[s];
+        for k in k0..k1 {
+            let st = &mut mem[k - r.start];
+            els[k].step(st, &slots[m * k..m * (k + 1)], &self.ctx.step, acc);
+        }
+        self.at[s] = k1;
+    }
+}
+
+/// Adds the elements of the [`Stage::Last`] sets, in storage order.
+struct Last<'c, 'o, 'a> {
+    ctx: &'c Ctx<'c>,
+    mem: &'c mut [Vec<LawState>; SETS],
+    o: &'o mut StepOut<'a>,
+}
+
+impl Visit for Last<'_, '_, '_> {
+    fn set<E: Element>(&mut self, s: usize, els: &[E], _: &[LawState]) {
+        if E::STAGE != Stage::Last {
+            return;
+        }
+        let m = E::N * E::N;
+        let slots = &self.ctx.slots.of[s];
+        let mut fresh = LawState::at(0.0);
+        for (k, e) in els.iter().enumerate() {
+            let st = if E::MEMORY {
+                &mut self.mem[s][k]
+            } else {
+                &mut fresh
+            };
+            e.step(st, &slots[m * k..m * (k + 1)], &self.ctx.step, self.o);
         }
     }
-}
-
-/// One axial spring's response for this step.
-struct AxialStep {
-    a: usize,
-    b: usize,
-    /// Tension, its branch tangent and its step tangent (see [`crate::fabric::Law::eval_for_step`]).
-    t: f64,
-    dt: f64,
-    dts: f64,
-    l: f64,
-    dir: Vector3<f64>,
-    /// The family's Rayleigh coefficient.
-    beta: f64,
-}
-
-/// Adds an axial spring (tension or shear) to the step: stiffness with the step
-/// tangent, damping with the branch tangent.
-#[inline(always)]
-fn axial_element(ctx: &Ctx, o: &mut Out, slots: &[usize; 4], e: &AxialStep) {
-    let (h, y, v) = (ctx.h, ctx.y, ctx.c.v);
-    let (bo, vo) = (o.boff, o.voff);
-    let pd = axial_block(
-        &Axial {
-            t: e.t,
-            dt: e.dt,
-            l: e.l,
-            dir: e.dir,
-        },
-        true,
-    );
-    let ps = axial_block(
-        &Axial {
-            t: e.t,
-            dt: e.dts,
-            l: e.l,
-            dir: e.dir,
-        },
-        true,
-    );
-    scatter(o.val, bo, slots, &(ps * (h * h) - pd * (h * e.beta)));
-    let dvab = v[e.a] - v[e.b];
-    let kdv = pd * dvab;
-    o.power += e.beta * dvab.dot(&kdv);
-    let fe = e.dir * e.t + kdv * e.beta;
-    o.force[e.a - vo] += fe;
-    o.force[e.b - vo] -= fe;
-    let r = -(ps * (dvab * h + (y[e.a] - y[e.b])));
-    o.rhs[e.a - vo] += r;
-    o.rhs[e.b - vo] -= r;
-}
-
-#[inline]
-fn scatter(val: &mut [Matrix3<f64>], off: usize, sl: &[usize; 4], p: &Matrix3<f64>) {
-    val[sl[0] - off] += p;
-    val[sl[1] - off] -= p;
-    val[sl[2] - off] -= p;
-    val[sl[3] - off] += p;
 }
 
 /// Builds `A`, the right-hand side `rhs` and the total force `force` of the
 /// step (see [`super::Simulation`] for the formulas), advancing every
-/// spring's hysteresis memory to the current shape in the same pass. Returns
-/// the damping power `vᵀ C v` (≤ 0).
+/// element's hysteresis memory to the current shape in the same pass.
+/// Returns the damping power `vᵀ C v` (≤ 0).
 #[allow(clippy::too_many_arguments)]
 pub fn assemble(
     h: f64,
@@ -495,124 +305,129 @@ pub fn assemble(
     team: &mut Team,
 ) -> f64 {
     let mut power = 0.0;
-    let Cloth {
-        x,
-        v,
-        tension,
-        shear,
-        hinges,
-        tension_state,
-        shear_state,
-        hinge_state,
-        mass,
-        vertex_fabric,
-        ..
-    } = cloth;
-    let view = ClothView {
-        x,
-        v,
-        tension,
-        shear,
-        hinges,
-    };
+    let mut mem = sets::take_memories(cloth);
+    let c: &Cloth = cloth;
     let ctx = Ctx {
-        h,
-        fabrics: Fabrics {
-            first: fabric,
-            others: other_fabrics,
-            of: vertex_fabric,
+        step: StepIn {
+            h,
+            fabrics: Fabrics {
+                first: fabric,
+                others: other_fabrics,
+                of: &c.vertex_fabric,
+            },
+            x: &c.x,
+            v: &c.v,
+            y,
         },
-        c: &view,
-        y,
+        cloth: c,
         slots,
         gravity,
-        mass: &mass[..],
+        mass: &c.mass,
         row_ptr: &a.row_ptr,
         diag: &a.diag,
         span: part.span,
     };
     let nt = part.bounds.len() - 1;
+    let ranges =
+        |t: usize| -> [Range<usize>; SETS] { std::array::from_fn(|s| part.ranges[s][t].clone()) };
     // split every output into per-chunk slices
     let mut outs: Vec<Out> = Vec::with_capacity(nt);
     {
         let mut val: &mut [Matrix3<f64>] = &mut a.val;
         let mut fo: &mut [Vector3<f64>] = force;
         let mut rh: &mut [Vector3<f64>] = rhs;
-        let mut ts: &mut [LawState] = tension_state;
-        let mut ss: &mut [LawState] = shear_state;
-        let mut hs: &mut [LawState] = hinge_state;
-        let (mut boff, mut toff, mut soff, mut hoff) = (0, 0, 0, 0);
+        let mut ms: [&mut [LawState]; SETS] = mem.each_mut().map(|m| m.as_mut_slice());
+        let mut moff = [0; SETS];
+        let mut boff = 0;
         for t in 0..nt {
             let (v0, v1) = (part.bounds[t], part.bounds[t + 1]);
             let bend = a.row_ptr[v1];
             let (vh, vt) = std::mem::take(&mut val).split_at_mut(bend - boff);
             let (fh, ft) = std::mem::take(&mut fo).split_at_mut(v1 - v0);
             let (rhh, rht) = std::mem::take(&mut rh).split_at_mut(v1 - v0);
-            let (tsh, tst) = std::mem::take(&mut ts).split_at_mut(part.tension[t].end - toff);
-            let (ssh, sst) = std::mem::take(&mut ss).split_at_mut(part.shear[t].end - soff);
-            let (hsh, hst) = std::mem::take(&mut hs).split_at_mut(part.hinge[t].end - hoff);
+            let mh: [&mut [LawState]; SETS] = std::array::from_fn(|s| {
+                let end = if ms[s].is_empty() {
+                    0
+                } else {
+                    part.ranges[s][t].end - moff[s]
+                };
+                let (head, tail) = std::mem::take(&mut ms[s]).split_at_mut(end);
+                ms[s] = tail;
+                moff[s] += end;
+                head
+            });
             outs.push(Out {
-                val: vh,
-                boff,
-                force: fh,
-                rhs: rhh,
-                voff: v0,
-                tstate: tsh,
-                sstate: ssh,
-                hstate: hsh,
-                power: 0.0,
+                acc: StepOut {
+                    val: vh,
+                    boff,
+                    force: fh,
+                    rhs: rhh,
+                    voff: v0,
+                    power: 0.0,
+                },
+                mem: mh,
             });
             val = vt;
             fo = ft;
             rh = rht;
-            ts = tst;
-            ss = sst;
-            hs = hst;
             boff = bend;
-            toff = part.tension[t].end;
-            soff = part.shear[t].end;
-            hoff = part.hinge[t].end;
         }
         debug_assert!(val.is_empty() && fo.is_empty());
-        let _ = (ts, ss, hs);
     }
     // chunk t on the team's thread t (the team has one thread per chunk)
     debug_assert_eq!(team.size(), nt);
-    team.run_each(&mut outs, |t, o| {
-        elements(
-            &ctx,
-            part.tension[t].clone(),
-            part.shear[t].clone(),
-            part.hinge[t].clone(),
-            o,
-            true,
-        )
-    });
-    power += outs.iter().map(|o| o.power).sum::<f64>();
+    team.run_each(&mut outs, |t, o| elements(&ctx, &ranges(t), o, true));
+    power += outs.iter().map(|o| o.acc.power).sum::<f64>();
     drop(outs);
     // the straddling elements, on this thread, with whole-matrix slices
+    let straddle = ranges(nt);
     let mut o = Out {
-        val: &mut a.val,
+        acc: StepOut {
+            val: &mut a.val,
+            boff: 0,
+            force,
+            rhs,
+            voff: 0,
+            power: 0.0,
+        },
+        mem: {
+            let mut ms = mem.iter_mut();
+            std::array::from_fn(|s| {
+                let m = ms.next().expect("one memory per set");
+                if m.is_empty() {
+                    &mut m[..]
+                } else {
+                    &mut m[straddle[s].clone()]
+                }
+            })
+        },
+    };
+    elements(&ctx, &straddle, &mut o, false);
+    power += o.acc.power;
+    let StepOut {
+        val, force, rhs, ..
+    } = o.acc;
+    for i in 0..force.len() {
+        rhs[i] = (force[i] + rhs[i]) * h;
+    }
+    // the sets added last, into the finished right-hand side
+    let mut last = StepOut {
+        val,
         boff: 0,
         force,
         rhs,
         voff: 0,
-        tstate: &mut tension_state[part.tension[nt].clone()],
-        sstate: &mut shear_state[part.shear[nt].clone()],
-        hstate: &mut hinge_state[part.hinge[nt].clone()],
         power: 0.0,
     };
-    elements(
-        &ctx,
-        part.tension[nt].clone(),
-        part.shear[nt].clone(),
-        part.hinge[nt].clone(),
-        &mut o,
-        false,
+    sets::each(
+        c,
+        &mut Last {
+            ctx: &ctx,
+            mem: &mut mem,
+            o: &mut last,
+        },
     );
-    power += o.power;
-    for i in 0..o.force.len() {
-        o.rhs[i] = (o.force[i] + o.rhs[i]) * h;
-    }
+    power += last.power;
+    sets::put_memories(cloth, mem);
     power
 }

@@ -2,9 +2,9 @@
 //! finite-difference tests and by the damping identification (thesis §5.4.1,
 //! where `F_dissip = β K V` needs each family's K on its own).
 
-use super::elements::*;
+use super::sets::{self, Jacobian};
 use super::sparse::BlockMatrix;
-use super::Simulation;
+use super::{Fabrics, Simulation};
 use nalgebra::{Matrix3, Vector3};
 
 /// A spring family.
@@ -16,109 +16,42 @@ pub enum Family {
 }
 
 impl Simulation {
+    /// The per-vertex fabric lookup of the cloth.
+    fn fabric_lookup(&self) -> Fabrics<'_> {
+        Fabrics {
+            first: &self.fabric,
+            others: &self.other_fabrics,
+            of: &self.cloth.vertex_fabric,
+        }
+    }
+
     /// Elastic + hysteretic forces of one family (no damping).
     pub fn family_forces(&self, fam: Family) -> Vec<Vector3<f64>> {
-        let c = &self.cloth;
-        let mut out = vec![Vector3::zeros(); c.len()];
-        match fam {
-            Family::Tension => {
-                for (s, st) in c.tension.iter().zip(&c.tension_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, _) = tension_law(
-                        s,
-                        &self.fabric_of(s.a).dir(s.weft).tensile,
-                        &self.fabric_of(s.a).shear,
-                        st,
-                        l,
-                    );
-                    out[s.a] += dir * t;
-                    out[s.b] -= dir * t;
-                }
-            }
-            Family::Shear => {
-                for (s, st) in c.shear.iter().zip(&c.shear_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, _) = shear_law(s, &self.fabric_of(s.a).shear, st, l);
-                    out[s.a] += dir * t;
-                    out[s.b] -= dir * t;
-                }
-            }
-            Family::Bending => {
-                for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let (_, _, s, _, g) =
-                        hinge_eval(hg, &self.fabric_of(hg.v[0]).dir(hg.weft).bending, st, &c.x);
-                    for p in 0..4 {
-                        out[hg.v[p]] -=
-                            Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]) * (hg.len * s);
-                    }
-                }
-            }
-        }
+        let mut out = vec![Vector3::zeros(); self.cloth.len()];
+        let f = self.fabric_lookup();
+        sets::forces(&self.cloth, &f, |g| g == Some(fam), &mut out);
         out
+    }
+
+    /// `∂f/∂x` of one family (the elements' pattern of the system matrix).
+    fn family_matrix(&self, fam: Family, kind: Jacobian) -> BlockMatrix {
+        let mut k = self.a.clone();
+        k.clear();
+        let f = self.fabric_lookup();
+        sets::jacobians(&self.cloth, &f, |g| g == Some(fam), kind, &mut k);
+        k
     }
 
     /// `∂f/∂x` of one family: exact, or the projected `−K̃` the solver uses.
     pub fn family_jacobian(&self, fam: Family, projected: bool) -> BlockMatrix {
-        let c = &self.cloth;
-        let mut k = self.a.clone();
-        k.clear();
-        let axial_add = |k: &mut BlockMatrix, a: usize, b: usize, p: Matrix3<f64>| {
-            let (aa, ab, ba, bb) = (k.index(a, a), k.index(a, b), k.index(b, a), k.index(b, b));
-            k.val[aa] -= p;
-            k.val[bb] -= p;
-            k.val[ab] += p;
-            k.val[ba] += p;
-        };
-        match fam {
-            Family::Tension => {
-                for (s, st) in c.tension.iter().zip(&c.tension_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, dt, _) = tension_law(
-                        s,
-                        &self.fabric_of(s.a).dir(s.weft).tensile,
-                        &self.fabric_of(s.a).shear,
-                        st,
-                        l,
-                    );
-                    axial_add(
-                        &mut k,
-                        s.a,
-                        s.b,
-                        axial_block(&Axial { t, dt, l, dir }, projected),
-                    );
-                }
-            }
-            Family::Shear => {
-                for (s, st) in c.shear.iter().zip(&c.shear_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, dt, _) = shear_law(s, &self.fabric_of(s.a).shear, st, l);
-                    axial_add(
-                        &mut k,
-                        s.a,
-                        s.b,
-                        axial_block(&Axial { t, dt, l, dir }, projected),
-                    );
-                }
-            }
-            Family::Bending => {
-                for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let law = &self.fabric_of(hg.v[0]).dir(hg.weft).bending;
-                    let j = if projected {
-                        let (_, _, _, ds, g) = hinge_eval(hg, law, st, &c.x);
-                        -(g * g.transpose()) * (hg.len * ds.max(0.0) / hg.h)
-                    } else {
-                        hinge_jacobian_exact(hg, law, st, &c.x)
-                    };
-                    for p in 0..4 {
-                        for q in 0..4 {
-                            let idx = k.index(hg.v[p], hg.v[q]);
-                            k.val[idx] += j.fixed_view::<3, 3>(3 * p, 3 * q).into_owned();
-                        }
-                    }
-                }
-            }
-        }
-        k
+        self.family_matrix(
+            fam,
+            if projected {
+                Jacobian::Projected
+            } else {
+                Jacobian::Exact
+            },
+        )
     }
 
     /// The stiffness the implicit step uses for a family, as `∂f/∂x` (that is
@@ -127,55 +60,7 @@ impl Simulation {
     /// [`crate::fabric::Law::eval_for_step`]). The damping identification
     /// needs it to write the step's own equation on captured shapes.
     pub fn family_step_jacobian(&self, fam: Family) -> BlockMatrix {
-        let c = &self.cloth;
-        let mut k = self.a.clone();
-        k.clear();
-        let mut axial_add = |a: usize, b: usize, t: f64, dts: f64, l: f64, dir: Vector3<f64>| {
-            let p = axial_block(&Axial { t, dt: dts, l, dir }, true);
-            let (aa, ab, ba, bb) = (k.index(a, a), k.index(a, b), k.index(b, a), k.index(b, b));
-            k.val[aa] -= p;
-            k.val[bb] -= p;
-            k.val[ab] += p;
-            k.val[ba] += p;
-        };
-        match fam {
-            Family::Tension => {
-                for (s, st) in c.tension.iter().zip(&c.tension_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, dts, _) = tension_law_step(
-                        s,
-                        &self.fabric_of(s.a).dir(s.weft).tensile,
-                        &self.fabric_of(s.a).shear,
-                        st,
-                        l,
-                    );
-                    axial_add(s.a, s.b, t, dts, l, dir);
-                }
-            }
-            Family::Shear => {
-                for (s, st) in c.shear.iter().zip(&c.shear_state) {
-                    let (l, dir) = axial(&c.x[s.a], &c.x[s.b]);
-                    let (t, _, dts, _) = shear_law_step(s, &self.fabric_of(s.a).shear, st, l);
-                    axial_add(s.a, s.b, t, dts, l, dir);
-                }
-            }
-            Family::Bending => {
-                for (hg, st) in c.hinges.iter().zip(&c.hinge_state) {
-                    let law = &self.fabric_of(hg.v[0]).dir(hg.weft).bending;
-                    let (theta, g) = dihedral_and_grad(hinge_positions(hg, &c.x));
-                    let (_, _, dss) = law.eval_for_step(st, theta / hg.h);
-                    let ks = hg.len * dss.max(0.0) / hg.h;
-                    let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
-                    for p in 0..4 {
-                        for q in 0..4 {
-                            let idx = k.index(hg.v[p], hg.v[q]);
-                            k.val[idx] -= gs(p) * gs(q).transpose() * ks;
-                        }
-                    }
-                }
-            }
-        }
-        k
+        self.family_matrix(fam, Jacobian::Step)
     }
 
     /// Total force including gravity and damping at velocities `v` (for the

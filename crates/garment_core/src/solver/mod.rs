@@ -21,6 +21,7 @@ mod cpu;
 pub mod elements;
 pub mod family;
 pub mod linear;
+pub(crate) mod sets;
 pub mod sparse;
 pub mod team;
 pub mod trisolve;
@@ -31,7 +32,6 @@ use crate::collision::Obstacle;
 use crate::fabric::Fabric;
 use crate::set::{Handle, Set};
 use anyhow::{bail, Result};
-use elements::*;
 pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -348,25 +348,8 @@ impl Simulation {
             fabric.without_hysteresis()
         };
         let n = cloth.len();
-        let mut cliques: Vec<Vec<usize>> = Vec::new();
-        cliques.extend(cloth.tension.iter().map(|s| vec![s.a, s.b]));
-        cliques.extend(cloth.shear.iter().map(|s| vec![s.a, s.b]));
-        cliques.extend(cloth.hinges.iter().map(|h| h.v.to_vec()));
-        cliques.extend(cloth.seams.iter().map(|s| s.v.to_vec()));
-        for (k, s) in cloth.seams.iter().enumerate() {
-            if s.v.iter().any(|&v| v >= n)
-                || !(s.k.is_finite() && s.k >= 0.0 && s.d.is_finite() && s.d >= 0.0)
-                || s.c.iter().any(|c| !c.is_finite())
-            {
-                bail!(
-                    "seam stitch {k}: vertices {:?} (the cloth has {n}), stiffness {} N/m, \
-                     damping {} N·s/m: needs vertices of the cloth and finite k, d ≥ 0",
-                    s.v,
-                    s.k,
-                    s.d
-                );
-            }
-        }
+        let cliques = sets::cliques(&cloth);
+        sets::check(&cloth)?;
         let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
         let threads = match params.threads {
             0 => team::threads_for(n),
@@ -724,14 +707,7 @@ impl Simulation {
     /// springs and seam stitches.
     fn amg(&mut self) -> Result<&mut amg::Amg> {
         if self.amg.is_none() {
-            let c = &self.cloth;
-            let mut edges: Vec<[usize; 2]> = Vec::new();
-            edges.extend(c.tension.iter().map(|s| [s.a, s.b]));
-            edges.extend(c.shear.iter().map(|s| [s.a, s.b]));
-            for st in &c.seams {
-                edges.push([st.v[0], st.v[1]]);
-                edges.push([st.v[0], st.v[2]]);
-            }
+            let edges = sets::edges(&self.cloth);
             self.amg = Some(amg::Amg::new(&self.a, &edges)?);
         }
         Ok(self.amg.as_mut().expect("multigrid built"))
@@ -929,25 +905,7 @@ impl Simulation {
     }
 
     fn commit_laws(&mut self) {
-        let c = &mut self.cloth;
-        let fabrics = Fabrics {
-            first: &self.fabric,
-            others: &self.other_fabrics,
-            of: &c.vertex_fabric,
-        };
-        let f = |v: usize| fabrics.at(v);
-        for (s, st) in c.tension.iter().zip(c.tension_state.iter_mut()) {
-            let l = (c.x[s.b] - c.x[s.a]).norm();
-            f(s.a).dir(s.weft).tensile.commit(st, l / s.l0 - 1.0);
-        }
-        for (s, st) in c.shear.iter().zip(c.shear_state.iter_mut()) {
-            let l = (c.x[s.b] - c.x[s.a]).norm();
-            f(s.a).shear.commit(st, s.strain(l));
-        }
-        for (hg, st) in c.hinges.iter().zip(c.hinge_state.iter_mut()) {
-            let th = dihedral(hinge_positions(hg, &c.x));
-            f(hg.v[0]).dir(hg.weft).bending.commit(st, th / hg.h);
-        }
+        sets::commit(&mut self.cloth, &self.fabric, &self.other_fabrics);
     }
 
     /// Builds `A` and `b` of the step, and the total force `self.force`.
@@ -970,20 +928,7 @@ impl Simulation {
             &mut self.b,
             &mut self.team,
         );
-        let seams = if self.cloth.seams.is_empty() {
-            0.0
-        } else {
-            assemble::add_seams(
-                self.params.dt,
-                &self.cloth,
-                &self.y,
-                &self.slots,
-                &mut self.a,
-                &mut self.force,
-                &mut self.b,
-            )
-        };
-        self.dissipated -= self.params.dt * (power + seams);
+        self.dissipated -= self.params.dt * power;
     }
 
     /// The force each obstacle contact exerted on the cloth in the last
@@ -1104,7 +1049,6 @@ impl Simulation {
     /// Energies of the current state (elastic parts of the laws).
     pub fn energies(&self) -> Energies {
         let c = &self.cloth;
-        let f = |v: usize| self.fabric_of(v);
         let mut e = Energies {
             dissipated_damping: self.dissipated,
             ..Default::default()
@@ -1113,27 +1057,12 @@ impl Simulation {
             e.kinetic += 0.5 * c.mass[i] * c.v[i].norm_squared();
             e.gravity -= c.mass[i] * self.params.gravity.dot(&c.x[i]);
         }
-        for s in &c.tension {
-            e.tension += tension_energy(
-                s,
-                &f(s.a).dir(s.weft).tensile,
-                &f(s.a).shear,
-                (c.x[s.b] - c.x[s.a]).norm(),
-            );
-        }
-        for s in &c.shear {
-            e.shear += shear_energy(s, &f(s.a).shear, (c.x[s.b] - c.x[s.a]).norm());
-        }
-        for hg in &c.hinges {
-            e.bending += hinge_energy(
-                hg,
-                &f(hg.v[0]).dir(hg.weft).bending,
-                dihedral(hinge_positions(hg, &c.x)),
-            );
-        }
-        for st in &c.seams {
-            e.seam += 0.5 * st.k * st.gap(&c.x).norm_squared();
-        }
+        let fabrics = Fabrics {
+            first: &self.fabric,
+            others: &self.other_fabrics,
+            of: &c.vertex_fabric,
+        };
+        sets::energies(c, &fabrics, &mut e);
         e
     }
 

@@ -1,0 +1,830 @@
+//! The cloth as sets of elements behind one interface, [`Element`]: each
+//! family (tension springs, shear springs, bending hinges, seam stitches)
+//! says which vertices an element couples (→ the matrix pattern and the
+//! block slots), adds its force and Jacobian blocks to the step, gives its
+//! energy, commits its hysteresis memory, and answers the per-family force
+//! and Jacobian queries ([`super::family`]). The assembly, the queries, the
+//! energies and the commit loop over the sets ([`each`], [`each_mut`]), so a
+//! new family is one type implementing [`Element`] and one line in each of
+//! those two lists.
+//!
+//! Memories: a family with hysteresis has one [`LawState`] per element
+//! ([`Element::MEMORY`]); one without gets an empty memory vector and a
+//! fresh state wherever an element takes one.
+
+use super::elements::*;
+use super::family::Family;
+use super::sparse::BlockMatrix;
+use super::{Energies, Fabrics};
+use crate::cloth::{Cloth, Hinge, ShearSpring, Stitch, TensionSpring};
+use crate::fabric::{Fabric, LawState};
+use anyhow::{bail, Result};
+use nalgebra::{Matrix3, Vector3};
+
+/// When the step adds a set's elements.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Stage {
+    /// On the team, per chunk of vertices and tile ([`super::assemble`]),
+    /// into the force and into the part `r` of the right-hand side that the
+    /// assembly then completes as `h (f + r)`.
+    Tiles,
+    /// After that, on one thread, in storage order, into the finished
+    /// right-hand side (the element adds its whole `h (f + r)`): elements
+    /// that join vertices far apart in the numbering (seam stitches).
+    Last,
+}
+
+/// Which `∂f/∂x` a Jacobian query wants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Jacobian {
+    /// The exact Jacobian (finite-difference tests).
+    Exact,
+    /// The projected `−K̃` with the branch tangents (damping, see
+    /// [`super::elements`]).
+    Projected,
+    /// The projected `−K̃s` with the step tangents the system matrix uses.
+    Step,
+}
+
+/// What an element's step contribution reads.
+#[derive(Clone, Copy)]
+pub(crate) struct StepIn<'a> {
+    /// Time step, s.
+    pub h: f64,
+    pub fabrics: Fabrics<'a>,
+    pub x: &'a [Vector3<f64>],
+    pub v: &'a [Vector3<f64>],
+    /// Position correction of the step (pins, contacts).
+    pub y: &'a [Vector3<f64>],
+}
+
+/// Where an element adds its step contribution: matrix blocks `val` (the
+/// system's blocks from `boff` on), forces and right-hand sides of the
+/// vertices from `voff` on, and the damping power `vᵀ C v`.
+pub(crate) struct StepOut<'a> {
+    pub val: &'a mut [Matrix3<f64>],
+    pub boff: usize,
+    pub force: &'a mut [Vector3<f64>],
+    pub rhs: &'a mut [Vector3<f64>],
+    pub voff: usize,
+    pub power: f64,
+}
+
+/// One family of elements.
+pub(crate) trait Element: Copy + Send + Sync {
+    /// Vertices per element.
+    const N: usize;
+    const STAGE: Stage;
+    /// The family the force and Jacobian queries name it by (none: the
+    /// queries leave it out).
+    const FAMILY: Option<Family>;
+    /// Has a hysteresis memory per element.
+    const MEMORY: bool;
+    type Clique: AsRef<[usize]>;
+
+    /// The vertices the element couples (all `N` blocks between them are in
+    /// the system matrix).
+    fn clique(&self) -> Self::Clique;
+
+    /// Its lowest vertex (the assembly's tiles are cut by it).
+    #[inline(always)]
+    fn lowest(&self) -> usize {
+        self.clique().as_ref().iter().copied().min().unwrap_or(0)
+    }
+
+    /// Refuses an element that does not fit a cloth of `n` vertices
+    /// (element `k` of its set).
+    fn check(&self, _k: usize, _n: usize) -> Result<()> {
+        Ok(())
+    }
+
+    /// Edges the multigrid aggregates along.
+    fn edges(&self, _out: &mut Vec<[usize; 2]>) {}
+
+    /// Adds the element to the step: commits its memory `st` to the current
+    /// shape, then adds its blocks at `slots` (block `(p, q)` of its clique at
+    /// `N p + q`), its force, its part of the right-hand side and its damping
+    /// power to `o` (see [`Stage`] for which part).
+    fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut);
+
+    /// Advances the memory to the current positions.
+    fn commit(&self, _st: &mut LawState, _x: &[Vector3<f64>], _f: &Fabrics) {}
+
+    /// Elastic energy, J.
+    fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64;
+
+    /// The family's entry of the energies.
+    fn energy_in(e: &mut Energies) -> &mut f64;
+
+    /// Adds the elastic and hysteretic force (no damping).
+    fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]);
+
+    /// Adds `∂f/∂x` of this force into `k` (whose pattern holds the clique).
+    fn jacobian(
+        &self,
+        st: &LawState,
+        x: &[Vector3<f64>],
+        f: &Fabrics,
+        kind: Jacobian,
+        k: &mut BlockMatrix,
+    );
+}
+
+/// Visits each set's elements with their memories.
+pub(crate) trait Visit {
+    /// Set `i` of [`SETS`]: its elements and memories (empty for a set
+    /// without memory, and while the assembly holds them).
+    fn set<E: Element>(&mut self, i: usize, els: &[E], mem: &[LawState]);
+}
+
+/// Visits each set's elements and memories, to change them.
+pub(crate) trait VisitMut {
+    fn set<E: Element>(&mut self, i: usize, els: &mut Vec<E>, mem: &mut Vec<LawState>);
+}
+
+/// Number of element sets.
+pub(crate) const SETS: usize = 4;
+
+/// The element sets of the cloth, in the order the step adds them into
+/// each vertex's sums.
+#[inline(always)]
+pub(crate) fn each(c: &Cloth, v: &mut impl Visit) {
+    v.set(0, &c.tension, &c.tension_state);
+    v.set(1, &c.shear, &c.shear_state);
+    v.set(2, &c.hinges, &c.hinge_state);
+    v.set(3, &c.seams, &[]);
+}
+
+/// [`each`], mutable.
+pub(crate) fn each_mut(c: &mut Cloth, v: &mut impl VisitMut) {
+    v.set(0, &mut c.tension, &mut c.tension_state);
+    v.set(1, &mut c.shear, &mut c.shear_state);
+    v.set(2, &mut c.hinges, &mut c.hinge_state);
+    v.set(3, &mut c.seams, &mut Vec::new());
+}
+
+/// The state of an element without memory.
+static NO_MEMORY: LawState = LawState {
+    sp: 0.0,
+    x: 0.0,
+    dir: 1.0,
+};
+
+/// Element `k`'s memory (a set without memory: a fresh state).
+#[inline(always)]
+fn memory_of<E: Element>(mem: &[LawState], k: usize) -> &LawState {
+    if E::MEMORY {
+        &mem[k]
+    } else {
+        &NO_MEMORY
+    }
+}
+
+/// Moves every set's memories out of the cloth (the assembly writes them
+/// from several threads while it reads the elements).
+pub(crate) fn take_memories(c: &mut Cloth) -> [Vec<LawState>; SETS] {
+    struct Take([Vec<LawState>; SETS]);
+    impl VisitMut for Take {
+        fn set<E: Element>(&mut self, i: usize, _: &mut Vec<E>, mem: &mut Vec<LawState>) {
+            self.0[i] = std::mem::take(mem);
+        }
+    }
+    let mut t = Take(Default::default());
+    each_mut(c, &mut t);
+    t.0
+}
+
+/// Puts back what [`take_memories`] took.
+pub(crate) fn put_memories(c: &mut Cloth, mut m: [Vec<LawState>; SETS]) {
+    struct Put<'a>(&'a mut [Vec<LawState>; SETS]);
+    impl VisitMut for Put<'_> {
+        fn set<E: Element>(&mut self, i: usize, _: &mut Vec<E>, mem: &mut Vec<LawState>) {
+            *mem = std::mem::take(&mut self.0[i]);
+        }
+    }
+    each_mut(c, &mut Put(&mut m));
+}
+
+/// Every element's clique (the system matrix's pattern).
+pub(crate) fn cliques(c: &Cloth) -> Vec<Vec<usize>> {
+    struct Cliques(Vec<Vec<usize>>);
+    impl Visit for Cliques {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], _: &[LawState]) {
+            self.0
+                .extend(els.iter().map(|e| e.clique().as_ref().to_vec()));
+        }
+    }
+    let mut v = Cliques(Vec::new());
+    each(c, &mut v);
+    v.0
+}
+
+/// Checks every element against the cloth (the first misfit's error).
+pub(crate) fn check(c: &Cloth) -> Result<()> {
+    struct Check(usize, Result<()>);
+    impl Visit for Check {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], _: &[LawState]) {
+            if self.1.is_ok() {
+                self.1 = els
+                    .iter()
+                    .enumerate()
+                    .try_for_each(|(k, e)| e.check(k, self.0));
+            }
+        }
+    }
+    let mut v = Check(c.len(), Ok(()));
+    each(c, &mut v);
+    v.1
+}
+
+/// The multigrid's aggregation edges of every set.
+pub(crate) fn edges(c: &Cloth) -> Vec<[usize; 2]> {
+    struct Edges(Vec<[usize; 2]>);
+    impl Visit for Edges {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], _: &[LawState]) {
+            for e in els {
+                e.edges(&mut self.0);
+            }
+        }
+    }
+    let mut v = Edges(Vec::new());
+    each(c, &mut v);
+    v.0
+}
+
+/// Commits every memory to the current positions.
+pub(crate) fn commit(c: &mut Cloth, first: &Fabric, others: &[Fabric]) {
+    let mut mem = take_memories(c);
+    struct Commit<'a> {
+        x: &'a [Vector3<f64>],
+        f: Fabrics<'a>,
+        mem: &'a mut [Vec<LawState>; SETS],
+    }
+    impl Visit for Commit<'_> {
+        fn set<E: Element>(&mut self, i: usize, els: &[E], _: &[LawState]) {
+            if E::MEMORY {
+                for (e, st) in els.iter().zip(self.mem[i].iter_mut()) {
+                    e.commit(st, self.x, &self.f);
+                }
+            }
+        }
+    }
+    each(
+        c,
+        &mut Commit {
+            x: &c.x,
+            f: Fabrics {
+                first,
+                others,
+                of: &c.vertex_fabric,
+            },
+            mem: &mut mem,
+        },
+    );
+    put_memories(c, mem);
+}
+
+/// Adds every set's elastic energy to its entry of `e`.
+pub(crate) fn energies(c: &Cloth, f: &Fabrics, e: &mut Energies) {
+    struct En<'a> {
+        x: &'a [Vector3<f64>],
+        f: &'a Fabrics<'a>,
+        e: &'a mut Energies,
+    }
+    impl Visit for En<'_> {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], _: &[LawState]) {
+            for el in els {
+                *E::energy_in(self.e) += el.energy(self.x, self.f);
+            }
+        }
+    }
+    each(c, &mut En { x: &c.x, f, e });
+}
+
+/// Adds the forces of the sets `which` takes into `out`.
+pub(crate) fn forces(
+    c: &Cloth,
+    f: &Fabrics,
+    which: impl Fn(Option<Family>) -> bool,
+    out: &mut [Vector3<f64>],
+) {
+    struct Forces<'a, W> {
+        x: &'a [Vector3<f64>],
+        f: &'a Fabrics<'a>,
+        which: W,
+        out: &'a mut [Vector3<f64>],
+    }
+    impl<W: Fn(Option<Family>) -> bool> Visit for Forces<'_, W> {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], mem: &[LawState]) {
+            if (self.which)(E::FAMILY) {
+                for (k, e) in els.iter().enumerate() {
+                    e.force(memory_of::<E>(mem, k), self.x, self.f, self.out);
+                }
+            }
+        }
+    }
+    each(
+        c,
+        &mut Forces {
+            x: &c.x,
+            f,
+            which,
+            out,
+        },
+    );
+}
+
+/// Adds the Jacobians of the sets `which` takes into `k`.
+pub(crate) fn jacobians(
+    c: &Cloth,
+    f: &Fabrics,
+    which: impl Fn(Option<Family>) -> bool,
+    kind: Jacobian,
+    k: &mut BlockMatrix,
+) {
+    struct Jac<'a, W> {
+        x: &'a [Vector3<f64>],
+        f: &'a Fabrics<'a>,
+        which: W,
+        kind: Jacobian,
+        k: &'a mut BlockMatrix,
+    }
+    impl<W: Fn(Option<Family>) -> bool> Visit for Jac<'_, W> {
+        fn set<E: Element>(&mut self, _: usize, els: &[E], mem: &[LawState]) {
+            if (self.which)(E::FAMILY) {
+                for (n, e) in els.iter().enumerate() {
+                    e.jacobian(memory_of::<E>(mem, n), self.x, self.f, self.kind, self.k);
+                }
+            }
+        }
+    }
+    each(
+        c,
+        &mut Jac {
+            x: &c.x,
+            f,
+            which,
+            kind,
+            k,
+        },
+    );
+}
+
+// ---------------------------------------------------------- axial springs
+
+/// One axial spring's response for this step.
+struct AxialStep {
+    a: usize,
+    b: usize,
+    /// Tension, its branch tangent and its step tangent (see [`crate::fabric::Law::eval_for_step`]).
+    t: f64,
+    dt: f64,
+    dts: f64,
+    l: f64,
+    dir: Vector3<f64>,
+    /// The family's Rayleigh coefficient.
+    beta: f64,
+}
+
+/// Adds an axial spring (tension or shear) to the step: stiffness with the step
+/// tangent, damping with the branch tangent.
+#[inline(always)]
+fn axial_element(i: &StepIn, o: &mut StepOut, slots: &[usize], e: &AxialStep) {
+    let (h, y, v) = (i.h, i.y, i.v);
+    let (bo, vo) = (o.boff, o.voff);
+    let slots: &[usize; 4] = slots.try_into().expect("an axial spring has 4 blocks");
+    let pd = axial_block(
+        &Axial {
+            t: e.t,
+            dt: e.dt,
+            l: e.l,
+            dir: e.dir,
+        },
+        true,
+    );
+    let ps = axial_block(
+        &Axial {
+            t: e.t,
+            dt: e.dts,
+            l: e.l,
+            dir: e.dir,
+        },
+        true,
+    );
+    scatter(o.val, bo, slots, &(ps * (h * h) - pd * (h * e.beta)));
+    let dvab = v[e.a] - v[e.b];
+    let kdv = pd * dvab;
+    o.power += e.beta * dvab.dot(&kdv);
+    let fe = e.dir * e.t + kdv * e.beta;
+    o.force[e.a - vo] += fe;
+    o.force[e.b - vo] -= fe;
+    let r = -(ps * (dvab * h + (y[e.a] - y[e.b])));
+    o.rhs[e.a - vo] += r;
+    o.rhs[e.b - vo] -= r;
+}
+
+#[inline(always)]
+fn scatter(val: &mut [Matrix3<f64>], off: usize, sl: &[usize; 4], p: &Matrix3<f64>) {
+    val[sl[0] - off] += p;
+    val[sl[1] - off] -= p;
+    val[sl[2] - off] -= p;
+    val[sl[3] - off] += p;
+}
+
+/// Adds `P` of an axial spring as `∂f/∂x`: `−P` on the diagonal blocks,
+/// `+P` off it.
+fn axial_add(k: &mut BlockMatrix, a: usize, b: usize, p: Matrix3<f64>) {
+    let (aa, ab, ba, bb) = (k.index(a, a), k.index(a, b), k.index(b, a), k.index(b, b));
+    k.val[aa] -= p;
+    k.val[bb] -= p;
+    k.val[ab] += p;
+    k.val[ba] += p;
+}
+
+impl Element for TensionSpring {
+    const N: usize = 2;
+    const STAGE: Stage = Stage::Tiles;
+    const FAMILY: Option<Family> = Some(Family::Tension);
+    const MEMORY: bool = true;
+    type Clique = [usize; 2];
+
+    #[inline(always)]
+    fn clique(&self) -> [usize; 2] {
+        [self.a, self.b]
+    }
+
+    fn edges(&self, out: &mut Vec<[usize; 2]>) {
+        out.push([self.a, self.b]);
+    }
+
+    #[inline(always)]
+    fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
+        let s = self;
+        let f = i.fabrics.at(s.a);
+        let (l, dir) = axial(&i.x[s.a], &i.x[s.b]);
+        let law = &f.dir(s.weft).tensile;
+        law.commit(st, l / s.l0 - 1.0);
+        let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
+        let sp = AxialStep {
+            a: s.a,
+            b: s.b,
+            t,
+            dt,
+            dts,
+            l,
+            dir,
+            beta: f.damping.beta_tension,
+        };
+        axial_element(i, o, slots, &sp);
+    }
+
+    fn commit(&self, st: &mut LawState, x: &[Vector3<f64>], f: &Fabrics) {
+        let l = (x[self.b] - x[self.a]).norm();
+        f.at(self.a)
+            .dir(self.weft)
+            .tensile
+            .commit(st, l / self.l0 - 1.0);
+    }
+
+    fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64 {
+        let fa = f.at(self.a);
+        tension_energy(
+            self,
+            &fa.dir(self.weft).tensile,
+            &fa.shear,
+            (x[self.b] - x[self.a]).norm(),
+        )
+    }
+
+    fn energy_in(e: &mut Energies) -> &mut f64 {
+        &mut e.tension
+    }
+
+    fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
+        let (l, dir) = axial(&x[self.a], &x[self.b]);
+        let fa = f.at(self.a);
+        let (t, _, _) = tension_law(self, &fa.dir(self.weft).tensile, &fa.shear, st, l);
+        out[self.a] += dir * t;
+        out[self.b] -= dir * t;
+    }
+
+    fn jacobian(
+        &self,
+        st: &LawState,
+        x: &[Vector3<f64>],
+        f: &Fabrics,
+        kind: Jacobian,
+        k: &mut BlockMatrix,
+    ) {
+        let (l, dir) = axial(&x[self.a], &x[self.b]);
+        let fa = f.at(self.a);
+        let (t, dt, dts, _) = tension_law_step(self, &fa.dir(self.weft).tensile, &fa.shear, st, l);
+        axial_jacobian(self.a, self.b, t, dt, dts, l, dir, kind, k);
+    }
+}
+
+/// [`Element::jacobian`] of an axial spring of tension `t`, branch tangent
+/// `dt` and step tangent `dts`.
+#[allow(clippy::too_many_arguments)]
+fn axial_jacobian(
+    a: usize,
+    b: usize,
+    t: f64,
+    dt: f64,
+    dts: f64,
+    l: f64,
+    dir: Vector3<f64>,
+    kind: Jacobian,
+    k: &mut BlockMatrix,
+) {
+    let (dt, projected) = match kind {
+        Jacobian::Exact => (dt, false),
+        Jacobian::Projected => (dt, true),
+        Jacobian::Step => (dts, true),
+    };
+    axial_add(k, a, b, axial_block(&Axial { t, dt, l, dir }, projected));
+}
+
+impl Element for ShearSpring {
+    const N: usize = 2;
+    const STAGE: Stage = Stage::Tiles;
+    const FAMILY: Option<Family> = Some(Family::Shear);
+    const MEMORY: bool = true;
+    type Clique = [usize; 2];
+
+    #[inline(always)]
+    fn clique(&self) -> [usize; 2] {
+        [self.a, self.b]
+    }
+
+    fn edges(&self, out: &mut Vec<[usize; 2]>) {
+        out.push([self.a, self.b]);
+    }
+
+    #[inline(always)]
+    fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
+        let s = self;
+        let f = i.fabrics.at(s.a);
+        let (l, dir) = axial(&i.x[s.a], &i.x[s.b]);
+        f.shear.commit(st, s.strain(l));
+        let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
+        let sp = AxialStep {
+            a: s.a,
+            b: s.b,
+            t,
+            dt,
+            dts,
+            l,
+            dir,
+            beta: f.damping.beta_shear,
+        };
+        axial_element(i, o, slots, &sp);
+    }
+
+    fn commit(&self, st: &mut LawState, x: &[Vector3<f64>], f: &Fabrics) {
+        let l = (x[self.b] - x[self.a]).norm();
+        f.at(self.a).shear.commit(st, self.strain(l));
+    }
+
+    fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64 {
+        shear_energy(self, &f.at(self.a).shear, (x[self.b] - x[self.a]).norm())
+    }
+
+    fn energy_in(e: &mut Energies) -> &mut f64 {
+        &mut e.shear
+    }
+
+    fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
+        let (l, dir) = axial(&x[self.a], &x[self.b]);
+        let (t, _, _) = shear_law(self, &f.at(self.a).shear, st, l);
+        out[self.a] += dir * t;
+        out[self.b] -= dir * t;
+    }
+
+    fn jacobian(
+        &self,
+        st: &LawState,
+        x: &[Vector3<f64>],
+        f: &Fabrics,
+        kind: Jacobian,
+        k: &mut BlockMatrix,
+    ) {
+        let (l, dir) = axial(&x[self.a], &x[self.b]);
+        let (t, dt, dts, _) = shear_law_step(self, &f.at(self.a).shear, st, l);
+        axial_jacobian(self.a, self.b, t, dt, dts, l, dir, kind, k);
+    }
+}
+
+// ----------------------------------------------------------------- hinges
+
+impl Element for Hinge {
+    const N: usize = 4;
+    const STAGE: Stage = Stage::Tiles;
+    const FAMILY: Option<Family> = Some(Family::Bending);
+    const MEMORY: bool = true;
+    type Clique = [usize; 4];
+
+    #[inline(always)]
+    fn clique(&self) -> [usize; 4] {
+        self.v
+    }
+
+    #[inline(always)]
+    fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
+        let hg = self;
+        let (h, v, y) = (i.h, i.v, i.y);
+        let (bo, vo) = (o.boff, o.voff);
+        let f = i.fabrics.at(hg.v[0]);
+        let d = f.damping;
+        let law = &f.dir(hg.weft).bending;
+        let (theta, g) = dihedral_and_grad(hinge_positions(hg, i.x));
+        law.commit(st, theta / hg.h);
+        let (s, ds, dss) = law.eval_for_step(st, theta / hg.h);
+        let kd = hg.len * ds.max(0.0) / hg.h;
+        let ks = hg.len * dss.max(0.0) / hg.h;
+        let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
+        let gp = [gs(0), gs(1), gs(2), gs(3)];
+        let mut gv = 0.0;
+        let mut gy = 0.0;
+        for p in 0..4 {
+            gv += gp[p].dot(&v[hg.v[p]]);
+            gy += gp[p].dot(&y[hg.v[p]]);
+        }
+        o.power += d.beta_bend * kd * gv * gv;
+        let sl: &[usize; 16] = slots.try_into().expect("a hinge has 16 blocks");
+        let cm = h * h * ks - h * d.beta_bend * kd;
+        for p in 0..4 {
+            // elastic −L σ ∇θ; damping β K̃ v with K̃ v = kd g (g·v)
+            o.force[hg.v[p] - vo] += gp[p] * (-hg.len * s + kd * gv * d.beta_bend);
+            o.rhs[hg.v[p] - vo] -= gp[p] * (ks * (h * gv + gy));
+            if cm != 0.0 {
+                // symmetric: block (q, p) is the transpose of (p, q), bit for bit
+                o.val[sl[5 * p] - bo] += gp[p] * gp[p].transpose() * cm;
+                for q in p + 1..4 {
+                    let m = gp[p] * gp[q].transpose() * cm;
+                    o.val[sl[4 * p + q] - bo] += m;
+                    o.val[sl[4 * q + p] - bo] += m.transpose();
+                }
+            }
+        }
+    }
+
+    fn commit(&self, st: &mut LawState, x: &[Vector3<f64>], f: &Fabrics) {
+        let th = dihedral(hinge_positions(self, x));
+        f.at(self.v[0])
+            .dir(self.weft)
+            .bending
+            .commit(st, th / self.h);
+    }
+
+    fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64 {
+        hinge_energy(
+            self,
+            &f.at(self.v[0]).dir(self.weft).bending,
+            dihedral(hinge_positions(self, x)),
+        )
+    }
+
+    fn energy_in(e: &mut Energies) -> &mut f64 {
+        &mut e.bending
+    }
+
+    fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
+        let hg = self;
+        let (_, _, s, _, g) = hinge_eval(hg, &f.at(hg.v[0]).dir(hg.weft).bending, st, x);
+        for p in 0..4 {
+            out[hg.v[p]] -= Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]) * (hg.len * s);
+        }
+    }
+
+    fn jacobian(
+        &self,
+        st: &LawState,
+        x: &[Vector3<f64>],
+        f: &Fabrics,
+        kind: Jacobian,
+        k: &mut BlockMatrix,
+    ) {
+        let hg = self;
+        let law = &f.at(hg.v[0]).dir(hg.weft).bending;
+        if kind == Jacobian::Step {
+            let (theta, g) = dihedral_and_grad(hinge_positions(hg, x));
+            let (_, _, dss) = law.eval_for_step(st, theta / hg.h);
+            let ks = hg.len * dss.max(0.0) / hg.h;
+            let gs = |p: usize| Vector3::new(g[3 * p], g[3 * p + 1], g[3 * p + 2]);
+            for p in 0..4 {
+                for q in 0..4 {
+                    let idx = k.index(hg.v[p], hg.v[q]);
+                    k.val[idx] -= gs(p) * gs(q).transpose() * ks;
+                }
+            }
+            return;
+        }
+        let j = if kind == Jacobian::Projected {
+            let (_, _, _, ds, g) = hinge_eval(hg, law, st, x);
+            -(g * g.transpose()) * (hg.len * ds.max(0.0) / hg.h)
+        } else {
+            hinge_jacobian_exact(hg, law, st, x)
+        };
+        for p in 0..4 {
+            for q in 0..4 {
+                let idx = k.index(hg.v[p], hg.v[q]);
+                k.val[idx] += j.fixed_view::<3, 3>(3 * p, 3 * q).into_owned();
+            }
+        }
+    }
+}
+
+// ----------------------------------------------------------- seam stitches
+
+/// Seam stitches ([`crate::cloth::Stitch`]): each is a linear spring on its
+/// gap `g = Σ c_k x_k` with damping on `ġ`, so `∂f/∂x = −k c cᵀ`,
+/// `∂f/∂v = −d c cᵀ` exactly; the step adds `A += (h² k + h d) c cᵀ`,
+/// `f += −c (k g + d ġ)` and `rhs += h (f − c (h k ġ + k ĝ_y))` with `ĝ_y`
+/// the gap of the position correction `y` (the terms of
+/// [`super::Simulation`]'s formula), and the damping power `−d |ġ|²`.
+impl Element for Stitch {
+    const N: usize = 3;
+    const STAGE: Stage = Stage::Last;
+    const FAMILY: Option<Family> = None;
+    const MEMORY: bool = false;
+    type Clique = [usize; 3];
+
+    #[inline(always)]
+    fn clique(&self) -> [usize; 3] {
+        self.v
+    }
+
+    fn check(&self, k: usize, n: usize) -> Result<()> {
+        let s = self;
+        if s.v.iter().any(|&v| v >= n)
+            || !(s.k.is_finite() && s.k >= 0.0 && s.d.is_finite() && s.d >= 0.0)
+            || s.c.iter().any(|c| !c.is_finite())
+        {
+            bail!(
+                "seam stitch {k}: vertices {:?} (the cloth has {n}), stiffness {} N/m, \
+                 damping {} N·s/m: needs vertices of the cloth and finite k, d ≥ 0",
+                s.v,
+                s.k,
+                s.d
+            );
+        }
+        Ok(())
+    }
+
+    fn edges(&self, out: &mut Vec<[usize; 2]>) {
+        out.push([self.v[0], self.v[1]]);
+        out.push([self.v[0], self.v[2]]);
+    }
+
+    #[inline(always)]
+    fn step(&self, _: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
+        let (st, h) = (self, i.h);
+        let (bo, vo) = (o.boff, o.voff);
+        let g = st.gap(i.x);
+        let gv = st.gap(i.v);
+        let gy = st.gap(i.y);
+        let f = -(g * st.k + gv * st.d);
+        let r = (f - (gv * (h * st.k) + gy * st.k)) * h;
+        o.power -= st.d * gv.norm_squared();
+        let w = h * h * st.k + h * st.d;
+        for p in 0..3 {
+            o.force[st.v[p] - vo] += f * st.c[p];
+            o.rhs[st.v[p] - vo] += r * st.c[p];
+            for q in 0..3 {
+                o.val[slots[3 * p + q] - bo] += Matrix3::identity() * (w * st.c[p] * st.c[q]);
+            }
+        }
+    }
+
+    fn energy(&self, x: &[Vector3<f64>], _: &Fabrics) -> f64 {
+        0.5 * self.k * self.gap(x).norm_squared()
+    }
+
+    fn energy_in(e: &mut Energies) -> &mut f64 {
+        &mut e.seam
+    }
+
+    fn force(&self, _: &LawState, x: &[Vector3<f64>], _: &Fabrics, out: &mut [Vector3<f64>]) {
+        let f = -(self.gap(x) * self.k);
+        for p in 0..3 {
+            out[self.v[p]] += f * self.c[p];
+        }
+    }
+
+    fn jacobian(
+        &self,
+        _: &LawState,
+        _: &[Vector3<f64>],
+        _: &Fabrics,
+        _: Jacobian,
+        k: &mut BlockMatrix,
+    ) {
+        for p in 0..3 {
+            for q in 0..3 {
+                let idx = k.index(self.v[p], self.v[q]);
+                k.val[idx] -= Matrix3::identity() * (self.k * self.c[p] * self.c[q]);
+            }
+        }
+    }
+}
