@@ -111,7 +111,7 @@ fn free_fall_reaches_terminal_speed_g_over_alpha() {
 fn hanging_cloth_reaches_static_equilibrium() {
     let sc = scene("hanging_corners.yaml");
     let mut sim = sc.build(&Overrides::default()).unwrap();
-    let steps = (sc.file.duration / sim.params.dt).round() as usize;
+    let steps = (sc.file.duration / sim.params().dt).round() as usize;
     for _ in 0..steps {
         sim.step().unwrap();
     }
@@ -122,7 +122,7 @@ fn hanging_cloth_reaches_static_equilibrium() {
         if sim.is_pinned(i) {
             continue;
         }
-        let total = f[i] + sim.params.gravity * sim.cloth.mass[i];
+        let total = f[i] + sim.params().gravity * sim.cloth.mass[i];
         worst = worst.max(total.norm() / (sim.cloth.mass[i] * g));
     }
     println!("hanging: worst residual force per free vertex = {worst:.2e} of its weight; rms speed {:.2e} m/s", sim.rms_speed());
@@ -196,7 +196,7 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
     // 1. the 2 cm drape: on the board, overhang down, settled within 3 s
     let sim = &d2.sim;
     let board = &sim.obstacles()[0];
-    let e = board.thickness + sim.params.cloth_thickness;
+    let e = board.thickness + sim.params().cloth_thickness;
     let up = board.pose.rotation * Vector3::z();
     let top = board.pose.translation.vector + up * 0.0025;
     let (mut over, mut worst_gap, mut min_d, mut hang): (usize, f64, f64, f64) =
@@ -454,6 +454,63 @@ fn a_cloned_simulation_steps_as_the_original() {
         assert!(same(&sim.contact_forces(), &twin.contact_forces()));
         assert_eq!(sim.energies().total(), twin.energies().total());
     }
+}
+
+/// Parameters change between steps through `set_params`, checked as at
+/// construction: a bad value is refused naming it and changes nothing; a
+/// change of threads builds a new workspace (on two threads, to one and back,
+/// the run goes on bit for bit as if nothing had changed).
+#[test]
+fn parameters_change_between_steps_through_set_params() {
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let mut sim = sc
+        .build(&Overrides {
+            spacing: Some(0.02),
+            dt: Some(1.0 / 120.0),
+            threads: Some(2),
+            ..Default::default()
+        })
+        .unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    let before = sim.params().clone();
+    let e = sim
+        .set_params(Params {
+            dt: 0.0,
+            ..before.clone()
+        })
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("dt"), "{e:#}");
+    let e = sim
+        .set_params(Params {
+            hysteresis: !before.hysteresis,
+            ..before.clone()
+        })
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("hysteresis"), "{e:#}");
+    assert_eq!(sim.params().dt, before.dt);
+    let mut twin = sim.clone();
+    twin.set_params(Params {
+        threads: 1,
+        ..before.clone()
+    })
+    .unwrap();
+    assert_eq!(twin.threads(), 1);
+    twin.set_params(before.clone()).unwrap();
+    assert_eq!(twin.threads(), 2);
+    for _ in 0..20 {
+        sim.step().unwrap();
+        twin.step().unwrap();
+    }
+    assert!(sim.cloth.x.iter().zip(&twin.cloth.x).all(|(p, q)| p == q));
+    // a runtime parameter (the trial switches gravity off while sewing)
+    sim.set_params(Params {
+        gravity: Vector3::zeros(),
+        ..before
+    })
+    .unwrap();
+    assert_eq!(sim.params().gravity, Vector3::zeros());
 }
 
 /// The simulation's threads change round-off only. Two adjacent corners

@@ -366,7 +366,7 @@ fn new_run(test: KesTest, dir: Direction, fabric: &Fabric, sim: &Simulation) -> 
         fabric: fabric.name.clone(),
         grid: [sim.cloth.nx, sim.cloth.ny],
         spacing_m: [sim.cloth.lc, sim.cloth.lt],
-        dt_s: sim.params.dt,
+        dt_s: sim.params().dt,
         steps: 0,
         summary: Vec::new(),
         loop_rms_relative: 0.0,

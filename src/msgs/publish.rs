@@ -247,7 +247,7 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
             values: vec![
                 kv("sim_time_s", format!("{:.6}", sim.time)),
                 kv("steps", sim.steps.to_string()),
-                kv("dt_s", format!("{}", sim.params.dt)),
+                kv("dt_s", format!("{}", sim.params().dt)),
                 kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
                 kv("solver_iterations", f.iterations.to_string()),
                 kv("contacts", sim.last.contacts.to_string()),

@@ -399,7 +399,7 @@ pub fn apply_pin(
             },
             _ => PinPath::Fixed(target),
         };
-        path.travel(here, sim.time, sim.params.dt)
+        path.travel(here, sim.time, sim.params().dt)
     };
     let verb = match m.operation {
         msgs::Pin::PIN => {
@@ -822,7 +822,7 @@ mod tests {
             "world",
         )
         .unwrap();
-        let dt = s.params.dt;
+        let dt = s.params().dt;
         let mut fastest: f64 = 0.0;
         let mut last = s.cloth.x[a];
         let steps = (1.5 / 2.0 / dt).ceil() as usize + 50;

@@ -517,7 +517,7 @@ impl Node {
             node.fq,
             node.settings.scene,
             node.loaded.sim.cloth.len(),
-            node.loaded.sim.params.dt,
+            node.loaded.sim.params().dt,
             node.settings.frame_id,
             node.names.points,
             node.names.mesh,
@@ -784,7 +784,7 @@ impl Node {
     /// are done.
     fn step(&mut self) {
         let l = &mut self.loaded;
-        let clock_every = ((1e-3 / l.sim.params.dt).round() as u64).max(1);
+        let clock_every = ((1e-3 / l.sim.params().dt).round() as u64).max(1);
         let stepped = self.recovery.step(&mut l.sim, &mut l.registry);
         // between steps the node publishes, reads parameters and messages,
         // or sleeps: the simulation's workers sleep meanwhile instead of
@@ -799,7 +799,7 @@ impl Node {
             }) => {
                 self.counters.last_error = format!(
                     "step failed at t = {:.4} s: {error}; recovered: {undone}",
-                    self.loaded.sim.time - self.loaded.sim.params.dt
+                    self.loaded.sim.time - self.loaded.sim.params().dt
                 );
                 let m = self.counters.last_error.clone();
                 self.warn(&m);
@@ -1036,7 +1036,7 @@ mod tests {
         assert!(worst < 2e-3, "seam gap {worst} m after sewing");
         assert_eq!(l.sim.obstacles().len(), 1);
         assert_eq!(l.sim.obstacles()[0].id, "body");
-        assert!(l.sim.params.gravity.norm() > 9.0);
+        assert!(l.sim.params().gravity.norm() > 9.0);
         assert!(l.description.contains("garment_sim/trial_description/1"));
         assert!(l.description.contains("skirt_front"));
         // its cloud carries the fit fields; read back by field name and offset

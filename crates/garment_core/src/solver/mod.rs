@@ -85,6 +85,42 @@ impl Default for Params {
     }
 }
 
+impl Params {
+    /// Refuses values no simulation can run with, naming the parameter.
+    pub fn check(&self) -> Result<()> {
+        crate::limits::check_dt("dt", self.dt)?;
+        crate::limits::check_cg_tolerance("cg_tolerance", self.cg_tolerance)?;
+        if self.cg_max_iterations == 0 {
+            bail!("cg_max_iterations = 0: must be ≥ 1");
+        }
+        let g = self.gravity;
+        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
+            bail!(
+                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
+                g.x,
+                g.y,
+                g.z,
+                crate::limits::MAX_GRAVITY
+            );
+        }
+        crate::limits::check_range(
+            "cloth thickness",
+            self.cloth_thickness,
+            crate::limits::CLOTH_THICKNESS.0,
+            crate::limits::CLOTH_THICKNESS.1,
+            "m",
+            "CLOTH_THICKNESS: a film to a quilt",
+        )?;
+        if self.threads > MAX_THREADS {
+            bail!(
+                "threads = {}: at most {MAX_THREADS} (0: one per core)",
+                self.threads
+            );
+        }
+        Ok(())
+    }
+}
+
 /// How a pinned vertex moves.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub enum PinPath {
@@ -278,7 +314,9 @@ pub struct Simulation {
     /// Read with [`Simulation::pins`]; changed through the simulation, which
     /// keeps `pinned` in step with it.
     pins: Set<Pin>,
-    pub params: Params,
+    /// Read with [`Simulation::params`], changed with
+    /// [`Simulation::set_params`].
+    params: Params,
     /// Simulated time, s.
     pub time: f64,
     pub steps: u64,
@@ -407,35 +445,7 @@ impl Clone for Simulation {
 
 impl Simulation {
     pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
-        crate::limits::check_dt("dt", params.dt)?;
-        crate::limits::check_cg_tolerance("cg_tolerance", params.cg_tolerance)?;
-        if params.cg_max_iterations == 0 {
-            bail!("cg_max_iterations = 0: must be ≥ 1");
-        }
-        let g = params.gravity;
-        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
-            bail!(
-                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
-                g.x,
-                g.y,
-                g.z,
-                crate::limits::MAX_GRAVITY
-            );
-        }
-        crate::limits::check_range(
-            "cloth thickness",
-            params.cloth_thickness,
-            crate::limits::CLOTH_THICKNESS.0,
-            crate::limits::CLOTH_THICKNESS.1,
-            "m",
-            "CLOTH_THICKNESS: a film to a quilt",
-        )?;
-        if params.threads > MAX_THREADS {
-            bail!(
-                "threads = {}: at most {MAX_THREADS} (0: one per core)",
-                params.threads
-            );
-        }
+        params.check()?;
         let fabric = if params.hysteresis {
             fabric
         } else {
@@ -544,6 +554,28 @@ impl Simulation {
     /// the wall clock.
     pub fn rest_threads(&self) {
         self.ws.team.rest();
+    }
+
+    /// The integrator's parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Changes the parameters between two steps (checked as at
+    /// construction); a change of threads or linear solver builds a new
+    /// workspace. `hysteresis` is the fabric's, fixed at construction.
+    pub fn set_params(&mut self, params: Params) -> Result<()> {
+        params.check()?;
+        if params.hysteresis != self.params.hysteresis {
+            bail!("hysteresis is set when the simulation is built, not while it runs");
+        }
+        let rebuild = params.threads != self.params.threads
+            || params.linear_solver != self.params.linear_solver;
+        if rebuild {
+            self.ws = Workspace::new(&mut self.cloth, &params)?;
+        }
+        self.params = params;
+        Ok(())
     }
 
     /// The obstacles, in the order they were added.
