@@ -139,6 +139,8 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
         "model": a.model.as_ref().map(|m| m.display().to_string())
             .unwrap_or_else(|| format!("{} at 1 cm, dt 1/120 s, 3 s", a.scene.display())),
         "intrinsics": k,
+        "deformation": format!("radial basis functions, kernel {:?}, in {:?} space",
+            a.rbf_kernel, a.rbf_space).to_lowercase(),
         "rounds": rec.history.len() - 1,
         "rms_px_history": rec.history,
         "rms_px": garment_sim::lab::posit::rms(&all),
