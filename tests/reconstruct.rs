@@ -583,3 +583,62 @@ fn non_finite_pixels_are_refused() {
         );
     }
 }
+
+#[test]
+fn reconstruct_runs_on_the_shipped_example_and_draws_over_a_photo() {
+    // config/reconstruct/table_drape_views.yaml: the 0.5 cm drape seen with
+    // 0.5 px noise and 10 % of the marks hidden; the model is the 1 cm drape
+    // (the command's default model, given here as a file to run it once)
+    let dir = Scratch::new("recon_example");
+    drape_1cm().0.write_ply(&dir.join("model.ply"), "test model").unwrap();
+    let text = std::fs::read_to_string("config/reconstruct/table_drape_views.yaml").unwrap();
+    let text = text.replacen("  - name: view01\n", "  - name: view01\n    photo: photo01.png\n", 1);
+    assert!(text.contains("photo01.png"));
+    std::fs::write(dir.join("views.yaml"), text).unwrap();
+    garment_sim::plot::Image::new(2400, 1600, [90, 60, 30])
+        .save_png(&dir.join("photo01.png"))
+        .unwrap();
+    let out = dir.join("out");
+    let o = garment_sim()
+        .arg("reconstruct")
+        .arg(dir.join("views.yaml"))
+        .arg("--model")
+        .arg(dir.join("model.ply"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    println!(
+        "shipped example: rms {} px after {} rounds (first poses: {} px)",
+        j["rms_px"], j["rounds"], j["rms_px_history"][0]
+    );
+    assert_eq!(j["views"].as_array().unwrap().len(), 10);
+    assert_eq!(j["marks_triangulated"], 121);
+    assert_eq!(j["marks"].as_array().unwrap().len(), 129);
+    // the residual is the 0.5 px noise; the model's first poses were far worse
+    let rms = j["rms_px"].as_f64().unwrap();
+    assert!(rms > 0.5 && rms < 0.72, "{rms}");
+    assert!(j["rms_px_history"][0].as_f64().unwrap() > 5.0);
+    for v in j["views"].as_array().unwrap() {
+        assert!(v["rms_px"].as_f64().unwrap() < 0.75, "{v}");
+    }
+    // reconstructed.ply carries the model's material coordinates
+    let shape = Shape::read(&out.join("reconstructed.ply")).unwrap();
+    assert_eq!(shape.vertices.len(), 2601);
+    assert!(shape.material.is_some());
+    // the pictures: shrunk to 1600 px wide; the photo under view01, a blank under view02
+    let pixel = |name: &str, x: usize, y: usize| {
+        let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(out.join(name)).unwrap()));
+        let mut r = img.read_info().unwrap();
+        let mut buf = vec![0; r.output_buffer_size().unwrap()];
+        let info = r.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (1600, 1067));
+        let o = y * info.line_size + 3 * x;
+        [buf[o], buf[o + 1], buf[o + 2]]
+    };
+    assert_eq!(pixel("view_view01.png", 5, 1060), [90, 60, 30]);
+    assert_eq!(pixel("view_view02.png", 5, 1060), [246, 246, 242]);
+}
