@@ -796,7 +796,7 @@ pub fn ring_cameras(target: V3, distance: f64, elevations: [f64; 2], azimuth0: f
 
 /// The rig of the shipped example and the tests: a 2400 × 1600 pixel camera
 /// (18 mm lens, 6 µm pixels slightly taller than wide, a little skew) at ten
-/// places 1.3 m from the table drape's middle, on a ring at 25° and 50°
+/// places 1 m from the table drape's middle, on a ring at 25° and 50°
 /// above the horizontal in turn.
 pub fn example_rig() -> (Intrinsics, [usize; 2], Vec<Pose>) {
     let k = Intrinsics {
@@ -808,7 +808,7 @@ pub fn example_rig() -> (Intrinsics, [usize; 2], Vec<Pose>) {
         skew: 40.0,
     };
     let target = V3::new(0.0, -0.05, 0.68);
-    let cams = ring_cameras(target, 1.3, [25f64.to_radians(), 50f64.to_radians()], 0.3, 10);
+    let cams = ring_cameras(target, 1.0, [25f64.to_radians(), 50f64.to_radians()], 0.3, 10);
     (k, [2400, 1600], cams)
 }
 
