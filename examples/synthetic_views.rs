@@ -24,9 +24,7 @@ use std::path::PathBuf;
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() != 3 && args.len() != 6 {
-        anyhow::bail!(
-            "usage: synthetic_views TRUE.ply SCENE.yaml OUT.yaml [NOISE_PX HIDDEN SEED]"
-        );
+        anyhow::bail!("usage: synthetic_views TRUE.ply SCENE.yaml OUT.yaml [NOISE_PX HIDDEN SEED]");
     }
     let truth = Shape::read(&PathBuf::from(&args[0]))?;
     let scene = Scene::load(&PathBuf::from(&args[1]))?;
@@ -34,10 +32,7 @@ fn main() -> Result<()> {
         spacing: Some(0.05),
         ..Default::default()
     })?;
-    let board = sim
-        .obstacles
-        .first()
-        .context("the scene has no obstacle")?;
+    let board = sim.obstacles.first().context("the scene has no obstacle")?;
     let (noise_px, hidden, seed) = if args.len() == 6 {
         (args[3].parse()?, args[4].parse()?, args[5].parse()?)
     } else {

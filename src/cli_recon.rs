@@ -61,8 +61,8 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
         None => default_model(&a.scene)?,
     };
     let base = a.views.parent().map(Path::to_path_buf).unwrap_or_default();
-    let problem =
-        Problem::new(&file, &model, &base).with_context(|| format!("views file {}", a.views.display()))?;
+    let problem = Problem::new(&file, &model, &base)
+        .with_context(|| format!("views file {}", a.views.display()))?;
     let settings = LoopSettings {
         max_rounds: a.max_rounds,
         deformation: reconstruct::Deformation {
@@ -73,9 +73,13 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
     };
     let rec = reconstruct::reconstruct(&problem, &model, &settings, &mut |_, _| {})
         .with_context(|| format!("views file {}", a.views.display()))?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     if a.model.is_none() {
-        model.write_ply(&a.out.join("model.ply"), "garment_sim generic model: table drape at 1 cm")?;
+        model.write_ply(
+            &a.out.join("model.ply"),
+            "garment_sim generic model: table drape at 1 cm",
+        )?;
     }
     rec.shape.write_ply(
         &a.out.join("reconstructed.ply"),
@@ -133,7 +137,11 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
             })
         })
         .collect();
-    let all: Vec<f64> = rec.fits.iter().flat_map(|f| f.errors.iter().copied()).collect();
+    let all: Vec<f64> = rec
+        .fits
+        .iter()
+        .flat_map(|f| f.errors.iter().copied())
+        .collect();
     let report = json!({
         "views_file": a.views.display().to_string(),
         "model": a.model.as_ref().map(|m| m.display().to_string())
@@ -176,7 +184,10 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
         rec.history.last().copied().unwrap_or(f64::NAN)
     );
     for (v, f) in problem.views.iter().zip(&rec.fits) {
-        println!("  {:<14} rms {:.3} px, largest {:.3} px", v.name, f.rms, f.max);
+        println!(
+            "  {:<14} rms {:.3} px, largest {:.3} px",
+            v.name, f.rms, f.max
+        );
     }
     println!(
         "wrote            {}/reconstructed.ply, report.json, {}{}",
@@ -189,7 +200,13 @@ pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
 
 fn sanitize(s: &str) -> String {
     s.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
@@ -213,7 +230,8 @@ pub fn compare(a: CompareArgs) -> Result<()> {
     let sb = Shape::read(&a.b)?;
     let c = compare::compare(&sa, &sb, a.nearest)
         .with_context(|| format!("comparing A = {} with B = {}", a.a.display(), a.b.display()))?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     let report = json!({
         "a": a.a.display().to_string(),
         "b": a.b.display().to_string(),
@@ -229,12 +247,27 @@ pub fn compare(a: CompareArgs) -> Result<()> {
     let js = serde_json::to_string_pretty(&report)?;
     garment_sim::io::write_atomic(&a.out.join("compare.json"), |w| w.write_all(js.as_bytes()))?;
     let from = if c.from == "A" { &sa } else { &sb };
-    compare::distance_picture(from, &c, "distance (eq. 6.2)").save_png(&a.out.join("distance.png"))?;
-    println!("A                {} ({} vertices)", a.a.display(), sa.vertices.len());
-    println!("B                {} ({} vertices)", a.b.display(), sb.vertices.len());
-    println!("homologues       {} ({} points of {})", c.correspondence, c.points, c.from);
+    compare::distance_picture(from, &c, "distance (eq. 6.2)")
+        .save_png(&a.out.join("distance.png"))?;
+    println!(
+        "A                {} ({} vertices)",
+        a.a.display(),
+        sa.vertices.len()
+    );
+    println!(
+        "B                {} ({} vertices)",
+        a.b.display(),
+        sb.vertices.len()
+    );
+    println!(
+        "homologues       {} ({} points of {})",
+        c.correspondence, c.points, c.from
+    );
     println!("mean distance    {:.3} mm (eq. 6.2)", c.mean * 1e3);
     println!("largest          {:.3} mm", c.max * 1e3);
-    println!("wrote            {}/compare.json, distance.png", a.out.display());
+    println!(
+        "wrote            {}/compare.json, distance.png",
+        a.out.display()
+    );
     Ok(())
 }

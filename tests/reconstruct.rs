@@ -6,9 +6,7 @@
 mod support;
 
 use garment_sim::lab::compare::{compare, Correspondence, Shape};
-use garment_sim::lab::posit::{
-    posit, project, refine_pose, triangulate, Intrinsics, Pose,
-};
+use garment_sim::lab::posit::{posit, project, refine_pose, triangulate, Intrinsics, Pose};
 use garment_sim::lab::reconstruct::{
     example_rig, obstacle_corners, reconstruct, synthetic_views, KnownPoint, LoopSettings,
     MarkKind, Problem, Rbf, SyntheticSettings, ViewsFile,
@@ -34,7 +32,10 @@ fn table_drape(spacing: f64) -> (Shape, Vec<KnownPoint>) {
     };
     let mut sim = sc.build(&ov).unwrap();
     run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
-    (Shape::from_cloth(&sim.cloth), obstacle_corners(&sim.obstacles[0]))
+    (
+        Shape::from_cloth(&sim.cloth),
+        obstacle_corners(&sim.obstacles[0]),
+    )
 }
 
 fn drape_1cm() -> &'static (Shape, Vec<KnownPoint>) {
@@ -138,11 +139,23 @@ fn posit_finds_the_pose_of_a_planar_object() {
 #[test]
 fn least_squares_pose_and_triangulation_are_exact_on_exact_pixels() {
     let k = camera();
-    let truth = [pose([0.4, -0.3, 0.2], [0.02, 0.01, 1.0]), pose([-0.2, 0.6, -0.1], [-0.1, 0.0, 1.1])];
+    let truth = [
+        pose([0.4, -0.3, 0.2], [0.02, 0.01, 1.0]),
+        pose([-0.2, 0.6, -0.1], [-0.1, 0.0, 1.1]),
+    ];
     let pts: Vec<V3> = (0..12)
-        .map(|i| V3::new((i % 4) as f64 * 0.07, (i / 4) as f64 * 0.05, ((i * 7) % 5) as f64 * 0.03))
+        .map(|i| {
+            V3::new(
+                (i % 4) as f64 * 0.07,
+                (i / 4) as f64 * 0.05,
+                ((i * 7) % 5) as f64 * 0.03,
+            )
+        })
         .collect();
-    let pix: Vec<[f64; 2]> = pts.iter().map(|p| project(&k, &truth[0], p).unwrap()).collect();
+    let pix: Vec<[f64; 2]> = pts
+        .iter()
+        .map(|p| project(&k, &truth[0], p).unwrap())
+        .collect();
     // from a start 3° and 2 cm off
     let start = Pose {
         rotation: Rotation3::new(V3::new(0.03, -0.04, 0.02)) * truth[0].rotation,
@@ -163,10 +176,17 @@ fn rbf_interpolates_its_centres_and_reproduces_affine_fields() {
     let c: Vec<V3> = (0..30)
         .map(|i| {
             let f = i as f64;
-            V3::new((f * 0.37).sin() * 0.2, (f * 0.71).cos() * 0.2, (f * 0.13).sin() * 0.1)
+            V3::new(
+                (f * 0.37).sin() * 0.2,
+                (f * 0.71).cos() * 0.2,
+                (f * 0.13).sin() * 0.1,
+            )
         })
         .collect();
-    let wavy: Vec<V3> = c.iter().map(|p| V3::new((5.0 * p.y).sin(), p.x * p.z, 0.01)).collect();
+    let wavy: Vec<V3> = c
+        .iter()
+        .map(|p| V3::new((5.0 * p.y).sin(), p.x * p.z, 0.01))
+        .collect();
     let r = Rbf::fit(&c, &wavy).unwrap();
     for (p, v) in c.iter().zip(&wavy) {
         assert!((r.at(p) - v).norm() < 1e-9);
@@ -227,7 +247,10 @@ fn synthetic(model: &Shape, noise_px: f64, hidden: f64, seed: u64) -> Outcome {
     }
     // the truth at a material point, by its grid (1 cm; marks fall on nodes)
     let at = |uv: [f64; 2]| {
-        let (i, j) = ((uv[0] / 0.01).round() as usize, (uv[1] / 0.01).round() as usize);
+        let (i, j) = (
+            (uv[0] / 0.01).round() as usize,
+            (uv[1] / 0.01).round() as usize,
+        );
         truth.vertices[j * 51 + i]
     };
     let mut d = Vec::new();
@@ -283,8 +306,15 @@ fn bent_model() -> Shape {
     let mut m = truth.clone();
     let uv = truth.material.as_ref().unwrap();
     for (x, w) in m.vertices.iter_mut().zip(uv) {
-        let (a, b) = (std::f64::consts::PI * w[0] / 0.5, std::f64::consts::PI * w[1] / 0.5);
-        let bend = V3::new(0.004 * (2.0 * a).sin(), 0.004 * (2.0 * b).cos(), 0.01 * a.sin() * b.sin());
+        let (a, b) = (
+            std::f64::consts::PI * w[0] / 0.5,
+            std::f64::consts::PI * w[1] / 0.5,
+        );
+        let bend = V3::new(
+            0.004 * (2.0 * a).sin(),
+            0.004 * (2.0 * b).cos(),
+            0.01 * a.sin() * b.sin(),
+        );
         *x = r * (*x - c) + c + t + bend;
     }
     m
@@ -296,9 +326,18 @@ fn reconstruction_without_noise_recovers_cameras_marks_and_surface() {
     let o = synthetic(&bent_model(), 0.0, 0.0, 1);
     show("no noise, bent model", &o);
     assert_eq!(o.triangulated, 121, "marks every 5 cm on a 50 cm square");
-    assert!(o.model_mean > 1e-2, "the model must differ from the truth: {}", o.model_mean);
+    assert!(
+        o.model_mean > 1e-2,
+        "the model must differ from the truth: {}",
+        o.model_mean
+    );
     assert!(o.rounds > 1, "the loop must move the marks");
-    assert!(o.pose_deg < 0.1 && o.pose_m < 1e-3, "{} deg {} m", o.pose_deg, o.pose_m);
+    assert!(
+        o.pose_deg < 0.1 && o.pose_m < 1e-3,
+        "{} deg {} m",
+        o.pose_deg,
+        o.pose_m
+    );
     assert!(o.marks_max < 1e-4, "{} m", o.marks_max);
     assert!(o.surface_mean < 1e-3, "{} m", o.surface_mean);
     assert!(o.rms_px < 1e-2, "{} px", o.rms_px);
@@ -312,9 +351,18 @@ fn reconstruction_without_noise_from_the_coarser_drape() {
     let o = synthetic(&drape_2cm().0, 0.0, 0.0, 1);
     show("no noise, 2 cm model", &o);
     assert_eq!(o.triangulated, 121);
-    assert!(o.pose_deg < 0.1 && o.pose_m < 1e-3, "{} deg {} m", o.pose_deg, o.pose_m);
+    assert!(
+        o.pose_deg < 0.1 && o.pose_m < 1e-3,
+        "{} deg {} m",
+        o.pose_deg,
+        o.pose_m
+    );
     assert!(o.marks_max < 1e-4, "{} m", o.marks_max);
-    assert!(o.surface_mean < 2.5e-3 && o.surface_mean < 0.2 * o.model_mean, "{} m", o.surface_mean);
+    assert!(
+        o.surface_mean < 2.5e-3 && o.surface_mean < 0.2 * o.model_mean,
+        "{} m",
+        o.surface_mean
+    );
 }
 
 #[test]
@@ -324,16 +372,36 @@ fn reconstruction_with_noise_and_hidden_marks() {
     let o = synthetic(&drape_2cm().0, 0.5, 0.1, 7);
     show("0.5 px noise, 10 % hidden, 2 cm model", &o);
     assert!(o.triangulated >= 119, "{}", o.triangulated);
-    assert!(o.pose_deg < 0.1 && o.pose_m < 2e-3, "{} deg {} m", o.pose_deg, o.pose_m);
-    assert!(o.marks_mean < 0.3e-3 && o.marks_max < 1e-3, "{} / {} m", o.marks_mean, o.marks_max);
+    assert!(
+        o.pose_deg < 0.1 && o.pose_m < 2e-3,
+        "{} deg {} m",
+        o.pose_deg,
+        o.pose_m
+    );
+    assert!(
+        o.marks_mean < 0.3e-3 && o.marks_max < 1e-3,
+        "{} / {} m",
+        o.marks_mean,
+        o.marks_max
+    );
     assert!(o.surface_mean < 2.5e-3, "{} m", o.surface_mean);
     // the residual is the noise: sqrt(2) 0.5 px less what the fit absorbs
     assert!(o.rms_px > 0.5 && o.rms_px < 0.72, "{} px", o.rms_px);
     // and the same with the smooth model: the noise alone
     let o = synthetic(&bent_model(), 0.5, 0.1, 7);
     show("0.5 px noise, 10 % hidden, bent model", &o);
-    assert!(o.pose_deg < 0.1 && o.pose_m < 2e-3, "{} deg {} m", o.pose_deg, o.pose_m);
-    assert!(o.marks_mean < 0.3e-3 && o.marks_max < 1e-3, "{} / {} m", o.marks_mean, o.marks_max);
+    assert!(
+        o.pose_deg < 0.1 && o.pose_m < 2e-3,
+        "{} deg {} m",
+        o.pose_deg,
+        o.pose_m
+    );
+    assert!(
+        o.marks_mean < 0.3e-3 && o.marks_max < 1e-3,
+        "{} / {} m",
+        o.marks_mean,
+        o.marks_max
+    );
     assert!(o.surface_mean < 1e-3, "{} m", o.surface_mean);
 }
 
@@ -371,15 +439,30 @@ fn compare_gives_zero_for_a_shape_with_itself_and_d_for_a_translated_copy() {
     assert_eq!((c.mean, c.max, c.points), (0.0, 0.0, 2601));
     let d = V3::new(0.003, -0.004, 0.012);
     let c = compare(d1, &d1.translated(d), false).unwrap();
-    assert!((c.mean - d.norm()).abs() < 1e-12 && (c.max - d.norm()).abs() < 1e-12, "{}", c.mean);
+    assert!(
+        (c.mean - d.norm()).abs() < 1e-12 && (c.max - d.norm()).abs() < 1e-12,
+        "{}",
+        c.mean
+    );
     // nearest points: a flat sheet and a finer one 3 mm above it, no (u, v)
-    let c = compare(&flat_sheet(11, 0.0, false), &flat_sheet(26, 0.003, false), false).unwrap();
+    let c = compare(
+        &flat_sheet(11, 0.0, false),
+        &flat_sheet(26, 0.003, false),
+        false,
+    )
+    .unwrap();
     assert_eq!((c.correspondence, c.from), (Correspondence::Nearest, "A"));
-    assert!((c.mean - 0.003).abs() < 1e-12 && (c.max - 0.003).abs() < 1e-12, "{}", c.mean);
+    assert!(
+        (c.mean - 0.003).abs() < 1e-12 && (c.max - 0.003).abs() < 1e-12,
+        "{}",
+        c.mean
+    );
     // the same through the command line, from PLY files
     let dir = Scratch::new("compare_cli");
     d1.write_ply(&dir.join("a.ply"), "test").unwrap();
-    d1.translated(d).write_ply(&dir.join("b.ply"), "test").unwrap();
+    d1.translated(d)
+        .write_ply(&dir.join("b.ply"), "test")
+        .unwrap();
     for (b, want) in [("a.ply", 0.0), ("b.ply", d.norm())] {
         let out = dir.join(format!("out_{b}"));
         let o = garment_sim()
@@ -410,7 +493,10 @@ fn compare_pairs_material_points_across_grids() {
     let (d1, _) = drape_1cm();
     let (d2, _) = drape_2cm();
     let c = compare(d1, d2, false).unwrap();
-    assert_eq!((c.correspondence, c.from, c.points), (Correspondence::Material, "B", 676));
+    assert_eq!(
+        (c.correspondence, c.from, c.points),
+        (Correspondence::Material, "B", 676)
+    );
     let mut sum = 0.0;
     let mut max: f64 = 0.0;
     for j in 0..26 {
@@ -456,7 +542,11 @@ fn bent_sheet() -> Shape {
     let mut s = flat_sheet(11, 0.0, true);
     let m = s.material.clone().unwrap();
     for (x, w) in s.vertices.iter_mut().zip(&m) {
-        *x = V3::new(w[0] - 0.25, 0.2 * (2.0 * w[1]).sin() - 0.1, 0.75 + 0.1 * (3.0 * w[1]).cos());
+        *x = V3::new(
+            w[0] - 0.25,
+            0.2 * (2.0 * w[1]).sin() - 0.1,
+            0.75 + 0.1 * (3.0 * w[1]).cos(),
+        );
     }
     s
 }
@@ -526,7 +616,10 @@ fn a_view_with_fewer_than_four_marks_is_refused() {
     v.views[0].marks.truncate(3);
     let (ok, err) = run_reconstruct(&dir, "few", &v.to_yaml());
     assert!(!ok);
-    assert!(err.contains("view 'view01': 3 marks") && err.contains("at least 4"), "{err}");
+    assert!(
+        err.contains("view 'view01': 3 marks") && err.contains("at least 4"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -537,7 +630,8 @@ fn a_mark_that_does_not_exist_is_refused() {
     let (ok, err) = run_reconstruct(&dir, "grid", &v.to_yaml());
     assert!(!ok);
     assert!(
-        err.contains("view 'view02', mark 4 (grid [40, 3]): no such mark") && err.contains("outside"),
+        err.contains("view 'view02', mark 4 (grid [40, 3]): no such mark")
+            && err.contains("outside"),
         "{err}"
     );
     let mut v = sheet_views();
@@ -557,12 +651,15 @@ fn a_view_whose_marks_are_collinear_is_refused() {
     let dir = Scratch::new("recon_line");
     let mut v = sheet_views();
     // the row v = 0 of the sheet is a straight line
-    v.views[2].marks.retain(|m| m.grid.is_some_and(|g| g[1] == 0));
+    v.views[2]
+        .marks
+        .retain(|m| m.grid.is_some_and(|g| g[1] == 0));
     assert_eq!(v.views[2].marks.len(), 11);
     let (ok, err) = run_reconstruct(&dir, "line", &v.to_yaml());
     assert!(!ok);
     assert!(
-        err.contains("view 'view03': its 11 marks (grid [0, 0], grid [1, 0]") && err.contains("collinear"),
+        err.contains("view 'view03': its 11 marks (grid [0, 0], grid [1, 0]")
+            && err.contains("collinear"),
         "{err}"
     );
 }
@@ -573,12 +670,17 @@ fn non_finite_pixels_are_refused() {
     for (bad, name) in [(".nan", "nan"), (".inf", "inf"), ("-.inf", "minus_inf")] {
         let v = sheet_views();
         let first = v.views[3].marks[1].pixel[0];
-        let yaml = v.to_yaml().replacen(&format!("pixel: [{first:.3},"), &format!("pixel: [{bad},"), 1);
+        let yaml = v.to_yaml().replacen(
+            &format!("pixel: [{first:.3},"),
+            &format!("pixel: [{bad},"),
+            1,
+        );
         assert!(yaml.contains(bad));
         let (ok, err) = run_reconstruct(&dir, name, &yaml);
         assert!(!ok);
         assert!(
-            err.contains("view 'view04', mark 2 (grid [1, 0]): pixel [") && err.contains("not finite"),
+            err.contains("view 'view04', mark 2 (grid [1, 0]): pixel [")
+                && err.contains("not finite"),
             "{err}"
         );
     }
@@ -590,9 +692,16 @@ fn reconstruct_runs_on_the_shipped_example_and_draws_over_a_photo() {
     // 0.5 px noise and 10 % of the marks hidden; the model is the 1 cm drape
     // (the command's default model, given here as a file to run it once)
     let dir = Scratch::new("recon_example");
-    drape_1cm().0.write_ply(&dir.join("model.ply"), "test model").unwrap();
+    drape_1cm()
+        .0
+        .write_ply(&dir.join("model.ply"), "test model")
+        .unwrap();
     let text = std::fs::read_to_string("config/reconstruct/table_drape_views.yaml").unwrap();
-    let text = text.replacen("  - name: view01\n", "  - name: view01\n    photo: photo01.png\n", 1);
+    let text = text.replacen(
+        "  - name: view01\n",
+        "  - name: view01\n    photo: photo01.png\n",
+        1,
+    );
     assert!(text.contains("photo01.png"));
     std::fs::write(dir.join("views.yaml"), text).unwrap();
     garment_sim::plot::Image::new(2400, 1600, [90, 60, 30])
@@ -631,7 +740,9 @@ fn reconstruct_runs_on_the_shipped_example_and_draws_over_a_photo() {
     assert!(shape.material.is_some());
     // the pictures: shrunk to 1600 px wide; the photo under view01, a blank under view02
     let pixel = |name: &str, x: usize, y: usize| {
-        let img = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(out.join(name)).unwrap()));
+        let img = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(out.join(name)).unwrap(),
+        ));
         let mut r = img.read_info().unwrap();
         let mut buf = vec![0; r.output_buffer_size().unwrap()];
         let info = r.next_frame(&mut buf).unwrap();

@@ -139,10 +139,7 @@ impl Shape {
                 bail!("line {}: a face is a count ≥ 3 then its indices", ln + 1);
             }
             if let Some(bad) = v[1..].iter().find(|&&i| i >= n_vertex) {
-                bail!(
-                    "line {}: face uses vertex {bad} of {n_vertex}",
-                    ln + 1
-                );
+                bail!("line {}: face uses vertex {bad} of {n_vertex}", ln + 1);
             }
             for k in 2..v[0] {
                 triangles.push([v[1], v[k], v[k + 1]]);
@@ -427,8 +424,12 @@ pub fn compare(a: &Shape, b: &Shape, nearest: bool) -> Result<Comparison> {
                 .iter()
                 .map(|t| [t[0] as u32, t[1] as u32, t[2] as u32])
                 .collect();
-            let mesh = TriMesh::new(pts, tris)
-                .map_err(|e| anyhow::anyhow!("shape {}: bad triangle mesh: {e:?}", if from == "A" { "B" } else { "A" }))?;
+            let mesh = TriMesh::new(pts, tris).map_err(|e| {
+                anyhow::anyhow!(
+                    "shape {}: bad triangle mesh: {e:?}",
+                    if from == "A" { "B" } else { "A" }
+                )
+            })?;
             s.vertices
                 .iter()
                 .map(|p| {

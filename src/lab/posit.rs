@@ -142,7 +142,11 @@ impl Pose {
     pub fn angle_to(&self, other: &Pose) -> f64 {
         // atan2 of the sine and cosine halves of R = R1 R2ᵀ: accurate near 0
         let r = (self.rotation * other.rotation.inverse()).into_inner();
-        let s = V3::new(r[(2, 1)] - r[(1, 2)], r[(0, 2)] - r[(2, 0)], r[(1, 0)] - r[(0, 1)]);
+        let s = V3::new(
+            r[(2, 1)] - r[(1, 2)],
+            r[(0, 2)] - r[(2, 0)],
+            r[(1, 0)] - r[(0, 1)],
+        );
         (0.5 * s.norm()).atan2(0.5 * (r.trace() - 1.0))
     }
 }
@@ -184,9 +188,12 @@ pub const COPLANAR: f64 = 1e-3;
 /// are seen at normalised image coordinates `image` (see
 /// [`Intrinsics::normalise`]): POSIT (DeMenthon & Davis 1995) when the
 /// marks span a volume, its coplanar variant (Oberkampf et al. 1996) when
-/// they lie on a plane. Iterates until the perspective corrections ε_i
-/// change by less than 1e-12 (at most 200 iterations). Collinear marks have
-/// no pose: an error.
+/// they lie on a plane, each iterated until the perspective corrections ε_i
+/// change by less than 1e-12 (at most 200 iterations); and the pose from the
+/// homography of the marks' best-fit plane ([`homography_pose`]): exact for
+/// coplanar marks, a start for nearly coplanar ones, where POSIT may not
+/// converge. Returns the candidate that reprojects best with every mark in
+/// front of the camera. Collinear marks have no pose: an error.
 pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     if object.len() != image.len() {
         bail!("{} points but {} image points", object.len(), image.len());
@@ -194,7 +201,9 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     if object.len() < 4 {
         bail!("{} marks: a pose needs at least 4", object.len());
     }
-    if image.iter().flatten().any(|x| !x.is_finite()) || object.iter().any(|p| !p.iter().all(|c| c.is_finite())) {
+    if image.iter().flatten().any(|x| !x.is_finite())
+        || object.iter().any(|p| !p.iter().all(|c| c.is_finite()))
+    {
         bail!("non-finite coordinates");
     }
     let (line, plane) = flatness(object);
@@ -238,11 +247,17 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     let step = |eps: &[f64]| -> (V3, V3) {
         let xp = nalgebra::DVector::from_iterator(
             others.len(),
-            others.iter().enumerate().map(|(r, &i)| image[i][0] * (1.0 + eps[r]) - x0[0]),
+            others
+                .iter()
+                .enumerate()
+                .map(|(r, &i)| image[i][0] * (1.0 + eps[r]) - x0[0]),
         );
         let yp = nalgebra::DVector::from_iterator(
             others.len(),
-            others.iter().enumerate().map(|(r, &i)| image[i][1] * (1.0 + eps[r]) - x0[1]),
+            others
+                .iter()
+                .enumerate()
+                .map(|(r, &i)| image[i][1] * (1.0 + eps[r]) - x0[1]),
         );
         let i = &b * xp;
         let j = &b * yp;
@@ -287,21 +302,48 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
         }
         e
     };
+    // the best pose found so far, by its reprojection error
+    let mut best: Option<(f64, Pose)> = None;
+    let offer = |best: &mut Option<(f64, Pose)>, p: Pose| {
+        let e = err(&p);
+        if e.is_finite() && best.as_ref().is_none_or(|b| e < b.0) {
+            *best = Some((e, p));
+        }
+    };
+    // the plane's homography gives a closed-form pose for coplanar marks and a
+    // fair start for nearly coplanar ones, where POSIT may not converge;
+    // near-frontal planes, where both of Oberkampf's branches may settle on
+    // the mirrored pose, need it too
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
+    let row = |k: usize| V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
+    let (e1, e2) = (row(order[0]), row(order[1]));
+    if let Some(h) = homography_pose(object, image, object[r0], e1, e2) {
+        offer(&mut best, h);
+    }
     if !coplanar {
         let mut eps = vec![0.0; others.len()];
-        let mut pose = None;
         for _ in 0..200 {
             let (i, j) = step(&eps);
-            let p = pose_of(i, j).ok_or_else(|| anyhow::anyhow!("POSIT found no pose"))?;
+            let Some(p) = pose_of(i, j) else {
+                break;
+            };
             let new = eps_of(&p);
-            let change = new.iter().zip(&eps).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let change = new
+                .iter()
+                .zip(&eps)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             eps = new;
-            pose = Some(p);
-            if change < 1e-12 {
+            if change < 1e-12 || !change.is_finite() {
+                offer(&mut best, p);
                 break;
             }
+            offer(&mut best, p);
         }
-        return pose.ok_or_else(|| anyhow::anyhow!("POSIT found no pose"));
+        return best.map(|b| b.1).ok_or_else(|| {
+            anyhow::anyhow!("POSIT found no pose with every mark in front of the camera")
+        });
     }
     // coplanar: I = I0 + λ n, J = J0 + μ n with |I| = |J| and I·J = 0, that is
     // (λ + iμ)² = |J0|² − |I0|² − 2i I0·J0: two solutions ±(λ, μ)
@@ -316,7 +358,6 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     };
     // Oberkampf et al.: both solutions of the first iteration start a branch;
     // each later iteration keeps, per branch, the better of its two poses
-    let mut best: Option<(f64, Pose)> = None;
     for start in two(&vec![0.0; others.len()]) {
         let mut pose = start;
         let mut eps = eps_of(&pose);
@@ -326,30 +367,18 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
                 break;
             };
             let new = eps_of(&p);
-            let change = new.iter().zip(&eps).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let change = new
+                .iter()
+                .zip(&eps)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             eps = new;
             pose = p;
             if change < 1e-12 {
                 break;
             }
         }
-        let e = err(&pose);
-        if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, pose));
-        }
-    }
-    // the plane's homography gives a closed-form pose too; near-frontal planes,
-    // where both of the variant's branches may settle on the mirrored pose,
-    // need it
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
-    let row = |k: usize| V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
-    let (e1, e2) = (row(order[0]), row(order[1]));
-    if let Some(h) = homography_pose(object, image, object[r0], e1, e2) {
-        let e = err(&h);
-        if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, h));
-        }
+        offer(&mut best, pose);
     }
     best.map(|b| b.1)
         .ok_or_else(|| anyhow::anyhow!("coplanar POSIT found no pose"))
@@ -371,8 +400,28 @@ pub fn homography_pose(object: &[V3], image: &[[f64; 2]], o: V3, e1: V3, e2: V3)
         .collect();
     let mut a = DMatrix::<f64>::zeros(2 * n, 9);
     for (k, (q, x)) in plane.iter().zip(image).enumerate() {
-        let r0 = [q[0], q[1], 1.0, 0.0, 0.0, 0.0, -x[0] * q[0], -x[0] * q[1], -x[0]];
-        let r1 = [0.0, 0.0, 0.0, q[0], q[1], 1.0, -x[1] * q[0], -x[1] * q[1], -x[1]];
+        let r0 = [
+            q[0],
+            q[1],
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            -x[0] * q[0],
+            -x[0] * q[1],
+            -x[0],
+        ];
+        let r1 = [
+            0.0,
+            0.0,
+            0.0,
+            q[0],
+            q[1],
+            1.0,
+            -x[1] * q[0],
+            -x[1] * q[1],
+            -x[1],
+        ];
         for c in 0..9 {
             a[(2 * k, c)] = r0[c];
             a[(2 * k + 1, c)] = r1[c];
@@ -417,10 +466,7 @@ fn pixel_jacobian(k: &Intrinsics, c: &V3) -> [V3; 2] {
     let (z, x, y) = (c.z, c.x, c.y);
     let dxn = V3::new(1.0 / z, 0.0, -x / (z * z));
     let dyn_ = V3::new(0.0, 1.0 / z, -y / (z * z));
-    [
-        dxn * (f * k.ku) + dyn_ * (f * k.skew),
-        dyn_ * (f * k.kv),
-    ]
+    [dxn * (f * k.ku) + dyn_ * (f * k.skew), dyn_ * (f * k.kv)]
 }
 
 /// Sum of squared pixel errors of marks seen from a pose (∞ when one is

@@ -232,7 +232,11 @@ impl Problem {
         let mut known: HashMap<&str, V3> = HashMap::new();
         for p in &file.known_points {
             if !p.position.iter().all(|c| c.is_finite()) {
-                bail!("known point {}: position {:?} is not finite", p.name, p.position);
+                bail!(
+                    "known point {}: position {:?} is not finite",
+                    p.name,
+                    p.position
+                );
             }
             if known.insert(&p.name, V3::from(p.position)).is_some() {
                 bail!("known point {} is given twice", p.name);
@@ -307,7 +311,11 @@ impl Problem {
                                 if have.is_empty() { "none".into() } else { have.join(", ") }
                             );
                         };
-                        (format!("point {name}"), MarkKind::Known { position: *p }, *p)
+                        (
+                            format!("point {name}"),
+                            MarkKind::Known { position: *p },
+                            *p,
+                        )
                     }
                     _ => bail!("{}: give exactly one of grid, uv or point", what()),
                 };
@@ -326,10 +334,7 @@ impl Problem {
             }
             let pts: Vec<V3> = seen.iter().map(|(i, _)| model_marks[*i]).collect();
             let line = flatness(&pts).0;
-            let pix: Vec<V3> = seen
-                .iter()
-                .map(|(_, p)| V3::new(p[0], p[1], 0.0))
-                .collect();
+            let pix: Vec<V3> = seen.iter().map(|(_, p)| V3::new(p[0], p[1], 0.0)).collect();
             let pline = flatness(&pix).0;
             if line < COLLINEAR || pline < COLLINEAR {
                 let labels: Vec<&str> = seen
@@ -532,7 +537,13 @@ fn total_rms(p: &Problem, poses: &[Pose], marks: &[V3], used: &[bool]) -> f64 {
 
 /// Poses a view on the marks that take part (all of its marks when fewer
 /// than four do), from `start` or, without one, from POSIT.
-fn pose_view(p: &Problem, v: &View, marks: &[V3], used: &[bool], start: Option<Pose>) -> Result<Pose> {
+fn pose_view(
+    p: &Problem,
+    v: &View,
+    marks: &[V3],
+    used: &[bool],
+    start: Option<Pose>,
+) -> Result<Pose> {
     let mut obj = Vec::new();
     let mut pix = Vec::new();
     for (i, q) in &v.seen {
@@ -584,8 +595,8 @@ pub fn reconstruct(
         .iter()
         .map(|v| pose_view(p, v, &marks, &all, None))
         .collect::<Result<Vec<_>>>()?;
-    let mut used: Vec<bool> = (0..n).map(|i| known[i] || views_of[i].len() >= 2).collect();
-    let mut history = vec![total_rms(p, &poses, &marks, &used)];
+    let seen_twice: Vec<bool> = (0..n).map(|i| known[i] || views_of[i].len() >= 2).collect();
+    let mut history = vec![total_rms(p, &poses, &marks, &seen_twice)];
     progress(0, history[0]);
     let mut triangulated = vec![false; n];
     // 2–3. triangulate, pose again, until the error stops falling
@@ -613,20 +624,18 @@ pub fn reconstruct(
         let e = total_rms(p, &new_poses, &new_marks, &new_used);
         let prev = *history.last().unwrap_or(&f64::INFINITY);
         // the first round changes which marks count; after it, keep a round only if it helps
-        if round > 1 && !(e < prev) {
+        if round > 1 && (e.is_nan() || e >= prev) {
             break;
         }
         marks = new_marks;
         poses = new_poses;
         triangulated = new_tri;
-        used = new_used;
         history.push(e);
         progress(round, e);
         if round > 1 && (prev - e <= settings.min_fall * prev || e < 1e-9) {
             break;
         }
     }
-    let _ = used;
     let fits: Vec<ViewFit> = p
         .views
         .iter()
@@ -700,12 +709,7 @@ impl Rbf {
             for j in 0..n {
                 a[(i, j)] = kernel.phi((centres[i] - centres[j]).norm());
             }
-            let row = [
-                scale,
-                centres[i].x,
-                centres[i].y,
-                centres[i].z,
-            ];
+            let row = [scale, centres[i].x, centres[i].y, centres[i].z];
             for (k, r) in row.iter().enumerate() {
                 a[(i, n + k)] = *r;
                 a[(n + k, i)] = *r;
@@ -782,13 +786,19 @@ impl SplitMix {
 /// `n` cameras on a ring around `target`, at distance `distance`, looking at
 /// it from elevations alternating between `elevations[0]` and
 /// `elevations[1]` (rad), starting at azimuth `azimuth0` (rad).
-pub fn ring_cameras(target: V3, distance: f64, elevations: [f64; 2], azimuth0: f64, n: usize) -> Vec<Pose> {
+pub fn ring_cameras(
+    target: V3,
+    distance: f64,
+    elevations: [f64; 2],
+    azimuth0: f64,
+    n: usize,
+) -> Vec<Pose> {
     (0..n)
         .map(|k| {
             let az = azimuth0 + 2.0 * std::f64::consts::PI * k as f64 / n as f64;
             let el = elevations[k % 2];
-            let eye = target
-                + V3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin()) * distance;
+            let eye =
+                target + V3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin()) * distance;
             Pose::looking_at(eye, target, V3::z())
         })
         .collect()
@@ -808,7 +818,13 @@ pub fn example_rig() -> (Intrinsics, [usize; 2], Vec<Pose>) {
         skew: 40.0,
     };
     let target = V3::new(0.0, -0.05, 0.68);
-    let cams = ring_cameras(target, 1.0, [25f64.to_radians(), 50f64.to_radians()], 0.3, 10);
+    let cams = ring_cameras(
+        target,
+        1.0,
+        [25f64.to_radians(), 50f64.to_radians()],
+        0.3,
+        10,
+    );
     (k, [2400, 1600], cams)
 }
 
@@ -907,7 +923,11 @@ pub fn synthetic_views(
                 continue;
             };
             let q = [q[0] + s.noise_px * nx, q[1] + s.noise_px * ny];
-            if q[0] < 0.0 || q[1] < 0.0 || q[0] > s.image_size[0] as f64 || q[1] > s.image_size[1] as f64 {
+            if q[0] < 0.0
+                || q[1] < 0.0
+                || q[0] > s.image_size[0] as f64
+                || q[1] > s.image_size[1] as f64
+            {
                 continue;
             }
             let mut m = spec.clone();
@@ -951,7 +971,9 @@ pub fn read_png(path: &Path) -> Result<crate::plot::Image> {
         png::ColorType::GrayscaleAlpha => 2,
         png::ColorType::Rgb => 3,
         png::ColorType::Rgba => 4,
-        png::ColorType::Indexed => bail!("photo {}: indexed colours after expansion", path.display()),
+        png::ColorType::Indexed => {
+            bail!("photo {}: indexed colours after expansion", path.display())
+        }
     };
     let mut img = crate::plot::Image::new(w, h, crate::plot::WHITE);
     for y in 0..h {
@@ -988,7 +1010,10 @@ pub fn view_picture(p: &Problem, r: &Reconstruction, view: usize) -> Result<crat
         None => (p.image_size[0], p.image_size[1]),
     };
     let s = (MAX_PICTURE_SIDE as f64 / w.max(h) as f64).min(1.0);
-    let (pw, ph) = (((w as f64) * s).round().max(1.0) as usize, ((h as f64) * s).round().max(1.0) as usize);
+    let (pw, ph) = (
+        ((w as f64) * s).round().max(1.0) as usize,
+        ((h as f64) * s).round().max(1.0) as usize,
+    );
     let mut img = Image::new(pw, ph, [246, 246, 242]);
     if let Some(photo) = &photo {
         for y in 0..ph {
@@ -1030,7 +1055,11 @@ pub fn view_picture(p: &Problem, r: &Reconstruction, view: usize) -> Result<crat
         if !rp.iter().all(|c| c.is_finite()) {
             continue;
         }
-        let c = if fit.errors[k] > 2.0 { [213, 30, 0] } else { [0, 80, 200] };
+        let c = if fit.errors[k] > 2.0 {
+            [213, 30, 0]
+        } else {
+            [0, 80, 200]
+        };
         let (x, y) = to_px(rp);
         img.line((x - 4.0, y), (x + 4.0, y), c, 1);
         img.line((x, y - 4.0), (x, y + 4.0), c, 1);
