@@ -600,7 +600,18 @@ fn run_reconstruct(dir: &Path, name: &str, views: &str) -> (bool, String) {
 #[test]
 fn reconstruct_runs_on_good_views_of_the_sheet() {
     let dir = Scratch::new("recon_sheet");
-    let (ok, err) = run_reconstruct(&dir, "good", &sheet_views().to_yaml());
+    // marks by grid at the model's own spacing (no grid_spacing: 5 cm) and,
+    // in the first view, by material coordinates
+    let mut v = sheet_views();
+    v.grid_spacing = None;
+    for m in &mut v.views[0].marks {
+        if let Some(g) = m.grid.take() {
+            m.uv = Some([g[0] as f64 * 0.05, g[1] as f64 * 0.05]);
+        }
+    }
+    let yaml = v.to_yaml();
+    assert!(yaml.contains("{ uv: [0.1, 0.05], pixel:") && !yaml.contains("grid_spacing"));
+    let (ok, err) = run_reconstruct(&dir, "good", &yaml);
     assert!(ok, "{err}");
     let j: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("out_good/report.json")).unwrap()).unwrap();
