@@ -55,6 +55,9 @@ fn default_model(scene: &Path) -> Result<Shape> {
 }
 
 pub fn reconstruct(a: ReconstructArgs) -> Result<()> {
+    if a.max_rounds == 0 {
+        anyhow::bail!("--max-rounds 0: the loop needs at least one round");
+    }
     let file = ViewsFile::load(&a.views)?;
     let model = match &a.model {
         Some(m) => Shape::read(m)?,

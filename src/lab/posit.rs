@@ -312,8 +312,8 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     };
     // the plane's homography gives a closed-form pose for coplanar marks and a
     // fair start for nearly coplanar ones, where POSIT may not converge;
-    // near-frontal planes, where both of Oberkampf's branches may settle on
-    // the mirrored pose, need it too
+    // near-frontal planes close to the camera, where both of Oberkampf's
+    // branches may settle on a wrong pose, need it too
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
     let row = |k: usize| V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
