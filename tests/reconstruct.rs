@@ -34,7 +34,7 @@ fn table_drape(spacing: f64) -> (Shape, Vec<KnownPoint>) {
     run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
     (
         Shape::from_cloth(&sim.cloth),
-        obstacle_corners(&sim.obstacles[0]),
+        obstacle_corners(&sim.obstacles()[0]),
     )
 }
 
