@@ -1,7 +1,7 @@
 //! Drapemeter (thesis §2.3.2, Chu/Cusick) on a clipped circular grid.
 
 mod support;
-use garment_sim::cloth::{Cloth, Outline, REMOVED};
+use garment_sim::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec, REMOVED};
 use garment_sim::fabric::Fabric;
 use garment_sim::lab::drapemeter::{run, DrapeOptions};
 use nalgebra::Isometry3;
@@ -118,7 +118,7 @@ fn drape_coefficient_falls_with_weight() {
 /// 1 cm the grid holds one pattern (12 nodes). It was 55.9 % at 1 cm and
 /// 49.1 % at 0.5 cm (6.8 points) with the grid's single skewed hinge, whose
 /// fold along one cell diagonal costs no bending
-/// ([`garment_sim::cloth::Cloth::mirror_symmetric_hinges`]).
+/// ([`garment_sim::cloth::HingeLayout::MirrorSymmetric`]).
 ///
 /// What remains is the net of two discretisation errors of opposite sign,
 /// measured on seed 1:
@@ -189,17 +189,20 @@ fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
     };
     let radius = 0.05;
     let bending = |symmetric: bool| -> Vec<f64> {
-        let mut c = Cloth::clipped_to_outline(
-            &outline,
-            [0.005, 0.005],
-            [0.0, 0.0],
-            &Isometry3::identity(),
-            wool.areal_mass,
-        )
+        let c = Cloth::panel(&PanelSpec {
+            outline: outline.clone(),
+            spacing: [0.005, 0.005],
+            origin: [0.0, 0.0],
+            pose: Isometry3::identity(),
+            areal_mass: wool.areal_mass,
+            border: Border::OnOutline,
+            hinges: if symmetric {
+                HingeLayout::MirrorSymmetric
+            } else {
+                HingeLayout::Skewed
+            },
+        })
         .unwrap();
-        if symmetric {
-            c.mirror_symmetric_hinges();
-        }
         (0..8)
             .map(|k| {
                 let psi = (k as f64 * 22.5f64).to_radians();
@@ -464,8 +467,11 @@ fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
         pose: Isometry3::identity(),
     };
     let single = Cloth::grid(&spec, wool.areal_mass).unwrap();
-    let mut pair = single.clone();
-    pair.mirror_symmetric_hinges();
+    let pair = Cloth::panel(&PanelSpec {
+        hinges: HingeLayout::MirrorSymmetric,
+        ..PanelSpec::rectangle(&spec, wool.areal_mass)
+    })
+    .unwrap();
     // two half hinges where the grid had one
     assert_eq!(pair.hinges.len(), 2 * single.hinges.len());
     let radius = 0.04;

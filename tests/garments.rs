@@ -263,7 +263,7 @@ fn largest_move(h: &Hung) -> f64 {
 #[test]
 #[ignore = "a garment panel's grid has one skewed hinge per edge, which is not symmetric \
             about the threads: the 90° drape lies 2.1 mm from the mirror image, more than \
-            the fabric's anisotropy moves it (0.3 mm); with Cloth::mirror_symmetric_hinges \
+            the fabric's anisotropy moves it (0.3 mm); with HingeLayout::MirrorSymmetric \
             on each panel it passes (7e-13 m)"]
 fn a_square_cut_at_0_and_90_degrees_drapes_as_its_mirror_image() {
     // acrylic's warp is stiffer in bending than its weft (B 0.080 against

@@ -50,12 +50,12 @@
 //! `(n + ½) h`. With the edge on the last pinned row instead, the first
 //! hinge reads half the clamp's curvature and the strip droops by a first
 //! order error (B −12 % at 0.25 cm, −49 % at 1 cm, without hysteresis). The
-//! hinges are mirror-symmetric pairs ([`Cloth::mirror_symmetric_hinges`]):
+//! hinges are mirror-symmetric pairs ([`HingeLayout::MirrorSymmetric`]):
 //! the grid's single skewed hinge lets the strip twist into the diagonal
 //! fold that costs no bending, and its tip deflects more than 1.5 times the
 //! elastica's (tested; B −40 % at 0.25 cm without hysteresis).
 
-use crate::cloth::Cloth;
+use crate::cloth::{Cloth, HingeLayout};
 use crate::fabric::kes::{GF_CM2_PER_CM, PER_CM};
 use crate::fabric::Fabric;
 use crate::lab::kes_lab::{self, Direction, KesTest};
@@ -87,7 +87,7 @@ pub struct CantileverOptions {
     pub max_hold: f64,
     /// Include the hysteretic parts of the laws (the fabric's KES loops).
     pub hysteresis: bool,
-    /// Mirror-symmetric hinge pairs ([`Cloth::mirror_symmetric_hinges`]);
+    /// Mirror-symmetric hinge pairs ([`HingeLayout::MirrorSymmetric`]);
     /// false: the grid's single skewed hinge per edge.
     pub symmetric_hinges: bool,
 }
@@ -271,11 +271,19 @@ fn strip(
     let rows = (length / opt.spacing).round().max(1.0) as usize;
     let h = length / rows as f64;
     let across = (opt.width / opt.spacing).ceil().max(1.0) as usize;
-    let (mut cloth, gw) =
-        kes_lab::specimen(fabric, dir, length, opt.width, h, opt.width / across as f64)?;
-    if opt.symmetric_hinges {
-        cloth.mirror_symmetric_hinges();
-    }
+    let (cloth, gw) = kes_lab::specimen(
+        fabric,
+        dir,
+        length,
+        opt.width,
+        h,
+        opt.width / across as f64,
+        if opt.symmetric_hinges {
+            HingeLayout::MirrorSymmetric
+        } else {
+            HingeLayout::Skewed
+        },
+    )?;
     let row = gw.iter().map(|g| (g[0] / h).round() as usize).collect();
     Ok((cloth, row, h))
 }

@@ -22,11 +22,11 @@
 //!
 //! The coefficient is taken over the nominal annulus (Cusick). By default the
 //! grid's border nodes are moved onto the circle
-//! ([`Cloth::clipped_to_outline`]), so the flat specimen covers 98–99 % of the
-//! annulus at 1–0.5 cm; with the staircase border of [`Cloth::clipped`] it
+//! ([`Border::OnOutline`]), so the flat specimen covers 98–99 % of the
+//! annulus at 1–0.5 cm; with the staircase border ([`Border::Staircase`]) it
 //! covers only 91–94 % and the coefficient drifts down as the grid is refined.
-//! The bending hinges are rebuilt as mirror-symmetric pairs
-//! ([`Cloth::mirror_symmetric_hinges`]), without which the coefficient moved with the
+//! The bending hinges are mirror-symmetric pairs
+//! ([`HingeLayout::MirrorSymmetric`]), without which the coefficient moved with the
 //! grid (wool tropical 55.9 % at 1 cm, 49.1 % at 0.5 cm; with the pairs 58.7 %
 //! and 56.1–59.0 %, the seed of the perturbation picking the fold pattern at
 //! the finer grids). The coefficient normalised by the discrete flat
@@ -37,7 +37,7 @@
 //! `(D_specimen − D_disk)/2` from the lowest point on either side; their
 //! angles are measured from the warp (+x) counter-clockwise.
 
-use crate::cloth::{Cloth, Outline};
+use crate::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec};
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
 use crate::plot::{Image, Rgb, BLACK, WHITE};
@@ -64,10 +64,10 @@ pub struct DrapeOptions {
     pub seed: u64,
     /// Raster pixel size of the shadow, m.
     pub pixel: f64,
-    /// Border nodes moved onto the circle ([`Cloth::clipped_to_outline`]);
-    /// false: the staircase of whole grid nodes ([`Cloth::clipped`]).
+    /// Border nodes moved onto the circle ([`Border::OnOutline`]);
+    /// false: the staircase of whole grid nodes ([`Border::Staircase`]).
     pub border_on_outline: bool,
-    /// Mirror-symmetric hinge pairs ([`Cloth::mirror_symmetric_hinges`]); false:
+    /// Mirror-symmetric hinge pairs ([`HingeLayout::MirrorSymmetric`]); false:
     /// the grid's single skewed hinge per edge.
     pub symmetric_hinges: bool,
     /// Clamp the vertices out to the radius whose convex hull has the disks'
@@ -281,21 +281,23 @@ pub fn run(
         center: [0.0, 0.0],
         radius: rs,
     };
-    let clip = if opt.border_on_outline {
-        Cloth::clipped_to_outline
-    } else {
-        Cloth::clipped
-    };
-    let mut cloth = clip(
-        &outline,
-        [opt.spacing, opt.spacing],
-        [0.0, 0.0],
-        &Isometry3::translation(0.0, 0.0, e),
-        fabric.areal_mass,
-    )?;
-    if opt.symmetric_hinges {
-        cloth.mirror_symmetric_hinges();
-    }
+    let mut cloth = Cloth::panel(&PanelSpec {
+        outline,
+        spacing: [opt.spacing, opt.spacing],
+        origin: [0.0, 0.0],
+        pose: Isometry3::translation(0.0, 0.0, e),
+        areal_mass: fabric.areal_mass,
+        border: if opt.border_on_outline {
+            Border::OnOutline
+        } else {
+            Border::Staircase
+        },
+        hinges: if opt.symmetric_hinges {
+            HingeLayout::MirrorSymmetric
+        } else {
+            HingeLayout::Skewed
+        },
+    })?;
     let flat: Vec<Vector3<f64>> = cloth.x.clone();
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();
     let pin_radius = if opt.clamp_area_matched {

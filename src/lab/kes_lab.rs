@@ -53,7 +53,7 @@
 //! between the simulated force and the input curve's branch of the same
 //! direction at the same deformation, relative to the input curve's peak.
 
-use crate::cloth::{Cloth, GridSpec};
+use crate::cloth::{Cloth, GridSpec, HingeLayout, PanelSpec};
 use crate::fabric::kes::*;
 use crate::fabric::Fabric;
 use crate::plot::{LinePlot, Style};
@@ -247,8 +247,9 @@ fn params(dt: f64) -> Params {
     }
 }
 
-/// Builds a specimen: gauge along +X (the direction tested), clamps along Y.
-/// Returns the cloth and, per vertex, its (gauge, width) material coordinates.
+/// Builds a specimen: gauge along +X (the direction tested), clamps along Y,
+/// hinges in the given layout. Returns the cloth and, per vertex, its
+/// (gauge, width) material coordinates.
 pub(crate) fn specimen(
     fabric: &Fabric,
     dir: Direction,
@@ -256,6 +257,7 @@ pub(crate) fn specimen(
     width: f64,
     sg: f64,
     sw: f64,
+    hinges: HingeLayout,
 ) -> Result<(Cloth, Vec<[f64; 2]>)> {
     let (size, spacing, pose) = match dir {
         Direction::Warp => ([gauge, width], [sg, sw], Isometry3::identity()),
@@ -269,14 +271,17 @@ pub(crate) fn specimen(
             ),
         ),
     };
-    let cloth = Cloth::grid(
-        &GridSpec {
-            size,
-            spacing,
-            pose,
-        },
-        fabric.areal_mass,
-    )?;
+    let cloth = Cloth::panel(&PanelSpec {
+        hinges,
+        ..PanelSpec::rectangle(
+            &GridSpec {
+                size,
+                spacing,
+                pose,
+            },
+            fabric.areal_mass,
+        )
+    })?;
     let gw = cloth
         .material
         .iter()
@@ -404,6 +409,7 @@ fn tensile(
         width,
         opt.fb1_spacing,
         opt.width_spacing,
+        HingeLayout::Skewed,
     )?;
     let (fixed, moving) = fb1_clamps(&gw, gauge);
     let x0: Vec<Vector3<f64>> = cloth.x.clone();
@@ -486,6 +492,7 @@ fn shear(
         width,
         opt.fb1_spacing,
         opt.width_spacing,
+        HingeLayout::Skewed,
     )?;
     let (fixed, moving) = fb1_clamps(&gw, gauge);
     let x0: Vec<Vector3<f64>> = cloth.x.clone();
@@ -650,7 +657,15 @@ fn bending(
     // rows −1 ..= n+1 (one row inside each jaw)
     // cells no more elongated than 4:1 (see [`LabOptions::width_spacing`])
     let sw = opt.width_spacing.min(4.0 * l);
-    let (cloth, gw) = specimen(fabric, dir, (n + 2) as f64 * l, width, l, sw)?;
+    let (cloth, gw) = specimen(
+        fabric,
+        dir,
+        (n + 2) as f64 * l,
+        width,
+        l,
+        sw,
+        HingeLayout::Skewed,
+    )?;
     let row = |i: usize| -> usize { (gw[i][0] / l).round() as usize }; // 0 ..= n+2
     let place = |poly: &[(f64, f64)], i: usize, y: f64| -> Vector3<f64> {
         let (px, pz) = poly[row(i)];

@@ -250,6 +250,10 @@ fn hinge_rest(m: &[[f64; 2]], v: [usize; 4]) -> (f64, f64) {
 /// A closed outline in material coordinates (u along warp, v along weft), m.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outline {
+    /// The rectangle `[0, size[0]] × [0, size[1]]`, m.
+    Rectangle {
+        size: [f64; 2],
+    },
     Circle {
         center: [f64; 2],
         radius: f64,
@@ -266,6 +270,12 @@ impl Outline {
     /// The outline as a polygon (a circle as [`CIRCLE_SEGMENTS`] segments).
     pub fn polygon(&self) -> Vec<[f64; 2]> {
         match self {
+            Outline::Rectangle { size } => vec![
+                [0.0, 0.0],
+                [size[0], 0.0],
+                [size[0], size[1]],
+                [0.0, size[1]],
+            ],
             Outline::Circle { center, radius } => (0..CIRCLE_SEGMENTS)
                 .map(|k| {
                     let a = 2.0 * std::f64::consts::PI * k as f64 / CIRCLE_SEGMENTS as f64;
@@ -279,6 +289,9 @@ impl Outline {
     /// Is the point inside or on the outline (within `tol`)?
     pub fn contains(&self, p: [f64; 2], tol: f64) -> bool {
         match self {
+            Outline::Rectangle { size } => {
+                (-tol..=size[0] + tol).contains(&p[0]) && (-tol..=size[1] + tol).contains(&p[1])
+            }
             Outline::Circle { center, radius } => {
                 let (dx, dy) = (p[0] - center[0], p[1] - center[1]);
                 (dx * dx + dy * dy).sqrt() <= radius + tol
@@ -294,6 +307,7 @@ impl Outline {
     /// Enclosed area, m².
     pub fn area(&self) -> f64 {
         match self {
+            Outline::Rectangle { size } => size[0] * size[1],
             Outline::Circle { radius, .. } => std::f64::consts::PI * radius * radius,
             Outline::Polygon(p) => polygon_area(p).abs(),
         }
@@ -301,6 +315,11 @@ impl Outline {
 
     fn validate(&self) -> Result<()> {
         match self {
+            Outline::Rectangle { size } => {
+                if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
+                    bail!("outline rectangle {size:?} m: sides must be finite and > 0");
+                }
+            }
             Outline::Circle { center, radius } => {
                 if !(radius.is_finite() && *radius > 0.0 && center.iter().all(|c| c.is_finite())) {
                     bail!("outline circle radius {radius} m at {center:?}: must be finite and > 0");
@@ -433,12 +452,18 @@ pub fn clipped_area(poly: &[[f64; 2]], u0: f64, u1: f64, v0: f64, v1: f64) -> f6
     }
 }
 
-impl Cloth {
-    /// Rebuilds the bending hinges of a grid (full or clipped) as mirror-symmetric pairs.
+/// How the bending hinges of a panel are laid out on its grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HingeLayout {
+    /// One hinge per grid edge whose wings sit on a skewed diagonal, e.g.
+    /// `(i−1, j)` and `(i+1, j+1)` about the edge `(i, j)–(i, j+1)` for warp
+    /// bending, `(i, j−1)` and `(i+1, j+1)` about `(i, j)–(i+1, j)` for weft
+    /// bending.
+    #[default]
+    Skewed,
+    /// Mirror-symmetric pairs of hinges.
     ///
-    /// [`Cloth::grid`] and [`Cloth::clipped`] give each grid edge one hinge whose
-    /// wings sit on a skewed diagonal, e.g. `(i−1, j)` and `(i+1, j+1)` about the
-    /// edge `(i, j)–(i, j+1)`. Such a hinge is right for a fold along the warp or
+    /// The skewed single hinge is right for a fold along the warp or
     /// the weft (the KES bending test), but it breaks the woven fabric's mirror
     /// symmetry about its threads: a fold whose generators run along one cell
     /// diagonal leaves its four masses coplanar and costs no bending at all, one
@@ -460,199 +485,205 @@ impl Cloth {
     /// cylinder. Rest lengths and heights come from the material positions (as
     /// [`Cloth::clipped_to_outline`] does for the nodes it moved onto the
     /// outline). The memories of the hinges start at zero (the flat specimen).
-    pub fn mirror_symmetric_hinges(&mut self) {
-        let (nx, ny) = (self.nx as i64, self.ny as i64);
-        let gv = |i: i64, j: i64| -> Option<usize> {
-            if i < 0 || j < 0 || i >= nx || j >= ny {
-                return None;
-            }
-            let node = (j * nx + i) as usize;
-            // a full grid ([`Cloth::grid`]) has no map: node k is vertex k
-            let v = self.grid_vertex.get(node).copied().unwrap_or(node);
-            (v != REMOVED).then_some(v)
-        };
-        let m = &self.material;
-        let rest = |v: [usize; 4]| hinge_rest(m, v);
-        let mut hinges = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                for weft in [false, true] {
-                    // shared edge and the two wing pairs
-                    let stencils = if weft {
-                        [
-                            [(i, j), (i + 1, j), (i, j - 1), (i + 1, j + 1)],
-                            [(i, j), (i + 1, j), (i + 1, j - 1), (i, j + 1)],
-                        ]
-                    } else {
-                        [
-                            [(i, j), (i, j + 1), (i - 1, j), (i + 1, j + 1)],
-                            [(i, j), (i, j + 1), (i - 1, j + 1), (i + 1, j)],
-                        ]
-                    };
-                    let kept: Vec<[usize; 4]> = stencils
-                        .iter()
-                        .filter_map(|st| {
-                            let v: Vec<usize> = st.iter().filter_map(|&(p, q)| gv(p, q)).collect();
-                            (v.len() == 4).then(|| [v[0], v[1], v[2], v[3]])
-                        })
-                        .collect();
-                    let share = 1.0 / kept.len().max(1) as f64;
-                    for v in kept {
-                        let (len, h) = rest(v);
+    MirrorSymmetric,
+}
+
+/// How the border of a panel follows its outline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Border {
+    /// The grid nodes inside the outline (a staircase along a slanted or
+    /// curved side).
+    #[default]
+    Staircase,
+    /// The staircase plus nodes outside moved onto the outline (see
+    /// [`Cloth::panel`]).
+    OnOutline,
+}
+
+/// A warp/weft panel: its outline in material coordinates, the grid that
+/// fills it, where it lies in the world, and its hinge layout.
+#[derive(Debug, Clone)]
+pub struct PanelSpec {
+    pub outline: Outline,
+    /// Grid spacing along warp (l_c) and weft (l_t), m (a rectangle's: the
+    /// nearest that divides its sides).
+    pub spacing: [f64; 2],
+    /// A grid node's material position (the grid of a rectangle starts at
+    /// its corner (0, 0)), m.
+    pub origin: [f64; 2],
+    /// Pose of the cloth's local frame in the world.
+    pub pose: Isometry3<f64>,
+    /// kg/m².
+    pub areal_mass: f64,
+    pub border: Border,
+    pub hinges: HingeLayout,
+}
+
+impl PanelSpec {
+    /// The rectangle of a [`GridSpec`], skewed hinges.
+    pub fn rectangle(spec: &GridSpec, areal_mass: f64) -> PanelSpec {
+        PanelSpec {
+            outline: Outline::Rectangle { size: spec.size },
+            spacing: spec.spacing,
+            origin: [0.0, 0.0],
+            pose: spec.pose,
+            areal_mass,
+            border: Border::Staircase,
+            hinges: HingeLayout::Skewed,
+        }
+    }
+}
+
+/// The hinges of a grid in the given layout. `gv(i, j)` is the vertex of
+/// grid node (i, j) if kept, `m` the material positions; rest lengths and
+/// heights come from them when `from_material` (always for the mirror
+/// pairs), else from the spacings. The memories start at zero (flat).
+#[allow(clippy::too_many_arguments)]
+fn layout_hinges(
+    layout: HingeLayout,
+    nx: usize,
+    ny: usize,
+    gv: &dyn Fn(i64, i64) -> Option<usize>,
+    m: &[[f64; 2]],
+    from_material: bool,
+    lc: f64,
+    lt: f64,
+) -> Vec<Hinge> {
+    let (nx, ny) = (nx as i64, ny as i64);
+    let mut hinges = Vec::new();
+    match layout {
+        HingeLayout::Skewed => {
+            let rest = |v: [usize; 4], len: f64, h: f64| -> (f64, f64) {
+                if from_material {
+                    hinge_rest(m, v)
+                } else {
+                    (len, h)
+                }
+            };
+            for j in 0..ny {
+                for i in 0..nx {
+                    let Some(a) = gv(i, j) else { continue };
+                    // warp bending folds about the weft edge (i,j)–(i,j+1);
+                    // its wings are the warp neighbours (i−1,j) and
+                    // (i+1,j+1), placed symmetrically about the edge's
+                    // midpoint; weft bending likewise about a warp edge
+                    if let (Some(v1), Some(w0), Some(w1)) =
+                        (gv(i, j + 1), gv(i - 1, j), gv(i + 1, j + 1))
+                    {
+                        let (len, h) = rest([a, v1, w0, w1], lt, lc);
                         hinges.push(Hinge {
-                            v,
-                            weft,
-                            len: len * share,
+                            v: [a, v1, w0, w1],
+                            weft: false,
+                            len,
+                            h,
+                        });
+                    }
+                    if let (Some(v1), Some(w0), Some(w1)) =
+                        (gv(i + 1, j), gv(i, j - 1), gv(i + 1, j + 1))
+                    {
+                        let (len, h) = rest([a, v1, w0, w1], lc, lt);
+                        hinges.push(Hinge {
+                            v: [a, v1, w0, w1],
+                            weft: true,
+                            len,
                             h,
                         });
                     }
                 }
             }
         }
-        self.hinge_state = vec![LawState::at(0.0); hinges.len()];
-        self.hinges = hinges;
+        HingeLayout::MirrorSymmetric => {
+            for j in 0..ny {
+                for i in 0..nx {
+                    for weft in [false, true] {
+                        // shared edge and the two wing pairs
+                        let stencils = if weft {
+                            [
+                                [(i, j), (i + 1, j), (i, j - 1), (i + 1, j + 1)],
+                                [(i, j), (i + 1, j), (i + 1, j - 1), (i, j + 1)],
+                            ]
+                        } else {
+                            [
+                                [(i, j), (i, j + 1), (i - 1, j), (i + 1, j + 1)],
+                                [(i, j), (i, j + 1), (i - 1, j + 1), (i + 1, j)],
+                            ]
+                        };
+                        let kept: Vec<[usize; 4]> = stencils
+                            .iter()
+                            .filter_map(|st| {
+                                let v: Vec<usize> =
+                                    st.iter().filter_map(|&(p, q)| gv(p, q)).collect();
+                                (v.len() == 4).then(|| [v[0], v[1], v[2], v[3]])
+                            })
+                            .collect();
+                        let share = 1.0 / kept.len().max(1) as f64;
+                        for v in kept {
+                            let (len, h) = hinge_rest(m, v);
+                            hinges.push(Hinge {
+                                v,
+                                weft,
+                                len: len * share,
+                                h,
+                            });
+                        }
+                    }
+                }
+            }
+        }
     }
+    hinges
+}
 
-    /// Builds a rectangular warp/weft grid of a fabric with the given areal mass.
+impl Cloth {
+    /// Builds a rectangular warp/weft grid of a fabric with the given areal
+    /// mass: [`Cloth::panel`] of the rectangle, skewed hinges.
     pub fn grid(spec: &GridSpec, areal_mass: f64) -> Result<Cloth> {
-        for (k, n) in ["size.warp", "size.weft"].iter().enumerate() {
-            if !(spec.size[k].is_finite() && spec.size[k] > 0.0) {
-                bail!("cloth {n} = {}: must be > 0 m", spec.size[k]);
-            }
-            if !(spec.spacing[k].is_finite() && spec.spacing[k] > 0.0) {
-                bail!("cloth spacing = {}: must be > 0 m", spec.spacing[k]);
-            }
-        }
-        let (nx, ny) = spec.dims();
-        if nx.saturating_mul(ny) > MAX_VERTICES {
-            bail!(
-                "cloth of {nx} × {ny} vertices is larger than the limit of {MAX_VERTICES}; use a coarser spacing"
-            );
-        }
-        let lc = spec.size[0] / (nx - 1) as f64;
-        let lt = spec.size[1] / (ny - 1) as f64;
-        let id = |i: usize, j: usize| j * nx + i;
-        let n = nx * ny;
-        let mut material = Vec::with_capacity(n);
-        let mut x = Vec::with_capacity(n);
-        let mut mass = Vec::with_capacity(n);
-        for j in 0..ny {
-            for i in 0..nx {
-                let (u, v) = (i as f64 * lc, j as f64 * lt);
-                material.push([u, v]);
-                x.push((spec.pose * Point3::new(u, v, 0.0)).coords);
-                let fu = if i == 0 || i == nx - 1 { 0.5 } else { 1.0 };
-                let fv = if j == 0 || j == ny - 1 { 0.5 } else { 1.0 };
-                mass.push(areal_mass * lc * lt * fu * fv);
-            }
-        }
-        let mut tension = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                if i + 1 < nx {
-                    let half = j == 0 || j == ny - 1;
-                    tension.push(TensionSpring {
-                        a: id(i, j),
-                        b: id(i + 1, j),
-                        weft: false,
-                        width: if half { lt / 2.0 } else { lt },
-                        l0: lc,
-                        l_other: lt,
-                    });
-                }
-                if j + 1 < ny {
-                    let half = i == 0 || i == nx - 1;
-                    tension.push(TensionSpring {
-                        a: id(i, j),
-                        b: id(i, j + 1),
-                        weft: true,
-                        width: if half { lc / 2.0 } else { lc },
-                        l0: lt,
-                        l_other: lc,
-                    });
-                }
-            }
-        }
-        let l0 = (lc * lc + lt * lt).sqrt();
-        let mut shear = Vec::new();
-        let mut triangles = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                shear.push(ShearSpring {
-                    a,
-                    b: c,
-                    lc,
-                    lt,
-                    l0,
-                });
-                shear.push(ShearSpring {
-                    a: b,
-                    b: d,
-                    lc,
-                    lt,
-                    l0,
-                });
-                if (i + j) % 2 == 0 {
-                    triangles.push([a, b, c]);
-                    triangles.push([a, c, d]);
-                } else {
-                    triangles.push([a, b, d]);
-                    triangles.push([b, c, d]);
-                }
-            }
-        }
-        // Hinges. Warp bending (curvature along warp) folds about a weft edge
-        // (i,j)–(i,j+1); its wings are the warp neighbours (i−1,j) and
-        // (i+1,j+1), placed symmetrically about the edge's midpoint. Weft
-        // bending likewise about a warp edge.
-        let mut hinges = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                if i >= 1 && i + 1 < nx && j + 1 < ny {
-                    hinges.push(Hinge {
-                        v: [id(i, j), id(i, j + 1), id(i - 1, j), id(i + 1, j + 1)],
-                        weft: false,
-                        len: lt,
-                        h: lc,
-                    });
-                }
-                if j >= 1 && j + 1 < ny && i + 1 < nx {
-                    hinges.push(Hinge {
-                        v: [id(i, j), id(i + 1, j), id(i, j - 1), id(i + 1, j + 1)],
-                        weft: true,
-                        len: lc,
-                        h: lt,
-                    });
-                }
-            }
-        }
-        let cloth = Cloth {
-            nx,
-            ny,
-            lc,
-            lt,
-            material,
-            v: vec![Vector3::zeros(); n],
-            x,
-            mass,
-            tension_state: vec![LawState::at(0.0); tension.len()],
-            shear_state: vec![LawState::at(0.0); shear.len()],
-            hinge_state: vec![LawState::at(0.0); hinges.len()],
-            tension,
-            shear,
-            hinges,
-            triangles,
-            grid_vertex: Vec::new(),
-            seams: Vec::new(),
-            vertex_fabric: Vec::new(),
-        };
-        Ok(cloth)
+        Cloth::panel(&PanelSpec::rectangle(spec, areal_mass))
     }
 
-    /// A warp/weft grid clipped to a closed outline (circle, polygon): the
-    /// pieces whose outline is not a rectangle (drapemeter specimens, garment
-    /// panels).
+    /// A warp/weft grid clipped to a closed outline (circle, polygon), its
+    /// border a staircase of grid nodes, skewed hinges: [`Cloth::panel`].
+    pub fn clipped(
+        outline: &Outline,
+        spacing: [f64; 2],
+        origin: [f64; 2],
+        pose: &Isometry3<f64>,
+        areal_mass: f64,
+    ) -> Result<Cloth> {
+        Cloth::panel(&PanelSpec {
+            outline: outline.clone(),
+            spacing,
+            origin,
+            pose: *pose,
+            areal_mass,
+            border: Border::Staircase,
+            hinges: HingeLayout::Skewed,
+        })
+    }
+
+    /// [`Cloth::clipped`] with its border on the outline ([`Border::OnOutline`]).
+    pub fn clipped_to_outline(
+        outline: &Outline,
+        spacing: [f64; 2],
+        origin: [f64; 2],
+        pose: &Isometry3<f64>,
+        areal_mass: f64,
+    ) -> Result<Cloth> {
+        Cloth::panel(&PanelSpec {
+            outline: outline.clone(),
+            spacing,
+            origin,
+            pose: *pose,
+            areal_mass,
+            border: Border::OnOutline,
+            hinges: HingeLayout::Skewed,
+        })
+    }
+
+    /// A warp/weft panel: the grid over its outline, the masses, springs,
+    /// hinges (in [`PanelSpec::hinges`]' layout) and triangles of the part
+    /// inside it. Every piece is one: a rectangular cloth, a drapemeter
+    /// specimen, a garment panel.
     ///
     /// Grid nodes sit at `origin + (i·l_c, j·l_t)` (material coordinates) over
     /// the outline's bounding box; a node is kept when it lies inside the
@@ -670,77 +701,97 @@ impl Cloth {
     ///   compensates; a lone diagonal would not be a shear spring);
     /// - a hinge when its four masses are.
     ///
-    /// Triangles (output, shadows) cover whole cells as in [`Cloth::grid`] and
-    /// three-corner cells with their one triangle. `nx`, `ny` are those of the
-    /// bounding grid; [`Cloth::grid_vertex`] maps its nodes to vertices.
-    pub fn clipped(
-        outline: &Outline,
-        spacing: [f64; 2],
-        origin: [f64; 2],
-        pose: &Isometry3<f64>,
-        areal_mass: f64,
-    ) -> Result<Cloth> {
-        Cloth::clip(outline, spacing, origin, pose, areal_mass, false)
-    }
-
-    /// [`Cloth::clipped`] with its border on the outline: a node outside the
-    /// outline is kept too when it lies within half a spacing of it, belongs to
-    /// a cell that overlaps the outline, and its closest point on the outline
-    /// is at least 0.3 spacing from every kept neighbour; it is moved to that
-    /// point. Elements touching a moved node take their rest lengths (tension
-    /// and shear springs) and rest heights and edge lengths (hinges) from the
+    /// A rectangle ([`Outline::Rectangle`]) is the grid fitted to it: its
+    /// spacing is the nearest that divides its sides, every cell is whole,
+    /// so each node carries `l_c l_t` of material (halved on each side it
+    /// lies on) and each tension spring the width `l_t` (`l_t/2` on the
+    /// border), every node is kept ([`Cloth::grid_vertex`] empty) and the
+    /// border is on the outline already.
+    ///
+    /// With [`Border::OnOutline`], a node outside the outline is kept too
+    /// when it lies within half a spacing of it, belongs to a cell that
+    /// overlaps the outline, and its closest point on the outline is at least
+    /// 0.3 spacing from every kept neighbour; it is moved to that point.
+    /// Elements touching a moved node take their rest lengths (tension and
+    /// shear springs) and rest heights and edge lengths (hinges) from the
     /// moved material positions, so the flat piece is at rest. The staircase
-    /// of [`Cloth::clipped`] covers 91 % of a 30 cm disc's 18–30 cm annulus at
-    /// 1 cm; this border covers nearly all of it (tested).
-    pub fn clipped_to_outline(
-        outline: &Outline,
-        spacing: [f64; 2],
-        origin: [f64; 2],
-        pose: &Isometry3<f64>,
-        areal_mass: f64,
-    ) -> Result<Cloth> {
-        Cloth::clip(outline, spacing, origin, pose, areal_mass, true)
-    }
-
-    fn clip(
-        outline: &Outline,
-        spacing: [f64; 2],
-        origin: [f64; 2],
-        pose: &Isometry3<f64>,
-        areal_mass: f64,
-        snap: bool,
-    ) -> Result<Cloth> {
-        outline.validate()?;
-        let (lc, lt) = (spacing[0], spacing[1]);
-        if !(lc.is_finite() && lc > 0.0 && lt.is_finite() && lt > 0.0) {
-            bail!("cloth spacing {spacing:?}: must be > 0 m");
+    /// of [`Border::Staircase`] covers 91 % of a 30 cm disc's 18–30 cm
+    /// annulus at 1 cm; this border covers nearly all of it (tested).
+    ///
+    /// Triangles (output, shadows) cover whole cells and three-corner cells
+    /// with their one triangle. `nx`, `ny` are those of the bounding grid;
+    /// [`Cloth::grid_vertex`] maps its nodes to vertices.
+    pub fn panel(spec: &PanelSpec) -> Result<Cloth> {
+        let PanelSpec {
+            outline,
+            spacing,
+            pose,
+            areal_mass,
+            ..
+        } = spec;
+        let (spacing, areal_mass) = (*spacing, *areal_mass);
+        // every cell whole (a rectangle)
+        let whole = matches!(outline, Outline::Rectangle { .. });
+        let snap = spec.border == Border::OnOutline && !whole;
+        let (lc, lt, origin, i0, j0, nx, ny);
+        if let Outline::Rectangle { size } = outline {
+            for (k, n) in ["size.warp", "size.weft"].iter().enumerate() {
+                if !(size[k].is_finite() && size[k] > 0.0) {
+                    bail!("cloth {n} = {}: must be > 0 m", size[k]);
+                }
+                if !(spacing[k].is_finite() && spacing[k] > 0.0) {
+                    bail!("cloth spacing = {}: must be > 0 m", spacing[k]);
+                }
+            }
+            (nx, ny) = GridSpec {
+                size: *size,
+                spacing,
+                pose: *pose,
+            }
+            .dims();
+            if nx.saturating_mul(ny) > MAX_VERTICES {
+                bail!(
+                    "cloth of {nx} × {ny} vertices is larger than the limit of {MAX_VERTICES}; use a coarser spacing"
+                );
+            }
+            lc = size[0] / (nx - 1) as f64;
+            lt = size[1] / (ny - 1) as f64;
+            (origin, i0, j0) = ([0.0, 0.0], 0, 0);
+        } else {
+            outline.validate()?;
+            (lc, lt) = (spacing[0], spacing[1]);
+            if !(lc.is_finite() && lc > 0.0 && lt.is_finite() && lt > 0.0) {
+                bail!("cloth spacing {spacing:?}: must be > 0 m");
+            }
+            origin = spec.origin;
+            let poly = outline.polygon();
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for p in &poly {
+                for k in 0..2 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            if let Outline::Circle { center, radius } = outline {
+                lo = [center[0] - radius, center[1] - radius];
+                hi = [center[0] + radius, center[1] + radius];
+            }
+            i0 = ((lo[0] - origin[0]) / lc).floor() as i64;
+            let i1 = ((hi[0] - origin[0]) / lc).ceil() as i64;
+            j0 = ((lo[1] - origin[1]) / lt).floor() as i64;
+            let j1 = ((hi[1] - origin[1]) / lt).ceil() as i64;
+            nx = (i1 - i0 + 1) as usize;
+            ny = (j1 - j0 + 1) as usize;
+            if nx.saturating_mul(ny) > MAX_VERTICES {
+                bail!(
+                    "clipped cloth needs a {nx} × {ny} grid, larger than the limit of {MAX_VERTICES}; use a coarser spacing"
+                );
+            }
         }
         if !(areal_mass.is_finite() && areal_mass > 0.0) {
             bail!("areal mass {areal_mass} kg/m²: must be > 0");
         }
         let poly = outline.polygon();
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for p in &poly {
-            for k in 0..2 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        if let Outline::Circle { center, radius } = outline {
-            lo = [center[0] - radius, center[1] - radius];
-            hi = [center[0] + radius, center[1] + radius];
-        }
-        let i0 = ((lo[0] - origin[0]) / lc).floor() as i64;
-        let i1 = ((hi[0] - origin[0]) / lc).ceil() as i64;
-        let j0 = ((lo[1] - origin[1]) / lt).floor() as i64;
-        let j1 = ((hi[1] - origin[1]) / lt).ceil() as i64;
-        let nx = (i1 - i0 + 1) as usize;
-        let ny = (j1 - j0 + 1) as usize;
-        if nx.saturating_mul(ny) > MAX_VERTICES {
-            bail!(
-                "clipped cloth needs a {nx} × {ny} grid, larger than the limit of {MAX_VERTICES}; use a coarser spacing"
-            );
-        }
         let node_uv = |i: usize, j: usize| {
             [
                 origin[0] + (i0 + i as i64) as f64 * lc,
@@ -753,7 +804,7 @@ impl Cloth {
         for j in 0..ny {
             for i in 0..nx {
                 let uv = node_uv(i, j);
-                if outline.contains(uv, tol) {
+                if whole || outline.contains(uv, tol) {
                     grid_vertex[j * nx + i] = material.len();
                     material.push(uv);
                 }
@@ -787,9 +838,9 @@ impl Cloth {
             (v != REMOVED).then_some(v)
         };
         // clipped area of cell (i, j) = [node i, i+1] × [node j, j+1]
-        let mut cell_area = vec![0.0; (nx - 1) * (ny - 1)];
+        let mut cell_area = vec![0.0; if whole { 0 } else { (nx - 1) * (ny - 1) }];
         let full = lc * lt;
-        for j in 0..ny - 1 {
+        for j in 0..if whole { 0 } else { ny - 1 } {
             for i in 0..nx - 1 {
                 let (a, b) = (node_uv(i, j), node_uv(i + 1, j + 1));
                 let corners_in = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
@@ -811,7 +862,16 @@ impl Cloth {
             }
         };
         let mut mass = vec![0.0; n];
-        for j in 0..ny as i64 - 1 {
+        if whole {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let fu = if i == 0 || i == nx - 1 { 0.5 } else { 1.0 };
+                    let fv = if j == 0 || j == ny - 1 { 0.5 } else { 1.0 };
+                    mass[j * nx + i] = areal_mass * lc * lt * fu * fv;
+                }
+            }
+        }
+        for j in 0..if whole { 0 } else { ny as i64 - 1 } {
             for i in 0..nx as i64 - 1 {
                 let a = area(i, j);
                 let kept: Vec<usize> = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
@@ -825,7 +885,6 @@ impl Cloth {
         }
         let mut tension = Vec::new();
         let mut shear = Vec::new();
-        let mut hinges = Vec::new();
         let mut triangles = Vec::new();
         let l0 = (lc * lc + lt * lt).sqrt();
         let dist = |a: usize, b: usize| {
@@ -836,13 +895,6 @@ impl Cloth {
         // were moved onto the border
         let rest = |a: usize, b: usize, nominal: f64| if snap { dist(a, b) } else { nominal };
         // hinge edge length and mean wing height over the edge line
-        let hinge_rest = |v: [usize; 4], len: f64, h: f64| -> (f64, f64) {
-            if snap {
-                hinge_rest(&material, v)
-            } else {
-                (len, h)
-            }
-        };
         for j in 0..ny as i64 {
             for i in 0..nx as i64 {
                 let Some(a) = gv(i, j) else { continue };
@@ -851,7 +903,13 @@ impl Cloth {
                         a,
                         b,
                         weft: false,
-                        width: (area(i, j - 1) + area(i, j)) / (2.0 * lc),
+                        width: if !whole {
+                            (area(i, j - 1) + area(i, j)) / (2.0 * lc)
+                        } else if j == 0 || j == ny as i64 - 1 {
+                            lt / 2.0
+                        } else {
+                            lt
+                        },
                         l0: rest(a, b, lc),
                         l_other: lt,
                     });
@@ -861,7 +919,13 @@ impl Cloth {
                         a,
                         b,
                         weft: true,
-                        width: (area(i - 1, j) + area(i, j)) / (2.0 * lt),
+                        width: if !whole {
+                            (area(i - 1, j) + area(i, j)) / (2.0 * lt)
+                        } else if i == 0 || i == nx as i64 - 1 {
+                            lc / 2.0
+                        } else {
+                            lc
+                        },
                         l0: rest(a, b, lt),
                         l_other: lc,
                     });
@@ -896,29 +960,6 @@ impl Cloth {
                     (None, Some(c), Some(d)) => triangles.push([a, c, d]),
                     _ => {}
                 }
-                // hinges as in `grid`
-                if let (Some(v1), Some(w0), Some(w1)) =
-                    (gv(i, j + 1), gv(i - 1, j), gv(i + 1, j + 1))
-                {
-                    let (len, h) = hinge_rest([a, v1, w0, w1], lt, lc);
-                    hinges.push(Hinge {
-                        v: [a, v1, w0, w1],
-                        weft: false,
-                        len,
-                        h,
-                    });
-                }
-                if let (Some(v1), Some(w0), Some(w1)) =
-                    (gv(i + 1, j), gv(i, j - 1), gv(i + 1, j + 1))
-                {
-                    let (len, h) = hinge_rest([a, v1, w0, w1], lc, lt);
-                    hinges.push(Hinge {
-                        v: [a, v1, w0, w1],
-                        weft: true,
-                        len,
-                        h,
-                    });
-                }
             }
         }
         // a three-corner cell missing corner (i, j) itself
@@ -933,6 +974,7 @@ impl Cloth {
                 }
             }
         }
+        let hinges = layout_hinges(spec.hinges, nx, ny, &gv, &material, snap, lc, lt);
         let x = material
             .iter()
             .map(|m| (pose * Point3::new(m[0], m[1], 0.0)).coords)
@@ -953,7 +995,8 @@ impl Cloth {
             shear,
             hinges,
             triangles,
-            grid_vertex,
+            // a rectangle keeps every node: node k is vertex k
+            grid_vertex: if whole { Vec::new() } else { grid_vertex },
             seams: Vec::new(),
             vertex_fabric: Vec::new(),
         })

@@ -828,3 +828,151 @@ impl Element for Stitch {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloth::GridSpec;
+    use crate::fabric::{BehaviourSpec, Damping, DirectionSpec, FabricFile};
+    use crate::solver::{Params, Simulation};
+    use nalgebra::Isometry3;
+    use rand::{Rng, SeedableRng};
+
+    /// A thesis-like acrylic without damping.
+    fn fabric() -> Fabric {
+        let dir = |lt, wt, rt, emt, g, hg, hg5, b, hb| DirectionSpec {
+            tensile: BehaviourSpec {
+                lt: Some(lt),
+                wt: Some(wt),
+                rt: Some(rt),
+                emt: Some(emt),
+                ..Default::default()
+            },
+            shear: BehaviourSpec {
+                g: Some(g),
+                hg: Some(hg),
+                hg5: Some(hg5),
+                ..Default::default()
+            },
+            bending: BehaviourSpec {
+                b: Some(b),
+                hb: Some(hb),
+                ..Default::default()
+            },
+        };
+        let file = FabricFile {
+            name: "acrylic-like".into(),
+            source: String::new(),
+            notes: String::new(),
+            areal_mass_mg_per_cm2: 21.3,
+            thickness_mm: None,
+            warp: dir(0.65, 8.68, 62.0, 5.34, 0.60, 0.70, 1.50, 0.040, 0.030),
+            weft: dir(0.62, 9.5, 60.0, 6.1, 0.58, 0.68, 1.45, 0.030, 0.025),
+            damping: Damping {
+                alpha: 0.0,
+                beta_bend: 0.0,
+                beta_shear: 0.0,
+                beta_tension: 0.0,
+            },
+        };
+        let no_curves = |name: &str| -> Result<crate::fabric::kes::KesCurve> {
+            bail!("no curve files here ({name})")
+        };
+        Fabric::from_file(file, &no_curves).unwrap()
+    }
+
+    /// The step's force, matrix and right-hand side are what the sets' own
+    /// force and Jacobian queries give, summed over every set (seam stitches
+    /// included): without damping and pins, `f = M g + Σ f_e`,
+    /// `A = M − h² Σ ∂f_e/∂x` (step tangents) and `b = h (f + h ∂f/∂x v)`.
+    /// A set left out of the assembly, of the matrix pattern or of the
+    /// queries, or whose step disagrees with its queries, fails it.
+    #[test]
+    fn the_step_adds_every_set_as_its_queries_give_it() {
+        let spec = GridSpec {
+            size: [0.08, 0.06],
+            spacing: [0.02, 0.02],
+            pose: Isometry3::identity(),
+        };
+        let mut cloth = Cloth::grid(&spec, 0.213).unwrap();
+        // stitches across the cloth (both chunks of two threads)
+        for (v, t) in [([0, 6, 7], 0.3), ([19, 12, 13], 0.5), ([4, 10, 15], 0.8)] {
+            cloth.seams.push(Stitch {
+                v,
+                c: [1.0, -(1.0 - t), -t],
+                k: 80.0,
+                d: 0.0,
+            });
+        }
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut jitter = |s: f64| {
+            Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * s
+        };
+        for (x, v) in cloth.x.iter_mut().zip(cloth.v.iter_mut()) {
+            *x += jitter(0.002);
+            *v = jitter(0.05);
+        }
+        let params = Params {
+            threads: 2,
+            ..Params::default()
+        };
+        let mut sim = Simulation::new(cloth, fabric(), params).unwrap();
+        // the step commits the memories to the current shape: so do the queries
+        sim.commit();
+        let h = sim.params.dt;
+        let (a, b) = sim.assembled_system();
+
+        let c = &sim.cloth;
+        let f = Fabrics {
+            first: &sim.fabric,
+            others: &sim.other_fabrics,
+            of: &c.vertex_fabric,
+        };
+        let mut force: Vec<Vector3<f64>> = c.mass.iter().map(|m| sim.params.gravity * *m).collect();
+        forces(c, &f, |_| true, &mut force);
+        let mut j = sim.a.clone();
+        j.clear();
+        jacobians(c, &f, |_| true, Jacobian::Step, &mut j);
+        let mut jv = vec![Vector3::zeros(); c.len()];
+        j.mul(&c.v, &mut jv);
+
+        let fmax = force.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        let df = force
+            .iter()
+            .zip(&sim.force)
+            .map(|(p, q)| (p - q).amax())
+            .fold(0.0, f64::max);
+        assert!(df <= 1e-12 * fmax, "force: {df:e} of {fmax:e}");
+        let want_b: Vec<Vector3<f64>> = force
+            .iter()
+            .zip(&jv)
+            .map(|(f, jv)| (f + jv * h) * h)
+            .collect();
+        let bmax = want_b.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        let db = want_b
+            .iter()
+            .zip(&b)
+            .map(|(p, q)| (p - q).amax())
+            .fold(0.0, f64::max);
+        assert!(db <= 1e-12 * bmax, "rhs: {db:e} of {bmax:e}");
+        let mut want_a: Vec<Matrix3<f64>> = j.val.iter().map(|k| -k * (h * h)).collect();
+        for (i, m) in c.mass.iter().enumerate() {
+            want_a[j.diag[i]] += Matrix3::identity() * *m;
+        }
+        let amax = want_a.iter().map(|m| m.amax()).fold(0.0, f64::max);
+        let da = want_a
+            .iter()
+            .zip(&a)
+            .map(|(p, q)| (p - q).amax())
+            .fold(0.0, f64::max);
+        assert!(da <= 1e-12 * amax, "matrix: {da:e} of {amax:e}");
+        // every set took part: the seams' blocks join vertices no spring or
+        // hinge joins (4 and 15)
+        let seam_block = a[sim.a.index(4, 15)];
+        assert!(seam_block.amax() > 0.0, "{seam_block}");
+    }
+}
