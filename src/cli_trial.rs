@@ -47,7 +47,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         1e3 * g.cloth.total_mass(),
         sim.fabric.name,
         t.body.mesh.as_ref().map_or(0, |m| m.1.len()),
-        sim.params.dt
+        sim.params().dt
     );
     std::fs::create_dir_all(&a.out)?;
     let stop = garment_sim::run::stop_flag()?;

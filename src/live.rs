@@ -358,7 +358,7 @@ impl<'a> LiveRun<'a> {
             .clock
             .get_or_insert_with(|| FrameClock::new(s.time))
             .due(s.time, rate);
-        let end = s.time + 0.5 * s.params.dt >= self.opts.end_time;
+        let end = s.time + 0.5 * s.params().dt >= self.opts.end_time;
         if (due || end || stopping) && self.last_published != Some(s.steps) {
             let now = Instant::now();
             let (w, n, t, sl) = self.last.unwrap_or((t0_wall, s.steps, t0, Duration::ZERO));

@@ -9,6 +9,7 @@ mod cli_bench;
 mod cli_drape;
 mod cli_identify;
 mod cli_lab;
+mod cli_recon;
 mod cli_trial;
 
 #[derive(Parser)]
@@ -54,6 +55,12 @@ enum Cmd {
     /// Virtual garment trial: sew a garment from its pattern onto a body, drape it and
     /// report the fit (garment.obj, garment.ply, fit.json, fit_strain.png, fit_pressure.png).
     Trial(cli_trial::TrialArgs),
+    /// 3D shape of a drape from marked photos (thesis §6.3): camera poses, marks and
+    /// the model deformed through them (reconstructed.ply, report.json, view_*.png).
+    Reconstruct(cli_recon::ReconstructArgs),
+    /// Distance between two shapes of a cloth (thesis eq. 6.2): mean and largest,
+    /// with a map (compare.json, distance.png).
+    Compare(cli_recon::CompareArgs),
 }
 
 fn main() {
@@ -111,5 +118,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Cantilever(a) => cli_lab::cantilever(a),
         Cmd::Trial(a) => cli_trial::trial(a),
         Cmd::Bench(a) => cli_bench::bench(a),
+        Cmd::Reconstruct(a) => cli_recon::reconstruct(a),
+        Cmd::Compare(a) => cli_recon::compare(a),
     }
 }

@@ -352,7 +352,7 @@ impl Picture {
             },
         );
         p.strain = Some(crate::msgs::publish::vertex_strain(sim));
-        p.obstacles = sim.obstacles.iter().map(Surface::from_obstacle).collect();
+        p.obstacles = sim.obstacles().iter().map(Surface::from_obstacle).collect();
         p.info = vec![
             format!("fabric {}", sim.fabric.name),
             format!(

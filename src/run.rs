@@ -104,8 +104,8 @@ pub fn run_with(
     progress: Progress,
     observer: Observer,
 ) -> Result<(Vec<EnergyRow>, Summary)> {
-    let mut steps = (duration / sim.params.dt).round() as u64;
-    let every = ((1.0 / rate) / sim.params.dt).round().max(1.0) as u64;
+    let mut steps = (duration / sim.params().dt).round() as u64;
+    let every = ((1.0 / rate) / sim.params().dt).round().max(1.0) as u64;
     let mut rows = vec![row(sim)];
     let e0 = sim.energies().total();
     let mut last_fast: Option<f64> = if sim.rms_speed() >= settle_speed {
@@ -160,8 +160,8 @@ pub fn run_with(
         vertices: sim.cloth.len(),
         grid: [sim.cloth.nx, sim.cloth.ny],
         spacing_m: [sim.cloth.lc, sim.cloth.lt],
-        dt_s: sim.params.dt,
-        linear_solver: format!("{:?}", sim.params.linear_solver).to_lowercase(),
+        dt_s: sim.params().dt,
+        linear_solver: format!("{:?}", sim.params().linear_solver).to_lowercase(),
         threads: sim.threads(),
         simulated_s: sim.time,
         steps,

@@ -597,7 +597,7 @@ impl Scene {
             });
         }
         let mut sim = Simulation::new(cloth, self.fabric.clone(), params).with_context(ctx)?;
-        sim.obstacles = obstacles;
+        sim.set_obstacles(obstacles.into_iter().collect());
         sim.set_pins(pins)?;
         Ok(sim)
     }

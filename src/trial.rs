@@ -395,7 +395,7 @@ impl Trial {
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
-        sim.obstacles.push(self.body.clone());
+        sim.add_obstacle(self.body.clone());
         Ok((sim, g))
     }
 }
@@ -437,7 +437,7 @@ impl Trial {
             garment_yaml: read(&self.garment.source)?,
             panels: g.panels.iter().map(|p| p.name.clone()).collect(),
             vertices: sim.cloth.len(),
-            dt_s: sim.params.dt,
+            dt_s: sim.params().dt,
         };
         Ok(serde_yaml::to_string(&d)?)
     }
@@ -528,13 +528,16 @@ pub fn run(
     let mut steps = 0u64;
     let mut iters = 0usize;
     let mut trace: Vec<[f64; 4]> = Vec::new();
-    let every = ((0.05 / sim.params.dt).round() as u64).max(1);
-    let gravity = sim.params.gravity;
+    let every = ((0.05 / sim.params().dt).round() as u64).max(1);
+    let gravity = sim.params().gravity;
     let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
     let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
     // 1. sewing
     if !sew.gravity {
-        sim.params.gravity = Vector3::zeros();
+        sim.set_params(Params {
+            gravity: Vector3::zeros(),
+            ..sim.params().clone()
+        })?;
     }
     for f in sim.fabrics_mut() {
         f.damping.alpha = f.damping.alpha.min(-sew.drag);
@@ -543,7 +546,7 @@ pub fn run(
         s.k *= sew.stiffness_factor;
         s.d *= sew.stiffness_factor;
     }
-    let sew_steps = (sew.duration / sim.params.dt).round() as u64;
+    let sew_steps = (sew.duration / sim.params().dt).round() as u64;
     let mut step = |sim: &mut Simulation, steps: &mut u64| -> Result<()> {
         let s = sim
             .step()
@@ -572,7 +575,10 @@ pub fn run(
     }
     let sewing_s = sim.time;
     // 2. drape
-    sim.params.gravity = gravity;
+    sim.set_params(Params {
+        gravity,
+        ..sim.params().clone()
+    })?;
     for (f, a) in sim.fabrics_mut().zip(alphas) {
         f.damping.alpha = a;
     }
@@ -851,7 +857,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         .fold((0, 0.0f64), |(k, m), d| (k + 1, m.max(-d)));
     let (gap, at) = g.largest_gap(x);
     let mass = c.total_mass();
-    let weight = mass * sim.params.gravity.norm();
+    let weight = mass * sim.params().gravity.norm();
     let mut girths = BTreeMap::new();
     let (bv, bt) = trial.body.local_triangles();
     let bw: Vec<[f64; 3]> = bv
@@ -956,7 +962,7 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             .join(" + "),
         vertices: n,
         spacing_m: c.lc,
-        dt_s: sim.params.dt,
+        dt_s: sim.params().dt,
         mass_kg: mass,
         weight_n: weight,
         panels,

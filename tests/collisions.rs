@@ -47,7 +47,7 @@ fn incline(angle: f64, mu: f64) -> Simulation {
         mu,
     )
     .unwrap();
-    sim.obstacles.push(ob);
+    sim.add_obstacle(ob);
     sim
 }
 
@@ -108,13 +108,13 @@ fn drop_on(
     let spec = spec.resolve("o", Path::new("tests/data")).unwrap();
     let mut ob = Obstacle::new("o", spec, pose, 0.006, 0.3).unwrap();
     ob.linear_velocity = velocity;
-    sim.obstacles.push(ob);
+    sim.add_obstacle(ob);
     let e = 0.008;
     let mut worst = f64::INFINITY;
     for _ in 0..steps {
         sim.step().unwrap();
         for p in &sim.cloth.x {
-            worst = worst.min(sim.obstacles[0].proximity(p).distance);
+            worst = worst.min(sim.obstacles()[0].proximity(p).distance);
         }
     }
     let lowest = sim
@@ -247,16 +247,16 @@ fn thin_board(height: f64, dt: f64, rise: f64, steps: usize) -> (f64, f64) {
     )
     .unwrap();
     ob.linear_velocity = Vector3::new(0.0, 0.0, rise);
-    sim.obstacles.push(ob);
+    sim.add_obstacle(ob);
     let mut lowest = f64::INFINITY;
     for _ in 0..steps {
         sim.step().unwrap();
-        let top = sim.obstacles[0].pose.translation.z + 0.001;
+        let top = sim.obstacles()[0].pose.translation.z + 0.001;
         for p in &sim.cloth.x {
             lowest = lowest.min(p.z - top);
         }
     }
-    let top = sim.obstacles[0].pose.translation.z + 0.001;
+    let top = sim.obstacles()[0].pose.translation.z + 0.001;
     let highest = sim
         .cloth
         .x

@@ -111,7 +111,7 @@ fn free_fall_reaches_terminal_speed_g_over_alpha() {
 fn hanging_cloth_reaches_static_equilibrium() {
     let sc = scene("hanging_corners.yaml");
     let mut sim = sc.build(&Overrides::default()).unwrap();
-    let steps = (sc.file.duration / sim.params.dt).round() as usize;
+    let steps = (sc.file.duration / sim.params().dt).round() as usize;
     for _ in 0..steps {
         sim.step().unwrap();
     }
@@ -122,7 +122,7 @@ fn hanging_cloth_reaches_static_equilibrium() {
         if sim.is_pinned(i) {
             continue;
         }
-        let total = f[i] + sim.params.gravity * sim.cloth.mass[i];
+        let total = f[i] + sim.params().gravity * sim.cloth.mass[i];
         worst = worst.max(total.norm() / (sim.cloth.mass[i] * g));
     }
     println!("hanging: worst residual force per free vertex = {worst:.2e} of its weight; rms speed {:.2e} m/s", sim.rms_speed());
@@ -195,8 +195,8 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
     let d1 = drape(0.01, 1e-3, 3.0);
     // 1. the 2 cm drape: on the board, overhang down, settled within 3 s
     let sim = &d2.sim;
-    let board = &sim.obstacles[0];
-    let e = board.thickness + sim.params.cloth_thickness;
+    let board = &sim.obstacles()[0];
+    let e = board.thickness + sim.params().cloth_thickness;
     let up = board.pose.rotation * Vector3::z();
     let top = board.pose.translation.vector + up * 0.0025;
     let (mut over, mut worst_gap, mut min_d, mut hang): (usize, f64, f64, f64) =
@@ -310,7 +310,7 @@ fn pins_follow_their_path_exactly() {
         (0.2, p0 + Vector3::new(0.0, 0.1, 0.05)),
         (0.4, p0 + Vector3::new(0.1, 0.1, 0.0)),
     ]);
-    let mut pins = sim.pins.clone();
+    let mut pins = sim.pins().as_slice().to_vec();
     pins[0] = Pin::new(a, path.clone());
     sim.set_pins(pins).unwrap();
     let mut worst: f64 = 0.0;
@@ -322,6 +322,61 @@ fn pins_follow_their_path_exactly() {
     }
     println!("pin path: worst distance to target {worst:.2e} m");
     assert!(worst < 1e-9, "{worst}");
+}
+
+/// Pins and obstacles are sets with handles: removing one by its handle
+/// leaves the others (and their handles) as they were, and the vertex it held
+/// is free at once; a handle is never given to another pin.
+#[test]
+fn pins_and_obstacles_are_addressed_by_handles() {
+    let mut sim = swinging(fixture(), 1e-3);
+    let a = sim.cloth.index(0, 0).unwrap();
+    let b = sim.cloth.index(10, 0).unwrap();
+    let c = sim.cloth.index(5, 0).unwrap();
+    let held = sim
+        .set_pins(
+            [a, b, c]
+                .iter()
+                .map(|&v| Pin::new(v, PinPath::Fixed(sim.cloth.x[v])))
+                .collect(),
+        )
+        .unwrap();
+    assert!(sim.is_pinned(a) && sim.is_pinned(b) && sim.is_pinned(c));
+    // the middle pin goes: a and c stay pinned under their handles
+    assert_eq!(sim.remove_pin(held[2]).map(|p| p.vertex), Some(c));
+    assert!(sim.is_pinned(a) && sim.is_pinned(b) && !sim.is_pinned(c));
+    assert_eq!(sim.pins().get(held[0]).map(|p| p.vertex), Some(a));
+    assert_eq!(sim.pins().get(held[1]).map(|p| p.vertex), Some(b));
+    assert!(sim.remove_pin(held[2]).is_none());
+    assert!(sim
+        .set_pin_path(held[2], PinPath::Fixed(Vector3::zeros()))
+        .is_err());
+    // b's new path is followed exactly; a stays where it was
+    let (xa, xb) = (sim.cloth.x[a], sim.cloth.x[b]);
+    let to = xb + Vector3::new(0.0, 0.0, 0.01);
+    sim.set_pin_path(held[1], PinPath::Fixed(to)).unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    assert_eq!(sim.cloth.x[a], xa);
+    assert!((sim.cloth.x[b] - to).norm() < 1e-12);
+    // the freed vertex falls
+    assert!(sim.cloth.x[c].z < xa.z - 1e-3);
+    // obstacles: a floor added under the cloth, removed by its handle
+    let floor = garment_sim::collision::Obstacle::new(
+        "floor",
+        garment_sim::collision::ShapeSpec::Box {
+            size: [2.0, 2.0, 0.1],
+        },
+        Isometry3::translation(0.0, 0.0, 0.5),
+        0.0,
+        0.3,
+    )
+    .unwrap();
+    let h = sim.add_obstacle(floor);
+    assert_eq!(sim.obstacles().get(h).map(|o| o.id.as_str()), Some("floor"));
+    assert!(sim.remove_obstacle(h).is_some());
+    assert!(sim.obstacles().is_empty() && sim.obstacles().get(h).is_none());
 }
 
 /// The default solver decides on iteration counts, not on measured time: two
@@ -357,6 +412,105 @@ fn auto_solver_runs_are_reproducible() {
         "{ia:?}"
     );
     println!("iterations {ia:?}");
+}
+
+/// A clone carries the state (positions, velocities, hysteresis and
+/// friction memory, pins, obstacles, the solver `auto` is on) and a fresh
+/// workspace: cloned in the middle of a drape whose `auto` solver uses both
+/// the PCG and the Cholesky, with contacts, it steps bit for bit as the
+/// original, on one thread and on two.
+#[test]
+fn a_cloned_simulation_steps_as_the_original() {
+    for threads in [1, 2] {
+        let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+        let mut sim = sc
+            .build(&Overrides {
+                spacing: Some(0.01),
+                dt: Some(4e-3),
+                threads: Some(threads),
+                ..Default::default()
+            })
+            .unwrap();
+        for _ in 0..60 {
+            sim.step().unwrap();
+        }
+        let mut twin = sim.clone();
+        let (mut ia, mut ib) = (Vec::new(), Vec::new());
+        for _ in 0..40 {
+            ia.push(sim.step().unwrap().iterations);
+            ib.push(twin.step().unwrap().iterations);
+        }
+        assert_eq!(ia, ib, "{threads} threads");
+        assert!(sim.last.contacts > 0);
+        let same = |a: &[Vector3<f64>], b: &[Vector3<f64>]| a.iter().zip(b).all(|(p, q)| p == q);
+        assert!(
+            same(&sim.cloth.x, &twin.cloth.x),
+            "{threads} threads: positions differ"
+        );
+        assert!(
+            same(&sim.cloth.v, &twin.cloth.v),
+            "{threads} threads: velocities differ"
+        );
+        assert!(same(&sim.contact_forces(), &twin.contact_forces()));
+        assert_eq!(sim.energies().total(), twin.energies().total());
+    }
+}
+
+/// Parameters change between steps through `set_params`, checked as at
+/// construction: a bad value is refused naming it and changes nothing; a
+/// change of threads builds a new workspace (on two threads, to one and back,
+/// the run goes on bit for bit as if nothing had changed).
+#[test]
+fn parameters_change_between_steps_through_set_params() {
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let mut sim = sc
+        .build(&Overrides {
+            spacing: Some(0.02),
+            dt: Some(1.0 / 120.0),
+            threads: Some(2),
+            ..Default::default()
+        })
+        .unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+    }
+    let before = sim.params().clone();
+    let e = sim
+        .set_params(Params {
+            dt: 0.0,
+            ..before.clone()
+        })
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("dt"), "{e:#}");
+    let e = sim
+        .set_params(Params {
+            hysteresis: !before.hysteresis,
+            ..before.clone()
+        })
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("hysteresis"), "{e:#}");
+    assert_eq!(sim.params().dt, before.dt);
+    let mut twin = sim.clone();
+    twin.set_params(Params {
+        threads: 1,
+        ..before.clone()
+    })
+    .unwrap();
+    assert_eq!(twin.threads(), 1);
+    twin.set_params(before.clone()).unwrap();
+    assert_eq!(twin.threads(), 2);
+    for _ in 0..20 {
+        sim.step().unwrap();
+        twin.step().unwrap();
+    }
+    assert!(sim.cloth.x.iter().zip(&twin.cloth.x).all(|(p, q)| p == q));
+    // a runtime parameter (the trial switches gravity off while sewing)
+    sim.set_params(Params {
+        gravity: Vector3::zeros(),
+        ..before
+    })
+    .unwrap();
+    assert_eq!(sim.params().gravity, Vector3::zeros());
 }
 
 /// The simulation's threads change round-off only. Two adjacent corners

@@ -244,7 +244,7 @@ fn check_picture(png: &Path, cloth: &[[f64; 3]], views: &Views, front_view: bool
 fn obstacles_of(scene: &Path) -> Vec<Surface> {
     let sc = garment_sim::scene::Scene::load(scene).unwrap();
     let sim = sc.build(&Default::default()).unwrap();
-    sim.obstacles.iter().map(Surface::from_obstacle).collect()
+    sim.obstacles().iter().map(Surface::from_obstacle).collect()
 }
 
 #[test]

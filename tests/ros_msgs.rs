@@ -57,7 +57,7 @@ fn messages_match_rosbags_byte_for_byte() {
     round_trip(&mesh);
     write(&dir, "cloth_marker", &mesh);
     let obs = publish::obstacle_markers(&sim, h.clone());
-    assert_eq!(obs.markers.len(), 1 + sim.obstacles.len());
+    assert_eq!(obs.markers.len(), 1 + sim.obstacles().len());
     assert!(obs.markers[1].points.len() >= 36, "a box is 12 triangles");
     round_trip(&obs);
     write(&dir, "obstacle_markers", &obs);

@@ -199,7 +199,7 @@ pub fn scene_description(scene: &Scene, ov: &Overrides, sim: &Simulation) -> Res
         fabric_yaml,
         overrides: ov.clone(),
         grid: [sim.cloth.nx, sim.cloth.ny],
-        dt_s: sim.params.dt,
+        dt_s: sim.params().dt,
     };
     Ok(serde_yaml::to_string(&d)?)
 }

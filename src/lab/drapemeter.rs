@@ -318,7 +318,7 @@ pub fn run(
         cloth.x[i].z += bump.at(m[0], m[1]);
     }
     let mut sim = Simulation::new(cloth, fabric.clone(), params)?;
-    sim.obstacles.push(Obstacle::new(
+    sim.add_obstacle(Obstacle::new(
         "support_disk",
         ShapeSpec::Cylinder {
             height: disk_h,

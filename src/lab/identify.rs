@@ -839,12 +839,12 @@ pub fn sample_capture(
     rate_hz: f64,
     duration: f64,
 ) -> Result<Vec<Vec<Vector3<f64>>>> {
-    let per = 1.0 / (rate_hz * sim.params.dt);
+    let per = 1.0 / (rate_hz * sim.params().dt);
     let every = per.round() as u64;
     if every == 0 || (per - every as f64).abs() > 1e-6 {
         bail!(
             "the time step {} s does not divide the sampling period 1/{rate_hz} s",
-            sim.params.dt
+            sim.params().dt
         );
     }
     let frames = (duration * rate_hz).round() as usize;

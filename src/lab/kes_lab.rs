@@ -371,7 +371,7 @@ fn new_run(test: KesTest, dir: Direction, fabric: &Fabric, sim: &Simulation) -> 
         fabric: fabric.name.clone(),
         grid: [sim.cloth.nx, sim.cloth.ny],
         spacing_m: [sim.cloth.lc, sim.cloth.lt],
-        dt_s: sim.params.dt,
+        dt_s: sim.params().dt,
         steps: 0,
         summary: Vec::new(),
         loop_rms_relative: 0.0,
@@ -420,7 +420,8 @@ fn tensile(
         .collect();
     let first_moving = pins.len();
     pins.extend(moving.iter().map(|&i| Pin::new(i, PinPath::Fixed(x0[i]))));
-    sim.set_pins(pins)?;
+    let held = sim.set_pins(pins)?;
+    let moving_pins = held[first_moving..].to_vec();
     let mut run = new_run(KesTest::Tensile, dir, fabric, &sim);
     let fm = TENSILE_FM_DEFAULT_GF_CM * GF_PER_CM;
     let v = TENSILE_STRAIN_RATE * gauge;
@@ -436,12 +437,14 @@ fn tensile(
         .map_or(0.1, |p| p.0);
     let max_steps = (6.0 * emt.max(0.01) / TENSILE_STRAIN_RATE / opt.dt) as u64 + 100;
     loop {
-        for (k, p) in sim.pins[first_moving..].iter_mut().enumerate() {
-            p.path = PinPath::Velocity {
+        let t0 = sim.time;
+        for (k, &h) in moving_pins.iter().enumerate() {
+            let path = PinPath::Velocity {
                 start: x0[moving[k]] + Vector3::x() * disp,
                 velocity: Vector3::x() * (sign * v),
-                t0: sim.time,
+                t0,
             };
+            sim.set_pin_path(h, path)?;
         }
         sim.step()
             .with_context(|| format!("tensile test, t = {:.3} s", sim.time))?;
@@ -500,7 +503,8 @@ fn shear(
         .collect();
     let first_moving = pins.len();
     pins.extend(moving.iter().map(|&i| Pin::new(i, PinPath::Fixed(x0[i]))));
-    sim.set_pins(pins)?;
+    let held = sim.set_pins(pins)?;
+    let moving_pins = held[first_moving..].to_vec();
     let mut run = new_run(KesTest::Shear, dir, fabric, &sim);
     // 1. the dead weight's tension: pull slowly to 10 gf/cm
     let w = SHEAR_TENSION_GF_CM * GF_PER_CM;
@@ -511,12 +515,14 @@ fn shear(
     let mut stiffness: f64;
     let mut last_f = 0.0;
     loop {
-        for (k, p) in sim.pins[first_moving..].iter_mut().enumerate() {
-            p.path = PinPath::Velocity {
+        let t0 = sim.time;
+        for (k, &h) in moving_pins.iter().enumerate() {
+            let path = PinPath::Velocity {
                 start: x0[moving[k]] + Vector3::x() * disp,
                 velocity: Vector3::x() * v,
-                t0: sim.time,
+                t0,
             };
+            sim.set_pin_path(h, path)?;
         }
         sim.step()
             .with_context(|| format!("shear test (tensioning), t = {:.3} s", sim.time))?;
@@ -532,8 +538,8 @@ fn shear(
         }
     }
     // hold while the clamp settles
-    for (k, p) in sim.pins[first_moving..].iter_mut().enumerate() {
-        p.path = PinPath::Fixed(x0[moving[k]] + Vector3::x() * disp);
+    for (k, &h) in moving_pins.iter().enumerate() {
+        sim.set_pin_path(h, PinPath::Fixed(x0[moving[k]] + Vector3::x() * disp))?;
     }
     for _ in 0..5 {
         sim.step()?;
@@ -569,14 +575,16 @@ fn shear(
         let t = k as f64 * opt.dt;
         let (_, rate) = theta(t + 0.5 * opt.dt);
         let (th_now, _) = theta(t);
-        for (m, p) in sim.pins[first_moving..].iter_mut().enumerate() {
+        let t0 = sim.time;
+        for (m, &h) in moving_pins.iter().enumerate() {
             let radial = Vector3::new(th_now.cos(), th_now.sin(), 0.0);
             let tang = Vector3::new(-th_now.sin(), th_now.cos(), 0.0);
-            p.path = PinPath::Velocity {
+            let path = PinPath::Velocity {
                 start: anchor[m] + radial * d,
                 velocity: tang * (d * rate),
-                t0: sim.time,
+                t0,
             };
+            sim.set_pin_path(h, path)?;
         }
         sim.step()
             .with_context(|| format!("shear test, θ = {:.3}°", th_now / DEG))?;
@@ -683,7 +691,8 @@ fn bending(
             .iter()
             .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.x[i]))),
     );
-    sim.set_pins(pins)?;
+    let held = sim.set_pins(pins)?;
+    let moving_pins = held[first_moving..].to_vec();
     let mut run = new_run(KesTest::Bending, dir, fabric, &sim);
     let kmax = BENDING_MAX_PER_CM * PER_CM;
     let quarter = kmax / BENDING_RATE;
@@ -706,15 +715,17 @@ fn bending(
             discrete_cochleoid(kappa(t0), l, n),
             discrete_cochleoid(kappa(t1), l, n),
         );
-        for (m, p) in sim.pins[first_moving..].iter_mut().enumerate() {
+        let now = sim.time;
+        for (m, &h) in moving_pins.iter().enumerate() {
             let i = moving[m];
             let a = place(&p0, i, ys[i]);
             let b = place(&p1, i, ys[i]);
-            p.path = PinPath::Velocity {
+            let path = PinPath::Velocity {
                 start: a,
                 velocity: (b - a) / opt.dt,
-                t0: sim.time,
+                t0: now,
             };
+            sim.set_pin_path(h, path)?;
         }
         sim.step()
             .with_context(|| format!("bending test, K = {:.3} 1/cm", kappa(t0) / PER_CM))?;

@@ -168,7 +168,7 @@ pub fn obstacle_markers(sim: &Simulation, header: Header) -> MarkerArray {
         action: Marker::DELETEALL,
         ..Default::default()
     }];
-    for (k, o) in sim.obstacles.iter().enumerate() {
+    for (k, o) in sim.obstacles().iter().enumerate() {
         let (v, t) = o.local_triangles();
         let points = t
             .iter()
@@ -247,7 +247,7 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
             values: vec![
                 kv("sim_time_s", format!("{:.6}", sim.time)),
                 kv("steps", sim.steps.to_string()),
-                kv("dt_s", format!("{}", sim.params.dt)),
+                kv("dt_s", format!("{}", sim.params().dt)),
                 kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
                 kv("solver_iterations", f.iterations.to_string()),
                 kv("contacts", sim.last.contacts.to_string()),
@@ -257,8 +257,8 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
                 kv("dropped_messages", f.dropped_messages.to_string()),
                 kv("recovered_steps", f.recovered_steps.to_string()),
                 kv("vertices", sim.cloth.len().to_string()),
-                kv("pins", sim.pins.len().to_string()),
-                kv("obstacles", sim.obstacles.len().to_string()),
+                kv("pins", sim.pins().len().to_string()),
+                kv("obstacles", sim.obstacles().len().to_string()),
             ],
         }],
     }

@@ -7,6 +7,7 @@ use crate::collision::{Obstacle, ShapeSpec, DEFAULT_FRICTION, DEFAULT_OBSTACLE_T
 use crate::garment::Garment;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
 use crate::msgs;
+use crate::set::{Handle, Set};
 use crate::solver::{Pin, PinPath, Simulation};
 use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;
@@ -16,16 +17,20 @@ use std::collections::HashMap;
 /// moved together, each with its pose relative to the obstacle frame.
 #[derive(Debug, Default, Clone)]
 pub struct ObstacleRegistry {
-    parts: HashMap<String, Vec<(String, Isometry3<f64>)>>,
+    parts: HashMap<String, Vec<Part>>,
 }
+
+/// One shape of a message obstacle: its simulation obstacle and its pose in
+/// the obstacle frame.
+type Part = (Handle<Obstacle>, Isometry3<f64>);
 
 impl ObstacleRegistry {
     /// Registers the scene's own obstacles (one shape each).
     pub fn from_sim(sim: &Simulation) -> ObstacleRegistry {
         let mut r = ObstacleRegistry::default();
-        for o in &sim.obstacles {
+        for (h, o) in sim.obstacles().with_handles() {
             r.parts
-                .insert(o.id.clone(), vec![(o.id.clone(), Isometry3::identity())]);
+                .insert(o.id.clone(), vec![(h, Isometry3::identity())]);
         }
         r
     }
@@ -149,8 +154,9 @@ pub fn apply_obstacle(
                 .parts
                 .remove(id)
                 .ok_or_else(|| fail("no such obstacle to remove".into()))?;
-            sim.obstacles
-                .retain(|o| !parts.iter().any(|(pid, _)| *pid == o.id));
+            for (h, _) in parts {
+                sim.remove_obstacle(h);
+            }
             Ok(format!("removed obstacle {id:?}"))
         }
         msgs::Obstacle::MOVE => {
@@ -162,17 +168,19 @@ pub fn apply_obstacle(
                 .ok_or_else(|| fail("no such obstacle to move (ADD it first)".into()))?;
             // every part checked where it would go before any moves
             let mut moved = Vec::new();
-            for (pid, sub) in parts {
-                if let Some(k) = sim.obstacles.iter().position(|o| &o.id == pid) {
-                    let mut o = sim.obstacles[k].clone();
-                    set_motion(&mut o, &frame, sub, &lin, &ang);
+            for &(h, sub) in parts {
+                if let Some(o) = sim.obstacles().get(h) {
+                    let mut o = o.clone();
+                    set_motion(&mut o, &frame, &sub, &lin, &ang);
                     o.check_overlap(&sim.cloth.x)
                         .map_err(|e| fail(e.to_string()))?;
-                    moved.push((k, o));
+                    moved.push((h, o));
                 }
             }
-            for (k, o) in moved {
-                sim.obstacles[k] = o;
+            for (h, o) in moved {
+                if let Some(slot) = sim.obstacle_mut(h) {
+                    *slot = o;
+                }
             }
             Ok(format!("moved obstacle {id:?}"))
         }
@@ -233,7 +241,6 @@ pub fn apply_obstacle(
             }
             let many = specs.len() > 1;
             let mut built = Vec::new();
-            let mut parts = Vec::new();
             for (k, (spec, sub)) in specs.into_iter().enumerate() {
                 let pid = if many {
                     format!("{id}#{k}")
@@ -245,18 +252,21 @@ pub fn apply_obstacle(
                 set_motion(&mut o, &frame, &sub, &lin, &ang);
                 o.check_overlap(&sim.cloth.x)
                     .map_err(|e| fail(e.to_string()))?;
-                built.push(o);
-                parts.push((pid, sub));
+                built.push((o, sub));
             }
             let replaced = if let Some(old) = reg.parts.remove(id) {
-                sim.obstacles
-                    .retain(|o| !old.iter().any(|(pid, _)| *pid == o.id));
+                for (h, _) in old {
+                    sim.remove_obstacle(h);
+                }
                 true
             } else {
                 false
             };
             let n = built.len();
-            sim.obstacles.extend(built);
+            let parts = built
+                .into_iter()
+                .map(|(o, sub)| (sim.add_obstacle(o), sub))
+                .collect();
             reg.parts.insert(id.to_string(), parts);
             Ok(format!(
                 "{} obstacle {id:?} ({n} shape{})",
@@ -294,7 +304,7 @@ pub fn apply_pin(
     let fail = |e: String| format!("pins: {e}");
     check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
     if m.operation == msgs::Pin::RELEASE_ALL {
-        let n = sim.pins.len();
+        let n = sim.pins().len();
         sim.set_pins(Vec::new()).map_err(|e| fail(e.to_string()))?;
         return Ok(format!("released all {n} pins"));
     }
@@ -375,7 +385,7 @@ pub fn apply_pin(
         )
         .map_err(|e| fail(e.to_string()))?;
     }
-    let mut pins = sim.pins.clone();
+    let mut pins = sim.pins().as_slice().to_vec();
     // a target farther than one step at PIN_TRAVEL_SPEED is travelled to
     // at that speed (PinPath::travel)
     let at = |k: usize| -> PinPath {
@@ -389,7 +399,7 @@ pub fn apply_pin(
             },
             _ => PinPath::Fixed(target),
         };
-        path.travel(here, sim.time, sim.params.dt)
+        path.travel(here, sim.time, sim.params().dt)
     };
     let verb = match m.operation {
         msgs::Pin::PIN => {
@@ -445,7 +455,7 @@ pub fn apply_pin(
 /// velocities set to zero (the cloth at rest where it is).
 #[derive(Debug, Default)]
 pub struct Recovery {
-    inputs: Option<(Vec<Pin>, Vec<Obstacle>, ObstacleRegistry)>,
+    inputs: Option<(Set<Pin>, Set<Obstacle>, ObstacleRegistry)>,
     /// Steps that failed and were recovered.
     pub recovered: u64,
 }
@@ -467,7 +477,11 @@ impl Recovery {
     /// them as the last good step left them (once between two steps).
     pub fn before_change(&mut self, sim: &Simulation, registry: &ObstacleRegistry) {
         if self.inputs.is_none() {
-            self.inputs = Some((sim.pins.clone(), sim.obstacles.clone(), registry.clone()));
+            self.inputs = Some((
+                sim.pins().clone(),
+                sim.obstacles().clone(),
+                registry.clone(),
+            ));
         }
     }
 
@@ -495,13 +509,14 @@ impl Recovery {
             let what = format!(
                 "undid the pins and obstacles messages since the last good step \
                  ({} → {} pins, {} → {} obstacles)",
-                sim.pins.len(),
+                sim.pins().len(),
                 pins.len(),
-                sim.obstacles.len(),
+                sim.obstacles().len(),
                 obstacles.len()
             );
-            sim.set_pins(pins).map_err(|e| format!("{first}; {e:#}"))?;
-            sim.obstacles = obstacles;
+            sim.set_pin_set(pins)
+                .map_err(|e| format!("{first}; {e:#}"))?;
+            sim.set_obstacles(obstacles);
             *registry = reg;
             match sim.step() {
                 Ok(stats) => return Ok(self.recovered(stats, first, what)),
@@ -567,7 +582,7 @@ mod tests {
     fn obstacle_add_move_remove_with_parts() {
         let mut s = sim();
         let mut reg = ObstacleRegistry::from_sim(&s);
-        let n0 = s.obstacles.len();
+        let n0 = s.obstacles().len();
         let mut m = msgs::Obstacle {
             id: "gripper".into(),
             pose: pose_at(0.0, 0.0, 1.0),
@@ -590,8 +605,8 @@ mod tests {
             ..Default::default()
         };
         apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
-        assert_eq!(s.obstacles.len(), n0 + 2);
-        let part = s.obstacles.iter().find(|o| o.id == "gripper#0").unwrap();
+        assert_eq!(s.obstacles().len(), n0 + 2);
+        let part = s.obstacles().iter().find(|o| o.id == "gripper#0").unwrap();
         assert!((part.pose.translation.vector - Vector3::new(0.1, 0.0, 1.0)).norm() < 1e-12);
         assert_eq!(part.thickness, DEFAULT_OBSTACLE_THICKNESS);
         // move the frame up 0.5 m while turning about z: parts follow, with
@@ -600,12 +615,12 @@ mod tests {
         m.pose = pose_at(0.0, 0.0, 1.5);
         m.velocity.angular.z = 2.0;
         apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
-        let part = s.obstacles.iter().find(|o| o.id == "gripper#1").unwrap();
+        let part = s.obstacles().iter().find(|o| o.id == "gripper#1").unwrap();
         assert!((part.pose.translation.vector - Vector3::new(-0.1, 0.0, 1.5)).norm() < 1e-12);
         assert!((part.linear_velocity - Vector3::new(0.0, -0.2, 0.0)).norm() < 1e-12);
         m.operation = msgs::Obstacle::REMOVE;
         apply_obstacle(&mut s, &mut reg, &m, "world", 1000).unwrap();
-        assert_eq!(s.obstacles.len(), n0);
+        assert_eq!(s.obstacles().len(), n0);
         assert!(apply_obstacle(&mut s, &mut reg, &m, "world", 1000)
             .unwrap_err()
             .contains("no such obstacle"));
@@ -615,7 +630,7 @@ mod tests {
     fn bad_obstacles_change_nothing() {
         let mut s = sim();
         let mut reg = ObstacleRegistry::from_sim(&s);
-        let n0 = s.obstacles.len();
+        let n0 = s.obstacles().len();
         let mesh = msgs::Obstacle {
             id: "m".into(),
             meshes: vec![msgs::Mesh {
@@ -649,7 +664,7 @@ mod tests {
         assert!(apply_obstacle(&mut s, &mut reg, &q, "world", 1000)
             .unwrap_err()
             .contains("quaternion"));
-        assert_eq!(s.obstacles.len(), n0);
+        assert_eq!(s.obstacles().len(), n0);
     }
 
     #[test]
@@ -665,7 +680,7 @@ mod tests {
         };
         apply_pin(&mut s, None, &m, "world").unwrap();
         assert_eq!(
-            s.pins.last().unwrap().path,
+            s.pins().last().unwrap().path,
             PinPath::Fixed(s.cloth.x[corner])
         );
         m.operation = msgs::Pin::MOVE;
@@ -684,9 +699,9 @@ mod tests {
         // moves on with the velocity
         let d = (Vector3::new(0.0, 0.0, 2.0) - s.cloth.x[corner]).norm();
         let arrive = s.time + d / limits::PIN_TRAVEL_SPEED;
-        let (p, v) = s.pins.last().unwrap().path.at(arrive + 1.0);
+        let (p, v) = s.pins().last().unwrap().path.at(arrive + 1.0);
         assert!((p - Vector3::new(0.0, 0.0, 2.1)).norm() < 1e-12 && v.z == 0.1);
-        let pinned = s.pins.len();
+        let pinned = s.pins().len();
         // errors: vertex out of range, unpinned MOVE, length mismatch, NaN
         let bad = msgs::Pin {
             operation: msgs::Pin::PIN,
@@ -723,10 +738,10 @@ mod tests {
         assert!(apply_pin(&mut s, None, &bad, "world")
             .unwrap_err()
             .contains("grid (i, j)[0]"));
-        assert_eq!(s.pins.len(), pinned);
+        assert_eq!(s.pins().len(), pinned);
         m.operation = msgs::Pin::RELEASE;
         apply_pin(&mut s, None, &m, "world").unwrap();
-        assert_eq!(s.pins.len(), pinned - 1);
+        assert_eq!(s.pins().len(), pinned - 1);
     }
 
     /// Steps `n` times; every step succeeds and leaves finite positions.
@@ -761,7 +776,7 @@ mod tests {
         // refused: millimetres sent as metres, 1e200, 1e5 m/s, 1e300 m/s;
         // the simulation then steps on unchanged
         let mut s = sim();
-        let n_pins = s.pins.len();
+        let n_pins = s.pins().len();
         for (m, why) in [
             (
                 pin_msg(msgs::Pin::PIN, 0, Some([500.0, 0.0, 1000.0]), None),
@@ -782,7 +797,7 @@ mod tests {
         ] {
             let e = apply_pin(&mut s, None, &m, "world").unwrap_err();
             assert!(e.contains(why), "{e}");
-            assert_eq!(s.pins.len(), n_pins);
+            assert_eq!(s.pins().len(), n_pins);
         }
         steps_ok(&mut s, 20);
         // a target 1.5 m above a corner held by another pin on the opposite
@@ -807,7 +822,7 @@ mod tests {
             "world",
         )
         .unwrap();
-        let dt = s.params.dt;
+        let dt = s.params().dt;
         let mut fastest: f64 = 0.0;
         let mut last = s.cloth.x[a];
         let steps = (1.5 / 2.0 / dt).ceil() as usize + 50;
@@ -846,7 +861,7 @@ mod tests {
         );
         apply_pin(&mut s, None, &m, "world").unwrap();
         steps_ok(&mut s, 1700);
-        let (p, v) = s.pins.last().unwrap().path.at(s.time);
+        let (p, v) = s.pins().last().unwrap().path.at(s.time);
         assert!(
             (s.cloth.x[a] - p).norm() < 1e-9 && v.x == 0.5,
             "{p:?} {v:?}"
@@ -874,7 +889,7 @@ mod tests {
     fn implausible_obstacles_are_refused() {
         let mut s = sim();
         let mut reg = ObstacleRegistry::from_sim(&s);
-        let n0 = s.obstacles.len();
+        let n0 = s.obstacles().len();
         let c = s.cloth.x[s.cloth.len() / 2];
         // a 0.3 m sphere around the cloth's middle, a sphere of radius
         // 1e300, one 1 km away, one moving at 1e5 m/s
@@ -894,7 +909,7 @@ mod tests {
         fast.velocity.linear.x = 1e5;
         let e = apply_obstacle(&mut s, &mut reg, &fast, "world", 1000).unwrap_err();
         assert!(e.contains("velocity.linear"), "{e}");
-        assert_eq!(s.obstacles.len(), n0);
+        assert_eq!(s.obstacles().len(), n0);
         // a sphere beside the cloth, then moved onto it: the MOVE is refused
         // and the sphere stays where it was
         let beside = sphere("beside", 0.1, c + Vector3::new(0.0, 0.0, 0.5));
@@ -904,7 +919,7 @@ mod tests {
         onto.pose = pose_at(c.x, c.y, c.z);
         let e = apply_obstacle(&mut s, &mut reg, &onto, "world", 1000).unwrap_err();
         assert!(e.contains("overlaps the cloth"), "{e}");
-        let o = s.obstacles.iter().find(|o| o.id == "beside").unwrap();
+        let o = s.obstacles().iter().find(|o| o.id == "beside").unwrap();
         assert!((o.pose.translation.vector - (c + Vector3::new(0.0, 0.0, 0.5))).norm() < 1e-12);
         steps_ok(&mut s, 20);
     }
@@ -922,8 +937,8 @@ mod tests {
         for _ in 0..3 {
             assert!(matches!(rec.step(&mut s, &mut reg), Ok(Stepped::Ok(_))));
         }
-        let pins = s.pins.clone();
-        let obstacles = s.obstacles.len();
+        let pins = s.pins().clone();
+        let obstacles = s.obstacles().len();
         // an obstacle added (a plausible message) and a pin at a target no
         // message may give (not finite), since the last good step
         rec.before_change(&s, &reg);
@@ -936,8 +951,8 @@ mod tests {
             100,
         )
         .unwrap();
-        assert_eq!(s.obstacles.len(), obstacles + 1);
-        let mut bad = s.pins.clone();
+        assert_eq!(s.obstacles().len(), obstacles + 1);
+        let mut bad = s.pins().to_vec();
         bad.push(Pin::new(
             0,
             PinPath::Fixed(Vector3::new(f64::INFINITY, 0.0, 0.0)),
@@ -968,8 +983,8 @@ mod tests {
         }
         assert_eq!(rec.recovered, 1);
         assert_eq!(s.steps, before.3 + 1);
-        assert_eq!(s.pins, pins);
-        assert_eq!(s.obstacles.len(), obstacles);
+        assert_eq!(s.pins(), &pins);
+        assert_eq!(s.obstacles().len(), obstacles);
         // the registry was undone with the obstacles: "ball" is unknown again
         let mut gone = sphere("ball", 0.05, c);
         gone.operation = msgs::Obstacle::REMOVE;

@@ -517,7 +517,7 @@ impl Node {
             node.fq,
             node.settings.scene,
             node.loaded.sim.cloth.len(),
-            node.loaded.sim.params.dt,
+            node.loaded.sim.params().dt,
             node.settings.frame_id,
             node.names.points,
             node.names.mesh,
@@ -784,7 +784,7 @@ impl Node {
     /// are done.
     fn step(&mut self) {
         let l = &mut self.loaded;
-        let clock_every = ((1e-3 / l.sim.params.dt).round() as u64).max(1);
+        let clock_every = ((1e-3 / l.sim.params().dt).round() as u64).max(1);
         let stepped = self.recovery.step(&mut l.sim, &mut l.registry);
         // between steps the node publishes, reads parameters and messages,
         // or sleeps: the simulation's workers sleep meanwhile instead of
@@ -799,7 +799,7 @@ impl Node {
             }) => {
                 self.counters.last_error = format!(
                     "step failed at t = {:.4} s: {error}; recovered: {undone}",
-                    self.loaded.sim.time - self.loaded.sim.params.dt
+                    self.loaded.sim.time - self.loaded.sim.params().dt
                 );
                 let m = self.counters.last_error.clone();
                 self.warn(&m);
@@ -1034,9 +1034,9 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(!l.sim.cloth.seams.is_empty());
         assert!(worst < 2e-3, "seam gap {worst} m after sewing");
-        assert_eq!(l.sim.obstacles.len(), 1);
-        assert_eq!(l.sim.obstacles[0].id, "body");
-        assert!(l.sim.params.gravity.norm() > 9.0);
+        assert_eq!(l.sim.obstacles().len(), 1);
+        assert_eq!(l.sim.obstacles()[0].id, "body");
+        assert!(l.sim.params().gravity.norm() > 9.0);
         assert!(l.description.contains("garment_sim/trial_description/1"));
         assert!(l.description.contains("skirt_front"));
         // its cloud carries the fit fields; read back by field name and offset
@@ -1124,7 +1124,7 @@ mod tests {
             ..Default::default()
         };
         apply_pin(&mut l.sim, Some(&g), &m, "world").unwrap();
-        let v: Vec<usize> = l.sim.pins.iter().map(|q| q.vertex).collect();
+        let v: Vec<usize> = l.sim.pins().iter().map(|q| q.vertex).collect();
         assert_eq!(v.len(), 3);
         assert!(v.iter().all(|&k| k >= p.first && k < p.first + p.count));
         // in the panel's coordinates, (i + 1, j) is one spacing along the

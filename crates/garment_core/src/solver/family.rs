@@ -26,7 +26,7 @@ impl Simulation {
 
     /// `∂f/∂x` of one family (the elements' pattern of the system matrix).
     fn family_matrix(&self, fam: Family, kind: Jacobian) -> BlockMatrix {
-        let mut k = self.a.clone();
+        let mut k = self.ws.a.clone();
         k.clear();
         let f = self.fabric_lookup();
         sets::jacobians(&self.cloth, &f, |g| g == Some(fam), kind, &mut k);
@@ -85,7 +85,7 @@ impl Simulation {
     /// solver for a cloth of one fabric (its first fabric's α and β).
     pub fn damping_matrix(&self) -> BlockMatrix {
         let d = self.fabric.damping;
-        let mut c = self.a.clone();
+        let mut c = self.ws.a.clone();
         c.clear();
         for i in 0..self.cloth.len() {
             c.val[c.diag[i]] = Matrix3::identity() * (d.alpha * self.cloth.mass[i]);

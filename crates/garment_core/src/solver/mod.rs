@@ -30,6 +30,7 @@ mod vertices;
 use crate::cloth::Cloth;
 use crate::collision::Obstacle;
 use crate::fabric::Fabric;
+use crate::set::{Handle, Set};
 use anyhow::{bail, Result};
 pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
@@ -81,6 +82,42 @@ impl Default for Params {
             threads: 0,
             friction_bound_now: false,
         }
+    }
+}
+
+impl Params {
+    /// Refuses values no simulation can run with, naming the parameter.
+    pub fn check(&self) -> Result<()> {
+        crate::limits::check_dt("dt", self.dt)?;
+        crate::limits::check_cg_tolerance("cg_tolerance", self.cg_tolerance)?;
+        if self.cg_max_iterations == 0 {
+            bail!("cg_max_iterations = 0: must be ≥ 1");
+        }
+        let g = self.gravity;
+        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
+            bail!(
+                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
+                g.x,
+                g.y,
+                g.z,
+                crate::limits::MAX_GRAVITY
+            );
+        }
+        crate::limits::check_range(
+            "cloth thickness",
+            self.cloth_thickness,
+            crate::limits::CLOTH_THICKNESS.0,
+            crate::limits::CLOTH_THICKNESS.1,
+            "m",
+            "CLOTH_THICKNESS: a film to a quilt",
+        )?;
+        if self.threads > MAX_THREADS {
+            bail!(
+                "threads = {}: at most {MAX_THREADS} (0: one per core)",
+                self.threads
+            );
+        }
+        Ok(())
     }
 }
 
@@ -255,6 +292,15 @@ impl<'a> Fabrics<'a> {
 }
 
 /// A cloth, its fabric and its scene, advanced at a fixed step.
+///
+/// Three parts, kept apart: the parameters ([`Params`]); the state, which
+/// alone decides what the next step does (the cloth with its positions,
+/// velocities and hysteresis memory, the fabrics, the obstacles and pins,
+/// time, the friction memory, last step's force, friction force and velocity
+/// change, and which linear solver `auto` is on); and a [`Workspace`], what a step computes and throws away
+/// (matrix, right-hand side, filter, solver buffers, threads). Cloning a
+/// simulation clones its state and gives the clone a fresh workspace: it
+/// steps exactly as the original does.
 #[derive(Debug)]
 pub struct Simulation {
     pub cloth: Cloth,
@@ -263,24 +309,59 @@ pub struct Simulation {
     /// A garment's further fabrics: `cloth.vertex_fabric` indexes
     /// `fabric`, then these (see [`Simulation::with_fabrics`]).
     pub other_fabrics: Vec<Fabric>,
-    pub obstacles: Vec<Obstacle>,
-    pub pins: Vec<Pin>,
-    pub params: Params,
+    /// Read with [`Simulation::obstacles`]; changed through the simulation.
+    obstacles: Set<Obstacle>,
+    /// Read with [`Simulation::pins`]; changed through the simulation, which
+    /// keeps `pinned` in step with it.
+    pins: Set<Pin>,
+    /// Read with [`Simulation::params`], changed with
+    /// [`Simulation::set_params`].
+    params: Params,
     /// Simulated time, s.
     pub time: f64,
     pub steps: u64,
     pub last: StepStats,
     dissipated: f64,
+    /// Total force at the start of the last step (internal + external +
+    /// damping): the next step's friction bound reads it.
+    pub force: Vec<Vector3<f64>>,
+    /// Stick/slip state carried from step to step.
+    friction: Vec<FrictionState>,
+    /// The last step's velocity change: the linear solvers' first guess.
+    dv: Vec<Vector3<f64>>,
+    /// The last step's kinetic friction force: the next step's constraint
+    /// phase takes it out of the force that drives the sliding.
+    friction_force: Vec<Vector3<f64>>,
+    /// Each vertex's pin in `pins`.
+    pinned: Vec<Option<usize>>,
+    /// Which solver `auto` is on.
+    auto: AutoChoice,
+    ws: Workspace,
+}
+
+/// Where `auto` mode stands (see [`LinearSolverKind::Auto`]).
+#[derive(Debug, Clone, Copy)]
+struct AutoChoice {
+    /// On the Cholesky (the PCG needed too many iterations).
+    on_direct: bool,
+    /// Step of the next try of the PCG while on the Cholesky, and the gap
+    /// to the one after if it fails (doubled at each failure).
+    next_probe: u64,
+    probe_gap: u64,
+}
+
+/// What a step computes and throws away, sized for one cloth and one set of
+/// [`Params`]: the system, its right-hand side and constraints, the linear
+/// solvers' buffers and factors, and the threads.
+#[derive(Debug)]
+struct Workspace {
     a: BlockMatrix,
     slots: assemble::Slots,
     part: assemble::Partition,
     /// Threads of the assembly, the PCG and the contacts, started once (one
     /// per chunk of `part`).
     team: team::Team,
-    /// Total force at the start of the last step (internal + external + damping).
-    pub force: Vec<Vector3<f64>>,
     b: Vec<Vector3<f64>>,
-    dv: Vec<Vector3<f64>>,
     z: Vec<Vector3<f64>>,
     y: Vec<Vector3<f64>>,
     filter: Vec<Filter>,
@@ -288,109 +369,113 @@ pub struct Simulation {
     contact_of: Vec<Option<(f64, Vector3<f64>)>>,
     /// Normal of each vertex's contact this step (also when it sticks).
     normals: Vec<Vector3<f64>>,
-    /// Stick/slip state carried from step to step.
-    friction: Vec<FrictionState>,
-    /// Kinetic friction force of this step.
-    friction_force: Vec<Vector3<f64>>,
     /// Broad-phase boxes of the obstacles for this step.
     bounds: Vec<vertices::Bounds>,
-    pinned: Vec<Option<usize>>,
     pcg: linear::Pcg,
     direct: Option<linear::Direct>,
     /// The multigrid hierarchy (built on first use).
     amg: Option<amg::Amg>,
-    /// `auto` mode is on the Cholesky (the PCG needed too many iterations).
-    auto_on_direct: bool,
-    /// Step of the next try of the PCG while on the Cholesky, and the gap
-    /// to the one after if it fails (doubled at each failure).
-    auto_next_probe: u64,
-    auto_probe_gap: u64,
+}
+
+impl Workspace {
+    /// A workspace for `cloth`, whose elements it first puts in the order
+    /// its threads take them (grouped by chunk of vertices; a cloth already
+    /// in that order stays as it is).
+    fn new(cloth: &mut Cloth, params: &Params) -> Result<Workspace> {
+        let n = cloth.len();
+        let cliques = sets::cliques(cloth);
+        let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
+        let threads = match params.threads {
+            0 => team::threads_for(n),
+            t => t,
+        };
+        let part = assemble::partition(cloth, threads);
+        let slots = assemble::Slots::new(&a, cloth);
+        let direct = match params.linear_solver {
+            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
+            LinearSolverKind::Pcg | LinearSolverKind::Auto | LinearSolverKind::Amg => None,
+        };
+        let z = vec![Vector3::zeros(); n];
+        Ok(Workspace {
+            a,
+            slots,
+            part,
+            team: team::Team::new(threads),
+            b: z.clone(),
+            y: z.clone(),
+            normals: z.clone(),
+            z,
+            filter: vec![Filter::Free; n],
+            contact_of: vec![None; n],
+            bounds: Vec::new(),
+            pcg: linear::Pcg::default(),
+            direct,
+            amg: None,
+        })
+    }
+}
+
+impl Clone for Simulation {
+    /// The state and parameters, with a fresh [`Workspace`].
+    fn clone(&self) -> Simulation {
+        let mut cloth = self.cloth.clone();
+        let ws = Workspace::new(&mut cloth, &self.params)
+            .expect("a workspace like the one this simulation was built with");
+        Simulation {
+            cloth,
+            fabric: self.fabric.clone(),
+            other_fabrics: self.other_fabrics.clone(),
+            obstacles: self.obstacles.clone(),
+            pins: self.pins.clone(),
+            params: self.params.clone(),
+            time: self.time,
+            steps: self.steps,
+            last: self.last,
+            dissipated: self.dissipated,
+            force: self.force.clone(),
+            friction: self.friction.clone(),
+            dv: self.dv.clone(),
+            friction_force: self.friction_force.clone(),
+            pinned: self.pinned.clone(),
+            auto: self.auto,
+            ws,
+        }
+    }
 }
 
 impl Simulation {
     pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
-        crate::limits::check_dt("dt", params.dt)?;
-        crate::limits::check_cg_tolerance("cg_tolerance", params.cg_tolerance)?;
-        if params.cg_max_iterations == 0 {
-            bail!("cg_max_iterations = 0: must be ≥ 1");
-        }
-        let g = params.gravity;
-        if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
-            bail!(
-                "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
-                g.x,
-                g.y,
-                g.z,
-                crate::limits::MAX_GRAVITY
-            );
-        }
-        crate::limits::check_range(
-            "cloth thickness",
-            params.cloth_thickness,
-            crate::limits::CLOTH_THICKNESS.0,
-            crate::limits::CLOTH_THICKNESS.1,
-            "m",
-            "CLOTH_THICKNESS: a film to a quilt",
-        )?;
-        if params.threads > MAX_THREADS {
-            bail!(
-                "threads = {}: at most {MAX_THREADS} (0: one per core)",
-                params.threads
-            );
-        }
+        params.check()?;
         let fabric = if params.hysteresis {
             fabric
         } else {
             fabric.without_hysteresis()
         };
         let n = cloth.len();
-        let cliques = sets::cliques(&cloth);
         sets::check(&cloth)?;
-        let a = BlockMatrix::from_cliques(n, cliques.iter().map(|c| c.as_slice()));
-        let threads = match params.threads {
-            0 => team::threads_for(n),
-            t => t,
-        };
-        let part = assemble::partition(&mut cloth, threads);
-        let slots = assemble::Slots::new(&a, &cloth);
-        let direct = match params.linear_solver {
-            LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
-            LinearSolverKind::Pcg | LinearSolverKind::Auto | LinearSolverKind::Amg => None,
-        };
-        let z = vec![Vector3::zeros(); n];
+        let ws = Workspace::new(&mut cloth, &params)?;
         Ok(Simulation {
             cloth,
             fabric,
             other_fabrics: Vec::new(),
-            obstacles: Vec::new(),
-            pins: Vec::new(),
+            obstacles: Set::new(),
+            pins: Set::new(),
             params,
             time: 0.0,
             steps: 0,
             last: StepStats::default(),
             dissipated: 0.0,
-            a,
-            slots,
-            part,
-            team: team::Team::new(threads),
-            force: z.clone(),
-            b: z.clone(),
-            dv: z.clone(),
-            y: z.clone(),
-            normals: z.clone(),
-            friction_force: z.clone(),
-            z,
-            filter: vec![Filter::Free; n],
-            contact_of: vec![None; n],
+            force: vec![Vector3::zeros(); n],
             friction: vec![FrictionState::default(); n],
-            bounds: Vec::new(),
+            dv: vec![Vector3::zeros(); n],
+            friction_force: vec![Vector3::zeros(); n],
             pinned: vec![None; n],
-            pcg: linear::Pcg::default(),
-            direct,
-            amg: None,
-            auto_on_direct: false,
-            auto_next_probe: 0,
-            auto_probe_gap: AUTO_PROBE,
+            auto: AutoChoice {
+                on_direct: false,
+                next_probe: 0,
+                probe_gap: AUTO_PROBE,
+            },
+            ws,
         })
     }
 
@@ -464,7 +549,7 @@ impl Simulation {
 
     /// Threads of the assembly, the PCG and the contacts.
     pub fn threads(&self) -> usize {
-        self.team.size()
+        self.ws.team.size()
     }
 
     /// Lets the simulation's worker threads sleep now rather than spin for
@@ -472,11 +557,71 @@ impl Simulation {
     /// cores): for a caller about to wait, e.g. a node pacing the steps with
     /// the wall clock.
     pub fn rest_threads(&self) {
-        self.team.rest();
+        self.ws.team.rest();
     }
 
-    /// Replaces the pins (checks the vertex indices).
-    pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<()> {
+    /// The integrator's parameters.
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Changes the parameters between two steps (checked as at
+    /// construction); a change of threads or linear solver builds a new
+    /// workspace. `hysteresis` is the fabric's, fixed at construction.
+    pub fn set_params(&mut self, params: Params) -> Result<()> {
+        params.check()?;
+        if params.hysteresis != self.params.hysteresis {
+            bail!("hysteresis is set when the simulation is built, not while it runs");
+        }
+        let rebuild = params.threads != self.params.threads
+            || params.linear_solver != self.params.linear_solver;
+        if rebuild {
+            self.ws = Workspace::new(&mut self.cloth, &params)?;
+        }
+        self.params = params;
+        Ok(())
+    }
+
+    /// The obstacles, in the order they were added.
+    pub fn obstacles(&self) -> &Set<Obstacle> {
+        &self.obstacles
+    }
+
+    /// Adds an obstacle; its handle.
+    pub fn add_obstacle(&mut self, o: Obstacle) -> Handle<Obstacle> {
+        self.obstacles.insert(o)
+    }
+
+    /// Removes an obstacle (the others keep their handles).
+    pub fn remove_obstacle(&mut self, h: Handle<Obstacle>) -> Option<Obstacle> {
+        self.obstacles.remove(h)
+    }
+
+    /// An obstacle to move or change.
+    pub fn obstacle_mut(&mut self, h: Handle<Obstacle>) -> Option<&mut Obstacle> {
+        self.obstacles.get_mut(h)
+    }
+
+    /// Replaces every obstacle by `obstacles` (a set taken from
+    /// [`Simulation::obstacles`] keeps its handles).
+    pub fn set_obstacles(&mut self, obstacles: Set<Obstacle>) {
+        self.obstacles.replace(obstacles);
+    }
+
+    /// The pins, in the order they were set.
+    pub fn pins(&self) -> &Set<Pin> {
+        &self.pins
+    }
+
+    /// Replaces the pins (checks the vertex indices); their handles, in order.
+    pub fn set_pins(&mut self, pins: Vec<Pin>) -> Result<Vec<Handle<Pin>>> {
+        self.set_pin_set(pins.into_iter().collect())?;
+        Ok(self.pins.with_handles().map(|(h, _)| h).collect())
+    }
+
+    /// Replaces the pins by `pins` (a set taken from [`Simulation::pins`]
+    /// keeps its handles); checks the vertex indices first.
+    pub fn set_pin_set(&mut self, pins: Set<Pin>) -> Result<()> {
         for p in &pins {
             if p.vertex >= self.cloth.len() {
                 bail!(
@@ -486,20 +631,44 @@ impl Simulation {
                 );
             }
         }
+        self.pins.replace(pins);
+        self.index_pins();
+        Ok(())
+    }
+
+    /// Gives a pin a new path.
+    pub fn set_pin_path(&mut self, h: Handle<Pin>, path: PinPath) -> Result<()> {
+        match self.pins.get_mut(h) {
+            Some(p) => {
+                p.path = path;
+                Ok(())
+            }
+            None => bail!("no pin {h:?}"),
+        }
+    }
+
+    /// Lets a pin go.
+    pub fn remove_pin(&mut self, h: Handle<Pin>) -> Option<Pin> {
+        let p = self.pins.remove(h)?;
+        self.index_pins();
+        Some(p)
+    }
+
+    /// `pinned` from `pins`: each vertex's pin (the last one when several
+    /// pin a vertex).
+    fn index_pins(&mut self) {
         self.pinned.iter_mut().for_each(|p| *p = None);
-        for (k, p) in pins.iter().enumerate() {
+        for (k, p) in self.pins.iter().enumerate() {
             self.pinned[p.vertex] = Some(k);
         }
-        self.pins = pins;
-        Ok(())
     }
 
     /// The direct solver, built (symbolic analysis) on first use.
     fn direct(&mut self) -> Result<&mut linear::Direct> {
-        if self.direct.is_none() {
-            self.direct = Some(linear::Direct::new(&self.a)?);
+        if self.ws.direct.is_none() {
+            self.ws.direct = Some(linear::Direct::new(&self.ws.a)?);
         }
-        Ok(self.direct.as_mut().expect("direct solver built"))
+        Ok(self.ws.direct.as_mut().expect("direct solver built"))
     }
 
     /// Advances one fixed step.
@@ -510,27 +679,21 @@ impl Simulation {
         let n = self.cloth.len();
         // the linear solvers' convergence test is floored by gravity's
         // impulse over the step (see `Pcg::set_scale`)
-        self.pcg
+        self.ws
+            .pcg
             .set_scale(&self.cloth.mass, self.params.gravity * h);
         // pins whose release time has come let go
-        if self
-            .pins
-            .iter()
-            .any(|p| p.release_at.is_some_and(|r| r <= self.time))
-        {
-            let keep: Vec<Pin> = self
-                .pins
-                .iter()
-                .filter(|p| !p.release_at.is_some_and(|r| r <= self.time))
-                .cloned()
-                .collect();
-            self.set_pins(keep)?;
+        let now = self.time;
+        let due = |p: &Pin| p.release_at.is_some_and(|r| r <= now);
+        if self.pins.iter().any(due) {
+            self.pins.retain(|p| !due(p));
+            self.index_pins();
         }
         // 1. constraints for this step: pins, then contacts (filter, z, y)
-        self.bounds.clear();
+        self.ws.bounds.clear();
         for ob in &self.obstacles {
             let e = ob.thickness + self.params.cloth_thickness;
-            self.bounds.push(ob.bounds(e * 1.1));
+            self.ws.bounds.push(ob.bounds(e * 1.1));
         }
         let (contacts, stuck) = self.constrain(h, t1);
         let t_collide = t_start.elapsed().as_secs_f64();
@@ -544,8 +707,8 @@ impl Simulation {
             // `Params::friction_bound_now` this step's
             if let (true, Filter::Normal(nrm), Some((mu, vo))) = (
                 self.params.friction_bound_now,
-                self.filter[i],
-                self.contact_of[i],
+                self.ws.filter[i],
+                self.ws.contact_of[i],
             ) {
                 if self.friction_force[i] != Vector3::zeros() {
                     let rel = self.cloth.v[i] - vo;
@@ -560,7 +723,7 @@ impl Simulation {
             }
             if self.friction_force[i] != Vector3::zeros() {
                 self.force[i] += self.friction_force[i];
-                self.b[i] += self.friction_force[i] * h;
+                self.ws.b[i] += self.friction_force[i] * h;
             }
         }
         let assemble_s = t_asm.elapsed().as_secs_f64();
@@ -570,7 +733,7 @@ impl Simulation {
         // every solver, before anything is changed.
         if let Some(i) = (0..n).find(|&i| {
             !(self.force[i].iter().all(|c| c.is_finite())
-                && self.b[i].iter().all(|c| c.is_finite()))
+                && self.ws.b[i].iter().all(|c| c.is_finite()))
         }) {
             return Err(self.diverged(i, "force"));
         }
@@ -593,7 +756,7 @@ impl Simulation {
             if !self.dv[i].iter().all(|c| c.is_finite()) {
                 return Err(self.diverged(i, "velocity"));
             }
-            if !self.y[i].iter().all(|c| c.is_finite()) {
+            if !self.ws.y[i].iter().all(|c| c.is_finite()) {
                 return Err(self.diverged(i, "position correction"));
             }
         }
@@ -622,26 +785,26 @@ impl Simulation {
     }
 
     fn solve_pcg(&mut self, cap: linear::Cap) -> Result<usize> {
-        self.pcg.solve(
-            &self.a,
-            &self.b,
-            &self.filter,
-            &self.z,
+        self.ws.pcg.solve(
+            &self.ws.a,
+            &self.ws.b,
+            &self.ws.filter,
+            &self.ws.z,
             &mut self.dv,
             self.params.cg_tolerance,
             cap,
-            &mut self.team,
+            &mut self.ws.team,
         )
     }
 
     fn solve_direct(&mut self) -> Result<usize> {
         self.direct()?;
-        let d = self.direct.as_mut().expect("direct solver built");
+        let d = self.ws.direct.as_mut().expect("direct solver built");
         d.solve(
-            &self.a,
-            &self.b,
-            &self.filter,
-            &self.z,
+            &self.ws.a,
+            &self.ws.b,
+            &self.ws.filter,
+            &self.ws.z,
             &self.cloth.mass,
             &mut self.dv,
         )?;
@@ -651,24 +814,24 @@ impl Simulation {
     /// The multigrid hierarchy, built (patterns) on first use from the
     /// springs and seam stitches.
     fn amg(&mut self) -> Result<&mut amg::Amg> {
-        if self.amg.is_none() {
+        if self.ws.amg.is_none() {
             let edges = sets::edges(&self.cloth);
-            self.amg = Some(amg::Amg::new(&self.a, &edges)?);
+            self.ws.amg = Some(amg::Amg::new(&self.ws.a, &edges)?);
         }
-        Ok(self.amg.as_mut().expect("multigrid built"))
+        Ok(self.ws.amg.as_mut().expect("multigrid built"))
     }
 
     /// The filtered PCG preconditioned by the multigrid hierarchy, refilled
     /// for this step.
     fn solve_amg(&mut self, cap: linear::Cap) -> Result<usize> {
         self.amg()?;
-        let m = self.amg.as_mut().expect("multigrid built");
-        m.setup(&self.a, &self.filter, &self.cloth.mass, &self.cloth.x)?;
-        self.pcg.solve_factor(
-            &self.a,
-            &self.b,
-            &self.filter,
-            &self.z,
+        let m = self.ws.amg.as_mut().expect("multigrid built");
+        m.setup(&self.ws.a, &self.ws.filter, &self.cloth.mass, &self.cloth.x)?;
+        self.ws.pcg.solve_factor(
+            &self.ws.a,
+            &self.ws.b,
+            &self.ws.filter,
+            &self.ws.z,
             &mut self.dv,
             self.params.cg_tolerance,
             cap,
@@ -682,7 +845,7 @@ impl Simulation {
         match self.solve_amg(linear::Cap::Hard(self.params.cg_max_iterations)) {
             Ok(it) => Ok(it),
             Err(_) => {
-                let spent = self.pcg.spent();
+                let spent = self.ws.pcg.spent();
                 Ok(self.solve_direct()? + spent)
             }
         }
@@ -702,23 +865,23 @@ impl Simulation {
     /// its choices: on the 0.5 cm table drape it ended 1.9 mm (eq. 6.2) from
     /// the exact solve where this path ends 0.55 mm from it.)
     fn solve_auto(&mut self) -> Result<usize> {
-        let blocks = self.a.col.len();
-        let threads = self.team.size();
+        let blocks = self.ws.a.col.len();
+        let threads = self.ws.team.size();
         let cap = self.direct()?.break_even_iterations(blocks, threads);
         let cap = cap.min(self.params.cg_max_iterations);
-        let probe = self.steps >= self.auto_next_probe;
-        if !self.auto_on_direct || probe {
+        let probe = self.steps >= self.auto.next_probe;
+        if !self.auto.on_direct || probe {
             match self.solve_pcg(linear::Cap::Reachable(cap)) {
                 Ok(it) => {
-                    self.auto_on_direct = false;
-                    self.auto_probe_gap = AUTO_PROBE;
+                    self.auto.on_direct = false;
+                    self.auto.probe_gap = AUTO_PROBE;
                     return Ok(it);
                 }
                 Err(_) => {
-                    self.auto_on_direct = true;
-                    self.auto_next_probe = self.steps + self.auto_probe_gap;
-                    self.auto_probe_gap = (2 * self.auto_probe_gap).min(AUTO_PROBE_MAX);
-                    let spent = self.pcg.spent();
+                    self.auto.on_direct = true;
+                    self.auto.next_probe = self.steps + self.auto.probe_gap;
+                    self.auto.probe_gap = (2 * self.auto.probe_gap).min(AUTO_PROBE_MAX);
+                    let spent = self.ws.pcg.spent();
                     let it = self.solve_factored()?;
                     return Ok(it + spent);
                 }
@@ -735,20 +898,20 @@ impl Simulation {
     /// f32) or the PCG does not converge in [`F32_REFINE_CAP`] iterations.
     fn solve_factored(&mut self) -> Result<usize> {
         self.direct()?;
-        let d = self.direct.as_mut().expect("direct solver built");
+        let d = self.ws.direct.as_mut().expect("direct solver built");
         if d.factorize(
-            &self.a,
-            &self.filter,
+            &self.ws.a,
+            &self.ws.filter,
             &self.cloth.mass,
             linear::Precision::F32,
         )
         .is_ok()
         {
-            if let Ok(it) = self.pcg.solve_factor(
-                &self.a,
-                &self.b,
-                &self.filter,
-                &self.z,
+            if let Ok(it) = self.ws.pcg.solve_factor(
+                &self.ws.a,
+                &self.ws.b,
+                &self.ws.filter,
+                &self.ws.z,
                 &mut self.dv,
                 self.params.cg_tolerance,
                 linear::Cap::Hard(F32_REFINE_CAP),
@@ -768,9 +931,9 @@ impl Simulation {
             h,
             t1,
             cloth_thickness: self.params.cloth_thickness,
-            obstacles: &self.obstacles,
-            bounds: &self.bounds,
-            pins: &self.pins,
+            obstacles: self.obstacles.as_slice(),
+            bounds: &self.ws.bounds,
+            pins: self.pins.as_slice(),
             pinned: &self.pinned,
             x: &self.cloth.x,
             v: &self.cloth.v,
@@ -778,13 +941,13 @@ impl Simulation {
             force: &self.force,
             gravity: self.params.gravity,
         };
-        let bounds = &self.part.bounds;
-        let mut filter = vertices::chunks(&mut self.filter, bounds).into_iter();
-        let mut z = vertices::chunks(&mut self.z, bounds).into_iter();
-        let mut y = vertices::chunks(&mut self.y, bounds).into_iter();
-        let mut contact_of = vertices::chunks(&mut self.contact_of, bounds).into_iter();
+        let bounds = &self.ws.part.bounds;
+        let mut filter = vertices::chunks(&mut self.ws.filter, bounds).into_iter();
+        let mut z = vertices::chunks(&mut self.ws.z, bounds).into_iter();
+        let mut y = vertices::chunks(&mut self.ws.y, bounds).into_iter();
+        let mut contact_of = vertices::chunks(&mut self.ws.contact_of, bounds).into_iter();
         let mut friction_force = vertices::chunks(&mut self.friction_force, bounds).into_iter();
-        let mut normals = vertices::chunks(&mut self.normals, bounds).into_iter();
+        let mut normals = vertices::chunks(&mut self.ws.normals, bounds).into_iter();
         let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
         let mut rows: Vec<vertices::ConstraintRows> = bounds[..bounds.len() - 1]
             .iter()
@@ -801,7 +964,8 @@ impl Simulation {
                 stuck: 0,
             })
             .collect();
-        self.team
+        self.ws
+            .team
             .run_each(&mut rows, |_, r| vertices::constrain(&scene, r));
         (
             rows.iter().map(|r| r.contacts).sum(),
@@ -814,25 +978,25 @@ impl Simulation {
     /// [`vertices::finish`]).
     fn finish(&mut self, h: f64) {
         let cloth_t = self.params.cloth_thickness;
-        self.bounds.clear();
+        self.ws.bounds.clear();
         for ob in &self.obstacles {
-            self.bounds.push(ob.bounds(ob.thickness + cloth_t));
+            self.ws.bounds.push(ob.bounds(ob.thickness + cloth_t));
         }
         let solved = vertices::Solved {
             h,
             cloth_thickness: cloth_t,
-            a: &self.a,
-            b: &self.b,
+            a: &self.ws.a,
+            b: &self.ws.b,
             dv: &self.dv,
-            y: &self.y,
-            filter: &self.filter,
-            contact_of: &self.contact_of,
-            normals: &self.normals,
+            y: &self.ws.y,
+            filter: &self.ws.filter,
+            contact_of: &self.ws.contact_of,
+            normals: &self.ws.normals,
             pinned: &self.pinned,
-            obstacles: &self.obstacles,
-            bounds: &self.bounds,
+            obstacles: self.obstacles.as_slice(),
+            bounds: &self.ws.bounds,
         };
-        let bounds = &self.part.bounds;
+        let bounds = &self.ws.part.bounds;
         let mut x = vertices::chunks(&mut self.cloth.x, bounds).into_iter();
         let mut v = vertices::chunks(&mut self.cloth.v, bounds).into_iter();
         let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
@@ -845,7 +1009,8 @@ impl Simulation {
                 friction: friction.next().unwrap_or_default(),
             })
             .collect();
-        self.team
+        self.ws
+            .team
             .run_each(&mut rows, |_, r| vertices::finish(&solved, r));
     }
 
@@ -865,13 +1030,13 @@ impl Simulation {
             &self.fabric,
             &self.other_fabrics,
             &mut self.cloth,
-            &self.y,
-            &self.slots,
-            &self.part,
-            &mut self.a,
+            &self.ws.y,
+            &self.ws.slots,
+            &self.ws.part,
+            &mut self.ws.a,
             &mut self.force,
-            &mut self.b,
-            &mut self.team,
+            &mut self.ws.b,
+            &mut self.ws.team,
         );
         self.dissipated -= self.params.dt * power;
     }
@@ -889,11 +1054,11 @@ impl Simulation {
             return out;
         }
         let mut adv = vec![Vector3::zeros(); n];
-        self.a.mul(&self.dv, &mut adv);
+        self.ws.a.mul(&self.dv, &mut adv);
         let h = self.params.dt;
         for i in 0..n {
-            if self.contact_of[i].is_some() && self.pinned[i].is_none() {
-                out[i] = (adv[i] - self.b[i]) / h + self.friction_force[i];
+            if self.ws.contact_of[i].is_some() && self.pinned[i].is_none() {
+                out[i] = (adv[i] - self.ws.b[i]) / h + self.friction_force[i];
             }
         }
         out
@@ -904,8 +1069,8 @@ impl Simulation {
     pub fn contact_normals(&self) -> Vec<Vector3<f64>> {
         (0..self.cloth.len())
             .map(|i| {
-                if self.contact_of[i].is_some() {
-                    self.normals[i]
+                if self.ws.contact_of[i].is_some() {
+                    self.ws.normals[i]
                 } else {
                     Vector3::zeros()
                 }
@@ -974,6 +1139,7 @@ impl Simulation {
             ));
         }
         let moved = self
+            .ws
             .y
             .iter()
             .enumerate()
@@ -1044,7 +1210,7 @@ impl Simulation {
     pub fn assembled_system(&mut self) -> (Vec<nalgebra::Matrix3<f64>>, Vec<Vector3<f64>>) {
         let (memories, dissipated) = (sets::memories(&self.cloth), self.dissipated);
         self.assemble();
-        let out = (self.a.val.clone(), self.b.clone());
+        let out = (self.ws.a.val.clone(), self.ws.b.clone());
         sets::put_memories(&mut self.cloth, memories);
         self.dissipated = dissipated;
         out

@@ -949,14 +949,15 @@ mod tests {
         let mut sim = Simulation::new(cloth, fabric(), params).unwrap();
         // the step commits the memories to the current shape: so do the queries
         sim.commit();
-        let h = sim.params.dt;
+        let h = sim.params().dt;
         let (a, b) = sim.assembled_system();
 
         let c = &sim.cloth;
         let f = sim.fabric_lookup();
-        let mut force: Vec<Vector3<f64>> = c.mass.iter().map(|m| sim.params.gravity * *m).collect();
+        let mut force: Vec<Vector3<f64>> =
+            c.mass.iter().map(|m| sim.params().gravity * *m).collect();
         forces(c, &f, |_| true, &mut force);
-        let mut j = sim.a.clone();
+        let mut j = sim.ws.a.clone();
         j.clear();
         jacobians(c, &f, |_| true, Jacobian::Step, &mut j);
         let mut jv = vec![Vector3::zeros(); c.len()];
@@ -979,7 +980,7 @@ mod tests {
         assert!(da <= 1e-12 * amax, "matrix: {da:e} of {amax:e}");
         // every set took part: the seams' blocks join vertices no spring or
         // hinge joins (4 and 15)
-        let seam_block = a[sim.a.index(4, 15)];
+        let seam_block = a[sim.ws.a.index(4, 15)];
         assert!(seam_block.amax() > 0.0, "{seam_block}");
     }
 }
