@@ -520,6 +520,25 @@ pub struct PanelSpec {
 }
 
 impl PanelSpec {
+    /// A panel of the outline, its border a staircase, skewed hinges.
+    pub fn new(
+        outline: &Outline,
+        spacing: [f64; 2],
+        origin: [f64; 2],
+        pose: &Isometry3<f64>,
+        areal_mass: f64,
+    ) -> PanelSpec {
+        PanelSpec {
+            outline: outline.clone(),
+            spacing,
+            origin,
+            pose: *pose,
+            areal_mass,
+            border: Border::Staircase,
+            hinges: HingeLayout::Skewed,
+        }
+    }
+
     /// The rectangle of a [`GridSpec`], skewed hinges.
     pub fn rectangle(spec: &GridSpec, areal_mass: f64) -> PanelSpec {
         PanelSpec {
@@ -650,15 +669,7 @@ impl Cloth {
         pose: &Isometry3<f64>,
         areal_mass: f64,
     ) -> Result<Cloth> {
-        Cloth::panel(&PanelSpec {
-            outline: outline.clone(),
-            spacing,
-            origin,
-            pose: *pose,
-            areal_mass,
-            border: Border::Staircase,
-            hinges: HingeLayout::Skewed,
-        })
+        Cloth::panel(&PanelSpec::new(outline, spacing, origin, pose, areal_mass))
     }
 
     /// [`Cloth::clipped`] with its border on the outline ([`Border::OnOutline`]).
@@ -670,13 +681,8 @@ impl Cloth {
         areal_mass: f64,
     ) -> Result<Cloth> {
         Cloth::panel(&PanelSpec {
-            outline: outline.clone(),
-            spacing,
-            origin,
-            pose: *pose,
-            areal_mass,
             border: Border::OnOutline,
-            hinges: HingeLayout::Skewed,
+            ..PanelSpec::new(outline, spacing, origin, pose, areal_mass)
         })
     }
 

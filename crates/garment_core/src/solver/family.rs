@@ -4,7 +4,7 @@
 
 use super::sets::{self, Jacobian};
 use super::sparse::BlockMatrix;
-use super::{Fabrics, Simulation};
+use super::Simulation;
 use nalgebra::{Matrix3, Vector3};
 
 /// A spring family.
@@ -16,15 +16,6 @@ pub enum Family {
 }
 
 impl Simulation {
-    /// The per-vertex fabric lookup of the cloth.
-    fn fabric_lookup(&self) -> Fabrics<'_> {
-        Fabrics {
-            first: &self.fabric,
-            others: &self.other_fabrics,
-            of: &self.cloth.vertex_fabric,
-        }
-    }
-
     /// Elastic + hysteretic forces of one family (no damping).
     pub fn family_forces(&self, fam: Family) -> Vec<Vector3<f64>> {
         let mut out = vec![Vector3::zeros(); self.cloth.len()];

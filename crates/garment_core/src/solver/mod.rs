@@ -535,12 +535,16 @@ impl Simulation {
     /// The fabric of vertex `v` (and of the springs and hinges at it).
     #[inline]
     pub fn fabric_of(&self, v: usize) -> &Fabric {
+        self.fabric_lookup().at(v)
+    }
+
+    /// The per-vertex fabric lookup of the cloth.
+    fn fabric_lookup(&self) -> Fabrics<'_> {
         Fabrics {
             first: &self.fabric,
             others: &self.other_fabrics,
             of: &self.cloth.vertex_fabric,
         }
-        .at(v)
     }
 
     /// Threads of the assembly, the PCG and the contacts.
@@ -1164,12 +1168,7 @@ impl Simulation {
             e.kinetic += 0.5 * c.mass[i] * c.v[i].norm_squared();
             e.gravity -= c.mass[i] * self.params.gravity.dot(&c.x[i]);
         }
-        let fabrics = Fabrics {
-            first: &self.fabric,
-            others: &self.other_fabrics,
-            of: &c.vertex_fabric,
-        };
-        sets::energies(c, &fabrics, &mut e);
+        sets::energies(c, &self.fabric_lookup(), &mut e);
         e
     }
 
@@ -1209,20 +1208,11 @@ impl Simulation {
     /// The system matrix and right-hand side of the next step, assembled now
     /// without advancing (tests compare serial and threaded assembly).
     pub fn assembled_system(&mut self) -> (Vec<nalgebra::Matrix3<f64>>, Vec<Vector3<f64>>) {
-        let saved = (
-            self.cloth.tension_state.clone(),
-            self.cloth.shear_state.clone(),
-            self.cloth.hinge_state.clone(),
-            self.dissipated,
-        );
+        let (memories, dissipated) = (sets::memories(&self.cloth), self.dissipated);
         self.assemble();
         let out = (self.ws.a.val.clone(), self.ws.b.clone());
-        (
-            self.cloth.tension_state,
-            self.cloth.shear_state,
-            self.cloth.hinge_state,
-            self.dissipated,
-        ) = saved;
+        sets::put_memories(&mut self.cloth, memories);
+        self.dissipated = dissipated;
         out
     }
 }

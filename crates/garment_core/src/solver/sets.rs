@@ -4,9 +4,10 @@
 //! block slots), adds its force and Jacobian blocks to the step, gives its
 //! energy, commits its hysteresis memory, and answers the per-family force
 //! and Jacobian queries ([`super::family`]). The assembly, the queries, the
-//! energies and the commit loop over the sets ([`each`], [`each_mut`]), so a
-//! new family is one type implementing [`Element`] and one line in each of
-//! those two lists.
+//! energies, the commit, the matrix pattern and the multigrid's edges loop
+//! over the sets ([`each`], [`each_mut`]), so a new family is one type
+//! implementing [`Element`], its elements (and memories) in the [`Cloth`],
+//! and one line in each of those two lists ([`SETS`] counts them).
 //!
 //! Memories: a family with hysteresis has one [`LawState`] per element
 //! ([`Element::MEMORY`]); one without gets an empty memory vector and a
@@ -194,7 +195,20 @@ pub(crate) fn take_memories(c: &mut Cloth) -> [Vec<LawState>; SETS] {
     t.0
 }
 
-/// Puts back what [`take_memories`] took.
+/// A copy of every set's memories.
+pub(crate) fn memories(c: &Cloth) -> [Vec<LawState>; SETS] {
+    struct Memories([Vec<LawState>; SETS]);
+    impl Visit for Memories {
+        fn set<E: Element>(&mut self, i: usize, _: &[E], mem: &[LawState]) {
+            self.0[i] = mem.to_vec();
+        }
+    }
+    let mut v = Memories(Default::default());
+    each(c, &mut v);
+    v.0
+}
+
+/// Puts back what [`take_memories`] took (or [`memories`] copied).
 pub(crate) fn put_memories(c: &mut Cloth, mut m: [Vec<LawState>; SETS]) {
     struct Put<'a>(&'a mut [Vec<LawState>; SETS]);
     impl VisitMut for Put<'_> {
@@ -835,7 +849,7 @@ mod tests {
     use crate::cloth::GridSpec;
     use crate::fabric::{BehaviourSpec, Damping, DirectionSpec, FabricFile};
     use crate::solver::{Params, Simulation};
-    use nalgebra::Isometry3;
+    use nalgebra::{Isometry3, SMatrix};
     use rand::{Rng, SeedableRng};
 
     /// A thesis-like acrylic without damping.
@@ -881,6 +895,18 @@ mod tests {
         Fabric::from_file(file, &no_curves).unwrap()
     }
 
+    /// The largest entry of `want − got` and of `want`.
+    fn worst<const R: usize, const C: usize>(
+        want: &[SMatrix<f64, R, C>],
+        got: &[SMatrix<f64, R, C>],
+    ) -> (f64, f64) {
+        let largest = |it: &mut dyn Iterator<Item = f64>| it.fold(0.0, f64::max);
+        (
+            largest(&mut want.iter().zip(got).map(|(p, q)| (p - q).amax())),
+            largest(&mut want.iter().map(|p| p.amax())),
+        )
+    }
+
     /// The step's force, matrix and right-hand side are what the sets' own
     /// force and Jacobian queries give, summed over every set (seam stitches
     /// included): without damping and pins, `f = M g + Σ f_e`,
@@ -923,56 +949,38 @@ mod tests {
         let mut sim = Simulation::new(cloth, fabric(), params).unwrap();
         // the step commits the memories to the current shape: so do the queries
         sim.commit();
-        let h = sim.params.dt;
+        let h = sim.params().dt;
         let (a, b) = sim.assembled_system();
 
         let c = &sim.cloth;
-        let f = Fabrics {
-            first: &sim.fabric,
-            others: &sim.other_fabrics,
-            of: &c.vertex_fabric,
-        };
-        let mut force: Vec<Vector3<f64>> = c.mass.iter().map(|m| sim.params.gravity * *m).collect();
+        let f = sim.fabric_lookup();
+        let mut force: Vec<Vector3<f64>> =
+            c.mass.iter().map(|m| sim.params().gravity * *m).collect();
         forces(c, &f, |_| true, &mut force);
-        let mut j = sim.a.clone();
+        let mut j = sim.ws.a.clone();
         j.clear();
         jacobians(c, &f, |_| true, Jacobian::Step, &mut j);
         let mut jv = vec![Vector3::zeros(); c.len()];
         j.mul(&c.v, &mut jv);
 
-        let fmax = force.iter().map(|v| v.amax()).fold(0.0, f64::max);
-        let df = force
-            .iter()
-            .zip(&sim.force)
-            .map(|(p, q)| (p - q).amax())
-            .fold(0.0, f64::max);
+        let (df, fmax) = worst(&force, &sim.force);
         assert!(df <= 1e-12 * fmax, "force: {df:e} of {fmax:e}");
         let want_b: Vec<Vector3<f64>> = force
             .iter()
             .zip(&jv)
             .map(|(f, jv)| (f + jv * h) * h)
             .collect();
-        let bmax = want_b.iter().map(|v| v.amax()).fold(0.0, f64::max);
-        let db = want_b
-            .iter()
-            .zip(&b)
-            .map(|(p, q)| (p - q).amax())
-            .fold(0.0, f64::max);
+        let (db, bmax) = worst(&want_b, &b);
         assert!(db <= 1e-12 * bmax, "rhs: {db:e} of {bmax:e}");
         let mut want_a: Vec<Matrix3<f64>> = j.val.iter().map(|k| -k * (h * h)).collect();
         for (i, m) in c.mass.iter().enumerate() {
             want_a[j.diag[i]] += Matrix3::identity() * *m;
         }
-        let amax = want_a.iter().map(|m| m.amax()).fold(0.0, f64::max);
-        let da = want_a
-            .iter()
-            .zip(&a)
-            .map(|(p, q)| (p - q).amax())
-            .fold(0.0, f64::max);
+        let (da, amax) = worst(&want_a, &a);
         assert!(da <= 1e-12 * amax, "matrix: {da:e} of {amax:e}");
         // every set took part: the seams' blocks join vertices no spring or
         // hinge joins (4 and 15)
-        let seam_block = a[sim.a.index(4, 15)];
+        let seam_block = a[sim.ws.a.index(4, 15)];
         assert!(seam_block.amax() > 0.0, "{seam_block}");
     }
 }
