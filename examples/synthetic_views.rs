@@ -32,7 +32,10 @@ fn main() -> Result<()> {
         spacing: Some(0.05),
         ..Default::default()
     })?;
-    let board = sim.obstacles().first().context("the scene has no obstacle")?;
+    let board = sim
+        .obstacles()
+        .first()
+        .context("the scene has no obstacle")?;
     let (noise_px, hidden, seed) = if args.len() == 6 {
         (args[3].parse()?, args[4].parse()?, args[5].parse()?)
     } else {
