@@ -5,6 +5,7 @@
 
 pub mod garmentcode;
 
+use crate::cloth::HingeLayout;
 use crate::garment::{PanelCut, SeamSpec};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -82,6 +83,19 @@ pub struct GarmentFile {
     /// s (default [`DEFAULT_SEAM_DAMPING`]).
     #[serde(default)]
     pub seam_damping: Option<f64>,
+    /// The bending hinges of every panel: `skewed` (default) or
+    /// `mirror_symmetric` (see [`HingeLayout`]).
+    #[serde(default)]
+    pub hinges: HingesFile,
+}
+
+/// `hinges:` of a garment file.
+#[derive(Debug, Clone, Copy, Deserialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum HingesFile {
+    #[default]
+    Skewed,
+    MirrorSymmetric,
 }
 
 /// A garment as read: its panels cut in the world, its seams, its fabric.
@@ -124,6 +138,10 @@ impl GarmentDef {
     pub fn from_file(file: GarmentFile, path: &Path) -> Result<GarmentDef> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let default_grain = file.grain_deg.unwrap_or(90.0);
+        let hinges = match file.hinges {
+            HingesFile::Skewed => HingeLayout::Skewed,
+            HingesFile::MirrorSymmetric => HingeLayout::MirrorSymmetric,
+        };
         let grain = |deg: f64| [deg.to_radians().cos(), deg.to_radians().sin()];
         let mut cuts: Vec<PanelCut> = Vec::new();
         let mut pending: Vec<(String, usize, String, usize)> = Vec::new();
@@ -138,6 +156,7 @@ impl GarmentDef {
                     .and_then(|o| o.grain_deg)
                     .unwrap_or(default_grain);
                 cuts.push(PanelCut {
+                    hinges: hinges,
                     name: p.name.clone(),
                     edges: p.edges.clone(),
                     grain: grain(g),
@@ -179,6 +198,7 @@ impl GarmentDef {
                 bail!("panels.{name}: vertices, translation and rotation must be finite");
             }
             cuts.push(PanelCut {
+                hinges: hinges,
                 name: name.clone(),
                 edges,
                 grain: grain(pf.grain_deg.unwrap_or(default_grain)),

@@ -11,7 +11,7 @@
 //! two vertices of that edge around it. The two edges need not have the
 //! same length nor the same sampling.
 
-use crate::cloth::{Cloth, Outline, Stitch};
+use crate::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec, Stitch};
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
@@ -26,6 +26,8 @@ pub struct PanelCut {
     pub grain: [f64; 2],
     /// Maps the panel plane (x, y, 0) to the world.
     pub placement: Isometry3<f64>,
+    /// How the panel's bending hinges are laid out on its grid.
+    pub hinges: HingeLayout,
 }
 
 impl PanelCut {
@@ -372,9 +374,12 @@ fn cut_panel(
             Default::default(),
             UnitQuaternion::from_euler_angles(0.0, 0.0, theta),
         );
-    let cloth =
-        Cloth::clipped_to_outline(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
-            .map_err(|e| anyhow::anyhow!("panel {name:?}: {e}"))?;
+    let cloth = Cloth::panel(&PanelSpec {
+        border: Border::OnOutline,
+        hinges: cut.hinges,
+        ..PanelSpec::new(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
+    })
+    .map_err(|e| anyhow::anyhow!("panel {name:?}: {e}"))?;
     let uv: Vec<[f64; 2]> = cloth.material.iter().map(|&m| from_uv(m)).collect();
     // border vertices: on an edge of the triangulation used by one triangle
     let mut count = std::collections::HashMap::new();
@@ -510,6 +515,7 @@ mod tests {
 
     fn rect(name: &str, w: f64, h: f64, at: Isometry3<f64>) -> PanelCut {
         PanelCut {
+            hinges: HingeLayout::Skewed,
             name: name.into(),
             edges: vec![
                 vec![[0.0, 0.0], [w, 0.0]],
@@ -557,6 +563,7 @@ mod tests {
     #[test]
     fn a_crossing_outline_is_refused_naming_the_edges() {
         let bow = PanelCut {
+            hinges: HingeLayout::Skewed,
             name: "bow".into(),
             edges: vec![
                 vec![[0.0, 0.0], [0.2, 0.2]],
