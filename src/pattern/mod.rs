@@ -156,7 +156,7 @@ impl GarmentDef {
                     .and_then(|o| o.grain_deg)
                     .unwrap_or(default_grain);
                 cuts.push(PanelCut {
-                    hinges: hinges,
+                    hinges,
                     name: p.name.clone(),
                     edges: p.edges.clone(),
                     grain: grain(g),
@@ -198,7 +198,7 @@ impl GarmentDef {
                 bail!("panels.{name}: vertices, translation and rotation must be finite");
             }
             cuts.push(PanelCut {
-                hinges: hinges,
+                hinges,
                 name: name.clone(),
                 edges,
                 grain: grain(pf.grain_deg.unwrap_or(default_grain)),
