@@ -15,4 +15,5 @@ pub mod collision;
 pub mod fabric;
 pub mod garment;
 pub mod limits;
+pub mod self_contact;
 pub mod solver;
