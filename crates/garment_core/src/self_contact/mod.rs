@@ -487,7 +487,20 @@ impl SelfContact {
         let at = |t: f64| -> [V; 4] { std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t) };
         let mut times = [1.0; 4];
         times[..nr].copy_from_slice(&roots[..nr]);
-        for &t in &times[..nr + 1] {
+        // the end of the step too, where the pair is near its plane: the
+        // volume is the normal's length times the distance to the plane of
+        // the triangle or of the two edges, a bound below the distance
+        let end = {
+            let xt = at(1.0);
+            let axis = match p {
+                Pair::Vf(..) => (xt[2] - xt[1]).cross(&(xt[3] - xt[1])),
+                Pair::Ee(..) => (xt[1] - xt[0]).cross(&(xt[3] - xt[2])),
+            };
+            let volume = cubic.iter().sum::<f64>();
+            volume.abs() <= eta * axis.norm()
+        };
+        let count = if end { nr + 1 } else { nr };
+        for &t in &times[..count] {
             let xt = at(t);
             let c = Self::closest(p, [0, 1, 2, 3], &|k| xt[k]);
             if c.d >= eta {
@@ -655,8 +668,9 @@ impl SelfContact {
         // 2. collisions along the straight paths, impulses
         let mut x1 = vec![V::zeros(); n];
         let mut resolved = false;
-        for _ in 0..IMPULSE_PASSES {
-            let hits = self.collision_pass(h, &mut x1, Some(&mut *v));
+        for pass in 0..IMPULSE_PASSES {
+            let fresh = pass == 0 && !self.moved.contains(&true);
+            let hits = self.collision_pass(h, &mut x1, Some(&mut *v), fresh);
             stats.collisions += hits;
             if hits == 0 {
                 resolved = true;
@@ -738,13 +752,23 @@ impl SelfContact {
     /// One detection over the current paths; with `v`, every colliding
     /// pair gets its impulse at once (Gauss–Seidel). Returns the number of
     /// colliding pairs.
-    fn collision_pass(&mut self, h: f64, x1: &mut [V], mut v: Option<&mut [V]>) -> usize {
+    /// `fresh`: the candidates of the proximity pass still hold (no vertex
+    /// moved since; their boxes, grown by the thickness, hold the paths).
+    fn collision_pass(
+        &mut self,
+        h: f64,
+        x1: &mut [V],
+        mut v: Option<&mut [V]>,
+        fresh: bool,
+    ) -> usize {
         self.end_positions(h, x1);
-        let x0 = std::mem::take(&mut self.x0);
-        let eta = HIT_DISTANCE * self.max_thickness;
-        self.refit(&x0, x1, eta);
-        self.x0 = x0;
-        self.gather();
+        if !fresh {
+            let x0 = std::mem::take(&mut self.x0);
+            let eta = HIT_DISTANCE * self.max_thickness;
+            self.refit(&x0, x1, eta);
+            self.x0 = x0;
+            self.gather();
+        }
         let pairs = std::mem::take(&mut self.pairs);
         let mut hits = 0;
         let mut found = Vec::new();
@@ -788,7 +812,7 @@ impl SelfContact {
         v: &mut [V],
         stats: &mut SelfStats,
     ) -> usize {
-        let hits = self.collision_pass(h, x1, None);
+        let hits = self.collision_pass(h, x1, None, false);
         stats.collisions += hits;
         if hits == 0 {
             return 0;
