@@ -717,3 +717,55 @@ fn the_shipped_garment_trials_never_pass_through_themselves() {
         assert!(contacts > 0, "{name}: the garment touches itself");
     }
 }
+
+#[test]
+fn the_drape_summary_and_the_node_diagnostics_report_it() {
+    use garment_sim::msgs::publish;
+    for on in [false, true] {
+        let mut sim = stacked(on, 1.0 / 60.0);
+        let (_, summary) =
+            garment_sim::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
+        let diag = publish::diagnostics(
+            &sim,
+            publish::header(&sim, "world"),
+            &publish::DiagnosticFigures {
+                step_time_ms: 1.0,
+                iterations: 1,
+                real_time_factor: 1.0,
+                rejected_messages: 0,
+                dropped_messages: 0,
+                recovered_steps: 0,
+                paused: false,
+                last_error: String::new(),
+            },
+        );
+        let value = |k: &str| {
+            diag.status[0]
+                .values
+                .iter()
+                .find(|kv| kv.key == k)
+                .map(|kv| kv.value.clone())
+        };
+        let json = serde_json::to_value(&summary).unwrap();
+        if !on {
+            assert!(summary.self_collision.is_none());
+            assert!(
+                json.get("self_collision").is_none(),
+                "summary.json unchanged"
+            );
+            assert_eq!(value("self_contacts"), None, "diagnostics unchanged");
+            continue;
+        }
+        let own = summary.self_collision.unwrap();
+        assert!(own.mean_contacts > 100.0, "{own:?}");
+        assert!(own.max_contacts >= own.final_contacts && own.final_contacts > 100);
+        assert!(own.ms_per_step > 0.0 && own.share_of_step > 0.0 && own.share_of_step < 1.0);
+        assert_eq!(json["self_collision"]["final_contacts"], own.final_contacts);
+        let contacts: usize = value("self_contacts").unwrap().parse().unwrap();
+        assert_eq!(contacts, sim.last.self_contacts);
+        assert!(contacts > 100);
+        for k in ["self_collisions", "self_impact_zones", "self_collision_ms"] {
+            assert!(value(k).is_some(), "diagnostics lack {k}");
+        }
+    }
+}

@@ -253,11 +253,12 @@ impl Fabric {
     }
 }
 
-/// Fabric-on-fabric friction where the fabric file is silent: the middle of
-/// the 0.2–0.4 range in which the kinetic coefficients of woven apparel
-/// fabrics rubbed on themselves commonly fall (Ajayi, "Effects of fabric
-/// structure on frictional properties", Textile Research Journal 62(2),
-/// 1992). A fabric with a measured value gives it as `cloth_friction`.
+/// Fabric-on-fabric friction where the fabric file is silent: a typical
+/// order for woven apparel fabrics rubbed on themselves (fabric-on-fabric
+/// friction studies such as Ajayi, "Effects of fabric structure on
+/// frictional properties", Textile Research Journal 62(2), 1992), not a
+/// measurement of any shipped fabric. A fabric with a measured value gives
+/// it as `cloth_friction`.
 pub const DEFAULT_CLOTH_FRICTION: f64 = 0.3;
 
 fn shear_law(w: &BehaviourSpec, t: &BehaviourSpec, curve: &KesCurve) -> Law {

@@ -536,6 +536,9 @@ impl Simulation {
     /// Advances one fixed step.
     pub fn step(&mut self) -> Result<StepStats> {
         let t_start = Instant::now();
+        // the cloth-cloth pass takes the start positions (and refuses a
+        // tangled cloth on the first step, before anything changes)
+        let start = self.begin_self_contact()?;
         let h = self.params.dt;
         let t1 = self.time + h;
         let n = self.cloth.len();
@@ -634,7 +637,6 @@ impl Simulation {
         for ob in self.obstacles.iter_mut() {
             ob.advance(h);
         }
-        let start = self.begin_self_contact()?;
         self.finish(h);
         let own = self.resolve_self_contact(h, start);
         // (the hysteresis memory follows the new shape at the start of the next
