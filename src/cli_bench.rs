@@ -35,6 +35,10 @@ pub struct BenchArgs {
     /// from 500 vertices; 1 for one core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Keep the cloth from passing through itself (off by default); each row
+    /// is then followed by the self-collision pass's share of the step.
+    #[arg(long)]
+    pub self_collision: bool,
 }
 
 /// Runs `bench`.
@@ -48,6 +52,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         repeat,
         warmup,
         threads,
+        self_collision,
     } = a;
     let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
     println!(
@@ -80,13 +85,16 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     dt: Some(h),
                     solver: Some(so),
                     threads,
+                    self_collision: self_collision.then_some(true),
                     ..Default::default()
                 };
                 let mut sim = sc.build(&ov)?;
                 let wsteps = (warmup / h).round() as u64;
                 // per run: ms per step in all, then in assembly, solve
                 // and contacts (the step's own timers)
-                let mut ms: Vec<[f64; 4]> = Vec::new();
+                let mut ms: Vec<[f64; 5]> = Vec::new();
+                // self-collision contacts and collisions per step
+                let mut own = [0.0; 2];
                 let mut it = 0.0;
                 let measured = (|| -> Result<()> {
                     for _ in 0..wsteps.min(steps * 3) {
@@ -95,20 +103,26 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     for _ in 0..repeat.max(1) {
                         let t = std::time::Instant::now();
                         let mut iters = 0;
-                        let mut phase = [0.0; 3];
+                        let mut phase = [0.0; 4];
+                        let mut pairs = [0usize; 2];
                         for _ in 0..steps {
                             let st = sim.step()?;
                             iters += st.iterations;
                             phase[0] += st.assemble_s;
                             phase[1] += st.solve_s;
                             phase[2] += st.collide_s;
+                            phase[3] += st.self_s;
+                            pairs[0] += st.self_contacts;
+                            pairs[1] += st.self_collisions;
                         }
+                        own = pairs.map(|p| p as f64 / steps as f64);
                         let per = |x: f64| 1e3 * x / steps as f64;
                         ms.push([
                             per(t.elapsed().as_secs_f64()),
                             per(phase[0]),
                             per(phase[1]),
                             per(phase[2]),
+                            per(phase[3]),
                         ]);
                         it = iters as f64 / steps as f64;
                     }
@@ -142,6 +156,17 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     peak_rss_mb(),
                     sim.threads()
                 );
+                if self_collision {
+                    println!(
+                        "{:>8} self-collision {:.3} ms/step, {:.1} % of the step; {:.1} contacts, \
+                         {:.2} collisions per step (last run)",
+                        "",
+                        med[4],
+                        100.0 * med[4] / med[0],
+                        own[0],
+                        own[1]
+                    );
+                }
             }
         }
     }

@@ -40,6 +40,10 @@ pub struct DrapeArgs {
     /// from 500 vertices; 1 for one core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Keep the cloth from passing through itself, on or off (default: the
+    /// scene file's `self_collision`, off when absent).
+    #[arg(long)]
+    pub self_collision: Option<bool>,
     #[command(flatten)]
     pub bag: BagArgs,
     #[command(flatten)]
@@ -144,6 +148,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         no_hysteresis,
         cg_tolerance,
         threads,
+        self_collision,
         bag,
         live,
     } = a;
@@ -156,6 +161,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         hysteresis: if no_hysteresis { Some(false) } else { None },
         cg_tolerance,
         threads,
+        self_collision,
     };
     let view = live
         .foxglove
@@ -248,6 +254,19 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         println!(
             "contacts         {} vertices at the end, {} held by static friction",
             s.final_contacts, s.final_contacts_held
+        );
+    }
+    if let Some(o) = &s.self_collision {
+        println!(
+            "self-collision   {:.3} ms/step ({:.1} % of the step); contacts {:.1} per step \
+             (most {}, {} at the end); {} colliding pairs, {} impact zones",
+            o.ms_per_step,
+            100.0 * o.share_of_step,
+            o.mean_contacts,
+            o.max_contacts,
+            o.final_contacts,
+            o.collisions,
+            o.zones
         );
     }
     println!(

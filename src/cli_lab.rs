@@ -113,6 +113,9 @@ pub struct DrapemeterArgs {
     /// Keep the grid's staircase border instead of moving border nodes onto the circle.
     #[arg(long)]
     pub staircase_border: bool,
+    /// Keep the specimen's folds from passing through each other.
+    #[arg(long)]
+    pub self_collision: bool,
     /// Output directory (report.json, top_view.png).
     #[arg(long, default_value = "out/drapemeter")]
     pub out: PathBuf,
@@ -129,6 +132,7 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         max_duration: a.duration,
         seed: a.seed,
         border_on_outline: !a.staircase_border,
+        self_collision: a.self_collision,
         ..Default::default()
     };
     let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));

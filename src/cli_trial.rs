@@ -25,6 +25,9 @@ pub struct TrialArgs {
     /// Threads of the assembly, the PCG and the contacts.
     #[arg(long)]
     threads: Option<usize>,
+    /// Keep the garment from passing through itself, on or off (default off).
+    #[arg(long)]
+    self_collision: Option<bool>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -34,6 +37,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         dt: a.dt,
         max_time: a.max_time,
         threads: a.threads,
+        self_collision: a.self_collision,
     };
     let (mut sim, g) = t.build(&ov)?;
     eprintln!(

@@ -16,7 +16,7 @@
 //! protocol. [`pattern`] reads garments (GarmentCode patterns and garment
 //! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body.
 
-pub use garment_core::{cloth, collision, fabric, garment, limits, set, solver};
+pub use garment_core::{cloth, collision, fabric, garment, limits, self_contact, set, solver};
 
 pub mod bag;
 pub mod capture;

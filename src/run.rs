@@ -58,6 +58,26 @@ pub struct Summary {
     /// the ones static friction held.
     pub final_contacts: usize,
     pub final_contacts_held: usize,
+    /// The cloth against itself (absent when self-collision is off).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub self_collision: Option<SelfSummary>,
+}
+
+/// What the self-collision pass did over a run.
+#[derive(Debug, Clone, Copy, Serialize, Default)]
+pub struct SelfSummary {
+    /// Its time per step, ms, and its share of the step.
+    pub ms_per_step: f64,
+    pub share_of_step: f64,
+    /// Pairs within the thickness pushed apart: per step on average, most
+    /// in one step, at the last step.
+    pub mean_contacts: f64,
+    pub max_contacts: usize,
+    pub final_contacts: usize,
+    /// Pairs whose paths crossed, over the run (each stopped by an impulse
+    /// or an impact zone), and the rigid impact zones formed.
+    pub collisions: usize,
+    pub zones: usize,
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Default)]
@@ -116,6 +136,9 @@ pub fn run_with(
     let mut iters = 0usize;
     let mut max_iters = 0usize;
     let mut split = TimeSplit::default();
+    let mut own = SelfSummary::default();
+    let mut own_s = 0.0;
+    let mut total_s = 0.0;
     let start = Instant::now();
     let mut stop = observer(sim)? == Control::Stop;
     if stop {
@@ -130,6 +153,12 @@ pub fn run_with(
         split.assemble += st.assemble_s;
         split.solve += st.solve_s;
         split.collide += st.collide_s;
+        own_s += st.self_s;
+        total_s += st.total_s;
+        own.mean_contacts += st.self_contacts as f64;
+        own.max_contacts = own.max_contacts.max(st.self_contacts);
+        own.collisions += st.self_collisions;
+        own.zones += st.self_zones;
         if sim.rms_speed() >= settle_speed {
             last_fast = Some(sim.time);
         }
@@ -184,6 +213,13 @@ pub fn run_with(
         },
         final_contacts: sim.last.contacts,
         final_contacts_held: sim.last.stuck,
+        self_collision: sim.params().self_collision.then_some(SelfSummary {
+            ms_per_step: 1e3 * own_s / n,
+            share_of_step: if total_s > 0.0 { own_s / total_s } else { 0.0 },
+            mean_contacts: own.mean_contacts / n,
+            final_contacts: sim.last.self_contacts,
+            ..own
+        }),
     };
     Ok((rows, summary))
 }

@@ -265,6 +265,9 @@ pub struct SceneFile {
     /// A run counts as settled once the rms speed stays below this, m/s.
     #[serde(default = "default_settle_speed")]
     pub settle_speed: f64,
+    /// Keep the cloth from passing through itself (docs/self_collision.md).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub self_collision: bool,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -297,6 +300,9 @@ pub struct Overrides {
     /// Threads of the assembly and the PCG (0 or none: one per core for
     /// large cloths).
     pub threads: Option<usize>,
+    /// Self-collision on or off, whatever the scene file says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub self_collision: Option<bool>,
 }
 
 impl Overrides {
@@ -505,6 +511,7 @@ impl Scene {
             linear_solver: ov.solver.or(f.solver).unwrap_or_default(),
             cloth_thickness: f.cloth.thickness,
             hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
+            self_collision: ov.self_collision.unwrap_or(f.self_collision),
             ..Params::default()
         };
         let params = Params {

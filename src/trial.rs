@@ -181,6 +181,8 @@ pub struct TrialOverrides {
     pub dt: Option<f64>,
     pub max_time: Option<f64>,
     pub threads: Option<usize>,
+    /// Keep the cloth from passing through itself (docs/self_collision.md).
+    pub self_collision: Option<bool>,
 }
 
 /// What the body mesh check found and repaired.
@@ -392,6 +394,7 @@ impl Trial {
             threads: ov.threads.or(self.file.threads).unwrap_or(0),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
+            self_collision: ov.self_collision.unwrap_or(false),
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;

@@ -73,6 +73,8 @@ pub struct DrapeOptions {
     /// Clamp the vertices out to the radius whose convex hull has the disks'
     /// area ([`area_matched_pin_radius`]); false: those within the disks.
     pub clamp_area_matched: bool,
+    /// Keep the folds from passing through each other.
+    pub self_collision: bool,
 }
 
 impl Default for DrapeOptions {
@@ -89,6 +91,7 @@ impl Default for DrapeOptions {
             border_on_outline: true,
             symmetric_hinges: true,
             clamp_area_matched: false,
+            self_collision: false,
         }
     }
 }
@@ -127,6 +130,9 @@ pub struct DrapeReport {
     pub clamp_radius_m: f64,
     /// Vertices clamped out to this radius, m ([`DrapeOptions::clamp_area_matched`]).
     pub pin_radius_m: f64,
+    /// Run with self-collision ([`DrapeOptions::self_collision`]; absent when off).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub self_collision: bool,
 }
 
 /// Simple xorshift generator (seeded, reproducible).
@@ -273,6 +279,7 @@ pub fn run(
     }
     let params = Params {
         dt: opt.dt,
+        self_collision: opt.self_collision,
         ..Default::default()
     };
     let disk_h = 0.01;
@@ -385,6 +392,7 @@ pub fn run(
         drop_m: drop,
         clamp_radius_m: clamp_radius,
         pin_radius_m: pin_radius,
+        self_collision: opt.self_collision,
     };
     Ok((rep, sim.cloth, shadow))
 }

@@ -383,6 +383,7 @@ pub fn fit_fabric(curves: &CurveSet, meta: &FitMeta) -> Result<(FabricFile, Vec<
             .to_string(),
         areal_mass_mg_per_cm2: meta.areal_mass_mg_per_cm2,
         thickness_mm: meta.thickness_mm,
+        cloth_friction: None,
         warp,
         weft,
         damping: meta.damping,

@@ -237,6 +237,33 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
     } else {
         (DiagnosticStatus::OK, "running".to_string())
     };
+    let mut values = vec![
+        kv("sim_time_s", format!("{:.6}", sim.time)),
+        kv("steps", sim.steps.to_string()),
+        kv("dt_s", format!("{}", sim.params().dt)),
+        kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
+        kv("solver_iterations", f.iterations.to_string()),
+        kv("contacts", sim.last.contacts.to_string()),
+        kv("contacts_held", sim.last.stuck.to_string()),
+        kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
+        kv("rejected_messages", f.rejected_messages.to_string()),
+        kv("dropped_messages", f.dropped_messages.to_string()),
+        kv("recovered_steps", f.recovered_steps.to_string()),
+        kv("vertices", sim.cloth.len().to_string()),
+        kv("pins", sim.pins().len().to_string()),
+        kv("obstacles", sim.obstacles().len().to_string()),
+    ];
+    if sim.params().self_collision {
+        // the cloth against itself (docs/self_collision.md): the last step's
+        // pairs pushed apart and paths that crossed, and its time
+        let st = &sim.last;
+        values.extend([
+            kv("self_contacts", st.self_contacts.to_string()),
+            kv("self_collisions", st.self_collisions.to_string()),
+            kv("self_impact_zones", st.self_zones.to_string()),
+            kv("self_collision_ms", format!("{:.3}", 1e3 * st.self_s)),
+        ]);
+    }
     DiagnosticArray {
         header,
         status: vec![DiagnosticStatus {
@@ -244,22 +271,7 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
             name: "garment_sim: solver".into(),
             message,
             hardware_id: "garment_sim".into(),
-            values: vec![
-                kv("sim_time_s", format!("{:.6}", sim.time)),
-                kv("steps", sim.steps.to_string()),
-                kv("dt_s", format!("{}", sim.params().dt)),
-                kv("step_time_ms", format!("{:.3}", f.step_time_ms)),
-                kv("solver_iterations", f.iterations.to_string()),
-                kv("contacts", sim.last.contacts.to_string()),
-                kv("contacts_held", sim.last.stuck.to_string()),
-                kv("real_time_factor", format!("{:.3}", f.real_time_factor)),
-                kv("rejected_messages", f.rejected_messages.to_string()),
-                kv("dropped_messages", f.dropped_messages.to_string()),
-                kv("recovered_steps", f.recovered_steps.to_string()),
-                kv("vertices", sim.cloth.len().to_string()),
-                kv("pins", sim.pins().len().to_string()),
-                kv("obstacles", sim.obstacles().len().to_string()),
-            ],
+            values,
         }],
     }
 }

@@ -147,6 +147,7 @@ fn load(s: &Settings) -> Result<Loaded> {
             dt: ov.dt,
             threads: ov.threads,
             max_time: None,
+            self_collision: ov.self_collision,
         })?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;

@@ -15,5 +15,6 @@ pub mod collision;
 pub mod fabric;
 pub mod garment;
 pub mod limits;
+pub mod self_contact;
 pub mod set;
 pub mod solver;

@@ -114,8 +114,14 @@ pub struct FabricFile {
     pub notes: String,
     /// KES W, mg/cm².
     pub areal_mass_mg_per_cm2: f64,
+    /// KES T, mm: the distance at which two layers of the fabric rest on
+    /// each other ([`Fabric::layer_thickness`]).
     #[serde(default)]
     pub thickness_mm: Option<f64>,
+    /// Coulomb friction coefficient of the fabric sliding on itself
+    /// ([`Fabric::cloth_friction`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cloth_friction: Option<f64>,
     pub warp: DirectionSpec,
     pub weft: DirectionSpec,
     pub damping: Damping,
@@ -154,6 +160,25 @@ impl Fabric {
     /// against the fabric file's folder).
     pub fn from_file(file: FabricFile, curve: &dyn Fn(&str) -> Result<KesCurve>) -> Result<Fabric> {
         positive("areal_mass_mg_per_cm2", file.areal_mass_mg_per_cm2)?;
+        if let Some(t) = file.thickness_mm {
+            positive("thickness_mm", t)?;
+            crate::limits::check_range(
+                "thickness_mm",
+                t * 1e-3,
+                crate::limits::CLOTH_THICKNESS.0,
+                crate::limits::CLOTH_THICKNESS.1,
+                "m",
+                "CLOTH_THICKNESS: a film to a quilt",
+            )?;
+        }
+        if let Some(mu) = file.cloth_friction {
+            if !(mu.is_finite() && (0.0..=crate::limits::MAX_FRICTION).contains(&mu)) {
+                bail!(
+                    "cloth_friction = {mu}: must be finite, 0 to {} (MAX_FRICTION)",
+                    crate::limits::MAX_FRICTION
+                );
+            }
+        }
         let d = &file.damping;
         for (n, v) in [
             ("damping.alpha", d.alpha),
@@ -203,6 +228,22 @@ impl Fabric {
         f
     }
 
+    /// The distance at which two layers of this fabric rest on each other,
+    /// m: its KES thickness T, or [`crate::collision::DEFAULT_CLOTH_THICKNESS`]
+    /// (the thesis's cloth thickness) where the file gives none.
+    pub fn layer_thickness(&self) -> f64 {
+        self.file
+            .thickness_mm
+            .map_or(crate::collision::DEFAULT_CLOTH_THICKNESS, |t| t * 1e-3)
+    }
+
+    /// The Coulomb coefficient of this fabric sliding on itself (or on
+    /// another fabric: the two coefficients are averaged): the file's
+    /// `cloth_friction`, or [`DEFAULT_CLOTH_FRICTION`].
+    pub fn cloth_friction(&self) -> f64 {
+        self.file.cloth_friction.unwrap_or(DEFAULT_CLOTH_FRICTION)
+    }
+
     pub fn dir(&self, weft: bool) -> &DirectionLaws {
         if weft {
             &self.weft
@@ -211,6 +252,14 @@ impl Fabric {
         }
     }
 }
+
+/// Fabric-on-fabric friction where the fabric file is silent: a typical
+/// order for woven apparel fabrics rubbed on themselves (fabric-on-fabric
+/// friction studies such as Ajayi, "Effects of fabric structure on
+/// frictional properties", Textile Research Journal 62(2), 1992), not a
+/// measurement of any shipped fabric. A fabric with a measured value gives
+/// it as `cloth_friction`.
+pub const DEFAULT_CLOTH_FRICTION: f64 = 0.3;
 
 fn shear_law(w: &BehaviourSpec, t: &BehaviourSpec, curve: &KesCurve) -> Law {
     if let (Some(a), Some(b)) = (w.law, t.law) {

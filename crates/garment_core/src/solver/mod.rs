@@ -67,6 +67,11 @@ pub struct Params {
     /// at 1/120 s keeps a few vertices switching between stick and slip
     /// with it on).
     pub friction_bound_now: bool,
+    /// Keep the cloth from passing through itself ([`crate::self_contact`]):
+    /// layers rest at the fabric's thickness T and slide on each other with
+    /// its fabric-on-fabric friction. Off: folds may pass through each other.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub self_collision: bool,
 }
 
 impl Default for Params {
@@ -81,6 +86,7 @@ impl Default for Params {
             hysteresis: true,
             threads: 0,
             friction_bound_now: false,
+            self_collision: false,
         }
     }
 }
@@ -246,6 +252,14 @@ pub struct StepStats {
     pub assemble_s: f64,
     pub solve_s: f64,
     pub collide_s: f64,
+    /// The cloth against itself ([`Params::self_collision`]; all zero when
+    /// off): pairs within the thickness pushed apart, pairs whose paths
+    /// crossed, rigid impact zones, and the time it took (not in
+    /// `collide_s`).
+    pub self_contacts: usize,
+    pub self_collisions: usize,
+    pub self_zones: usize,
+    pub self_s: f64,
     pub total_s: f64,
 }
 
@@ -375,6 +389,9 @@ struct Workspace {
     direct: Option<linear::Direct>,
     /// The multigrid hierarchy (built on first use).
     amg: Option<amg::Amg>,
+    /// The cloth–cloth pass (built on the first step with
+    /// [`Params::self_collision`]).
+    self_contact: Option<Box<crate::self_contact::SelfContact>>,
 }
 
 impl Workspace {
@@ -411,6 +428,7 @@ impl Workspace {
             pcg: linear::Pcg::default(),
             direct,
             amg: None,
+            self_contact: None,
         })
     }
 }
@@ -674,6 +692,9 @@ impl Simulation {
     /// Advances one fixed step.
     pub fn step(&mut self) -> Result<StepStats> {
         let t_start = Instant::now();
+        // the cloth-cloth pass takes the start positions (and refuses a
+        // tangled cloth on the first step, before anything changes)
+        let start = self.begin_self_contact()?;
         let h = self.params.dt;
         let t1 = self.time + h;
         let n = self.cloth.len();
@@ -767,11 +788,12 @@ impl Simulation {
             ob.advance(h);
         }
         self.finish(h);
+        let own = self.resolve_self_contact(h, start);
         // (the hysteresis memory follows the new shape at the start of the next
         // assembly, fused with it; see `assemble`)
         self.time = t1;
         self.steps += 1;
-        let collide_s = t_collide + t_post.elapsed().as_secs_f64();
+        let collide_s = t_collide + t_post.elapsed().as_secs_f64() - own.time_s;
         self.last = StepStats {
             iterations,
             contacts,
@@ -779,6 +801,10 @@ impl Simulation {
             assemble_s,
             solve_s,
             collide_s,
+            self_contacts: own.contacts,
+            self_collisions: own.collisions,
+            self_zones: own.zones,
+            self_s: own.time_s,
             total_s: t_start.elapsed().as_secs_f64(),
         };
         Ok(self.last)
@@ -1012,6 +1038,62 @@ impl Simulation {
         self.ws
             .team
             .run_each(&mut rows, |_, r| vertices::finish(&solved, r));
+    }
+
+    /// With [`Params::self_collision`]: the cloth–cloth pass (built on the
+    /// first step, which refuses a tangled start) takes the positions at the
+    /// start of the update. Whether it runs, and the time this took, s.
+    fn begin_self_contact(&mut self) -> Result<Option<f64>> {
+        if !self.params.self_collision {
+            return Ok(None);
+        }
+        let t = Instant::now();
+        let first = self.ws.self_contact.is_none();
+        if first {
+            let c = &self.cloth;
+            let n = c.len();
+            let mut stitches = Vec::new();
+            for st in &c.seams {
+                stitches.push([st.v[0], st.v[1]]);
+                stitches.push([st.v[0], st.v[2]]);
+            }
+            let thickness = (0..n)
+                .map(|i| self.fabric_of(i).layer_thickness())
+                .collect();
+            let friction = (0..n).map(|i| self.fabric_of(i).cloth_friction()).collect();
+            self.ws.self_contact = Some(Box::new(crate::self_contact::SelfContact::new(
+                &c.x,
+                &c.triangles,
+                &stitches,
+                thickness,
+                friction,
+            )?));
+        }
+        let sc = self.ws.self_contact.as_mut().expect("self-contact built");
+        sc.begin(&self.cloth.x, first)?;
+        Ok(Some(t.elapsed().as_secs_f64()))
+    }
+
+    /// The cloth–cloth pass after the update (see [`crate::self_contact`]).
+    fn resolve_self_contact(
+        &mut self,
+        h: f64,
+        begun: Option<f64>,
+    ) -> crate::self_contact::SelfStats {
+        let (Some(begin_s), Some(sc)) = (begun, self.ws.self_contact.as_mut()) else {
+            return Default::default();
+        };
+        let (pinned, contact_of) = (&self.pinned, &self.ws.contact_of);
+        let mut st = sc.resolve(
+            h,
+            &mut self.cloth.x,
+            &mut self.cloth.v,
+            &self.cloth.mass,
+            &|i| pinned[i].is_some(),
+            &|i| contact_of[i].is_some(),
+        );
+        st.time_s += begin_s;
+        st
     }
 
     fn commit_laws(&mut self) {
