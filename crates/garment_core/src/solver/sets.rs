@@ -880,6 +880,7 @@ mod tests {
             notes: String::new(),
             areal_mass_mg_per_cm2: 21.3,
             thickness_mm: None,
+            cloth_friction: None,
             warp: dir(0.65, 8.68, 62.0, 5.34, 0.60, 0.70, 1.50, 0.040, 0.030),
             weft: dir(0.62, 9.5, 60.0, 6.1, 0.58, 0.68, 1.45, 0.030, 0.025),
             damping: Damping {
