@@ -198,7 +198,7 @@ mod tests {
         for t in 0..200 {
             let c = Vector3::new(rnd(), rnd(), rnd());
             for _ in 0..3 {
-                x.push(c + Vector3::new(rnd(), rnd(), rnd()) * 0.08);
+                x.push(c + Vector3::new(rnd(), rnd(), rnd()) * 0.25);
             }
             tris.push([3 * t, 3 * t + 1, 3 * t + 2]);
         }
