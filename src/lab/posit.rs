@@ -16,7 +16,7 @@
 //!   reprojection error.
 
 use anyhow::{bail, Result};
-use nalgebra::{DMatrix, Matrix3, Matrix6, Rotation3, Vector3, Vector6};
+use nalgebra::{DMatrix, Matrix3, Matrix6, Rotation3, SMatrix, SVector, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
 type V3 = Vector3<f64>;
@@ -509,36 +509,58 @@ pub fn refine_pose(k: &Intrinsics, start: Pose, object: &[V3], pixels: &[[f64; 2
                 g += row * res[a];
             }
         }
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut hl = h;
-            for d in 0..6 {
-                hl[(d, d)] += lambda * h[(d, d)].max(1e-12);
-            }
-            let Some(step) = hl.cholesky().map(|c| c.solve(&(-g))) else {
-                lambda *= 10.0;
-                continue;
-            };
+        match damped_step(&h, &g, &mut lambda, 1e-12, cost, |step| {
             let cand = Pose {
                 rotation: Rotation3::new(V3::new(step[0], step[1], step[2])) * pose.rotation,
                 translation: pose.translation + V3::new(step[3], step[4], step[5]),
             };
             let c = pose_cost(k, &cand, object, pixels);
-            if c < cost {
-                let done = cost - c <= 1e-15 * cost;
+            (cand, c)
+        }) {
+            Some((cand, c, done)) => {
                 pose = cand;
                 cost = c;
-                lambda = (lambda * 0.3).max(1e-12);
-                improved = !done;
-                break;
+                if done {
+                    break;
+                }
             }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
+            None => break,
         }
     }
     pose
+}
+
+/// One Levenberg–Marquardt update of the normal equations `h δ = −g`:
+/// tries the steps damped by `λ · max(diag h, floor)` (λ tenfold after a
+/// failed try, at most 20 tries) until `eval(δ)` gives a cost below `cost`;
+/// then lowers λ (× 0.3, at least 1e-12) and returns the candidate, its cost
+/// and whether the cost fell by less than a 1e-15 fraction (converged).
+/// `None` when no try lowered the cost.
+fn damped_step<const D: usize, T>(
+    h: &SMatrix<f64, D, D>,
+    g: &SVector<f64, D>,
+    lambda: &mut f64,
+    floor: f64,
+    cost: f64,
+    eval: impl Fn(&SVector<f64, D>) -> (T, f64),
+) -> Option<(T, f64, bool)> {
+    for _ in 0..20 {
+        let mut hl = *h;
+        for d in 0..D {
+            hl[(d, d)] += *lambda * h[(d, d)].max(floor);
+        }
+        let Some(step) = hl.cholesky().map(|ch| ch.solve(&(-g))) else {
+            *lambda *= 10.0;
+            continue;
+        };
+        let (cand, c) = eval(&step);
+        if c < cost {
+            *lambda = (*lambda * 0.3).max(1e-12);
+            return Some((cand, c, cost - c <= 1e-15 * cost));
+        }
+        *lambda *= 10.0;
+    }
+    None
 }
 
 /// The point seen at `pixels` by the posed cameras (at least two): the
@@ -600,30 +622,19 @@ pub fn triangulate(k: &Intrinsics, poses: &[Pose], pixels: &[[f64; 2]]) -> Optio
                 g += row * res[d];
             }
         }
-        let mut improved = false;
-        for _ in 0..20 {
-            let mut hl = h;
-            for d in 0..3 {
-                hl[(d, d)] += lambda * h[(d, d)].max(1e-18);
-            }
-            let Some(step) = hl.cholesky().map(|ch| ch.solve(&(-g))) else {
-                lambda *= 10.0;
-                continue;
-            };
+        match damped_step(&h, &g, &mut lambda, 1e-18, c0, |step| {
             let cand = x + step;
             let c = cost(&cand);
-            if c < c0 {
-                let done = c0 - c <= 1e-15 * c0;
+            (cand, c)
+        }) {
+            Some((cand, c, done)) => {
                 x = cand;
                 c0 = c;
-                lambda = (lambda * 0.3).max(1e-12);
-                improved = !done;
-                break;
+                if done {
+                    break;
+                }
             }
-            lambda *= 10.0;
-        }
-        if !improved {
-            break;
+            None => break,
         }
     }
     Some(x)
