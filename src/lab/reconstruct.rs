@@ -416,11 +416,16 @@ pub struct Deformation {
     pub kernel: RbfKernel,
 }
 
+/// By default the displacement is a function on the flat cloth interpolated
+/// by the thin-plate spline: of all the functions of (u, v) through the marks,
+/// the one of least bending energy (Duchon 1977), and marks that a fold
+/// brings close in space but that lie far apart on the cloth do not pull on
+/// each other.
 impl Default for Deformation {
     fn default() -> Self {
         Deformation {
-            space: RbfSpace::World,
-            kernel: RbfKernel::Cubic,
+            space: RbfSpace::Material,
+            kernel: RbfKernel::ThinPlate,
         }
     }
 }
@@ -444,7 +449,11 @@ pub fn deform(model: &Shape, marks: &[(V3, [f64; 2], V3)], how: &Deformation) ->
     let rbf = Rbf::fit_with(&centres, &values, how.kernel)?;
     let mut s = model.clone();
     if how.space == RbfSpace::Material && model.material.is_none() {
-        bail!("the model has no material coordinates");
+        bail!(
+            "the model has no material coordinates (u v per vertex) for a deformation in \
+             material space: give a PLY with u v (as drape writes final.ply), or use \
+             --rbf-space world"
+        );
     }
     for (k, x) in s.vertices.iter_mut().enumerate() {
         let uv = model.material.as_ref().map(|m| m[k]).unwrap_or([0.0; 2]);
