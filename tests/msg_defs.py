@@ -29,6 +29,7 @@ def test_definitions_parse_and_resolve():
     for name in [
         "garment_sim_msgs/msg/Obstacle",
         "garment_sim_msgs/msg/Pin",
+        "garment_sim_msgs/msg/Body",
         "garment_sim_msgs/msg/Step_Request",  # rosbags files services under msg/
         "garment_sim_msgs/msg/Step_Response",
     ]:
@@ -82,3 +83,15 @@ def test_cdr_round_trip():
     )
     back = ts.deserialize_cdr(ts.serialize_cdr(pin, "garment_sim_msgs/msg/Pin"), "garment_sim_msgs/msg/Pin")
     assert list(back.vertices) == [0, 10] and back.targets[1].x == 0.5
+    Body = ts.types["garment_sim_msgs/msg/Body"]
+    body = Body(
+        header=Header(stamp=Time(sec=2, nanosec=0), frame_id="world"),
+        id="avatar",
+        triangles=np.array([0, 1, 2], dtype=np.uint32),
+        positions=np.array([0.0, 0.0, 1.0, 0.1, 0.0, 1.0, 0.0, 0.1, 1.0], dtype=np.float32),
+        thickness=float("nan"),
+        friction=0.3,
+    )
+    back = ts.deserialize_cdr(ts.serialize_cdr(body, "garment_sim_msgs/msg/Body"), "garment_sim_msgs/msg/Body")
+    assert list(back.triangles) == [0, 1, 2] and back.positions.dtype == np.float32
+    assert back.positions[5] == np.float32(1.0) and back.friction == 0.3

@@ -208,6 +208,32 @@ fn messages_match_rosbags_byte_for_byte() {
     };
     round_trip(&pin);
     write(&dir, "pin", &pin);
+    // a body's topology frame (two triangles) and a positions-only frame
+    let body = Body {
+        header: h.clone(),
+        id: "avatar".into(),
+        triangles: vec![0, 1, 2, 0, 2, 3],
+        positions: vec![
+            0.0, 0.0, 1.0, 0.1, 0.0, 1.0, 0.1, 0.1, 1.0, 0.0, 0.1, 1.25,
+        ],
+        thickness: 0.004,
+        friction: f64::NAN,
+    };
+    let back: Body = from_cdr(&to_cdr(&body)).unwrap();
+    assert_eq!((&back.triangles, &back.positions), (&body.triangles, &body.positions));
+    assert!(back.friction.is_nan());
+    let body = Body {
+        friction: 0.5,
+        ..body
+    };
+    write(&dir, "body_topology", &body);
+    let frame = Body {
+        triangles: vec![],
+        positions: vec![0.5; 12],
+        ..body
+    };
+    round_trip(&frame);
+    write(&dir, "body_frame", &frame);
     write(&dir, "step_request", &StepRequest { steps: 12 });
     write(
         &dir,

@@ -471,6 +471,19 @@ impl Obstacle {
     pub const MOVE: u8 = 3;
 }
 
+/// `garment_sim_msgs/msg/Body` (msg/garment_sim_msgs/msg/Body.msg): a
+/// deforming body's topology (once) and vertex positions (every frame).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Body {
+    pub header: Header,
+    pub id: String,
+    pub triangles: Vec<u32>,
+    pub positions: Vec<f32>,
+    pub thickness: f64,
+    pub friction: f64,
+}
+ros_type!(Body, "garment_sim_msgs/msg/Body");
+
 /// `garment_sim_msgs/msg/Pin` (msg/garment_sim_msgs/msg/Pin.msg).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pin {

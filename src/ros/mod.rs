@@ -5,6 +5,7 @@
 //! bags share. The physics never depends on this module.
 
 pub mod args;
+pub mod body;
 pub mod control;
 pub mod node;
 pub mod params;
