@@ -213,14 +213,15 @@ fn messages_match_rosbags_byte_for_byte() {
         header: h.clone(),
         id: "avatar".into(),
         triangles: vec![0, 1, 2, 0, 2, 3],
-        positions: vec![
-            0.0, 0.0, 1.0, 0.1, 0.0, 1.0, 0.1, 0.1, 1.0, 0.0, 0.1, 1.25,
-        ],
+        positions: vec![0.0, 0.0, 1.0, 0.1, 0.0, 1.0, 0.1, 0.1, 1.0, 0.0, 0.1, 1.25],
         thickness: 0.004,
         friction: f64::NAN,
     };
     let back: Body = from_cdr(&to_cdr(&body)).unwrap();
-    assert_eq!((&back.triangles, &back.positions), (&body.triangles, &body.positions));
+    assert_eq!(
+        (&back.triangles, &back.positions),
+        (&body.triangles, &body.positions)
+    );
     assert!(back.friction.is_nan());
     let body = Body {
         friction: 0.5,

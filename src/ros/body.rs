@@ -229,10 +229,7 @@ impl BodyStreams {
             .chunks_exact(3)
             .position(|t| t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
         {
-            return fail(
-                Refusal::Triangles,
-                format!("triangle {t} repeats a vertex"),
-            );
+            return fail(Refusal::Triangles, format!("triangle {t} repeats a vertex"));
         }
         for (what, v) in [("thickness", m.thickness), ("friction", m.friction)] {
             if v.is_infinite() {
@@ -361,12 +358,20 @@ mod tests {
             .accept(&msg("b", 0.0, vec![0, 1, 4], quad(0.0)), "world", 0.0, 0.01)
             .unwrap_err();
         assert_eq!(k, Refusal::Triangles);
-        assert!(why.contains("triangles[2]") && why.contains("vertex 4"), "{why}");
+        assert!(
+            why.contains("triangles[2]") && why.contains("vertex 4"),
+            "{why}"
+        );
         let e = b.accept(&msg("b", 0.0, vec![0, 1], quad(0.0)), "world", 0.0, 0.01);
         assert_eq!(e.unwrap_err().0, Refusal::Triangles);
         let e = b.accept(&msg("b", 0.0, vec![0, 1, 1], quad(0.0)), "world", 0.0, 0.01);
         assert_eq!(e.unwrap_err().0, Refusal::Triangles);
-        let e = b.accept(&msg("b", 0.0, vec![0, 1, 2], vec![0.0; 7]), "world", 0.0, 0.01);
+        let e = b.accept(
+            &msg("b", 0.0, vec![0, 1, 2], vec![0.0; 7]),
+            "world",
+            0.0,
+            0.01,
+        );
         assert_eq!(e.unwrap_err().0, Refusal::VertexCount);
         let (taken, late, refused) = b.counts();
         assert_eq!((taken, late), (4, 1));
