@@ -19,6 +19,7 @@
 pub use garment_core::{cloth, collision, fabric, garment, limits, self_contact, set, solver};
 
 pub mod bag;
+pub mod body_forces;
 pub mod capture;
 pub mod io;
 pub mod lab;
