@@ -486,6 +486,9 @@ pub struct RunStats {
     pub time_split_ms_per_step: crate::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
+    /// Time spent on the wrench on the body after each step (outside the
+    /// step, included in `ms_per_step`), ms per step.
+    pub body_wrench_ms_per_step: f64,
     /// Every 0.05 s: time (s), rms speed (m/s), vertices in contact, solver
     /// iterations of that step (written as `trial.csv`).
     #[serde(skip)]
@@ -561,6 +564,7 @@ pub fn run_on(
     let mut iters = 0usize;
     let mut trace: Vec<[f64; 4]> = Vec::new();
     let mut wrench: Vec<(f64, Wrench)> = Vec::new();
+    let mut wrench_s = 0.0;
     let every = ((0.05 / sim.params().dt).round() as u64).max(1);
     let gravity = sim.params().gravity;
     let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
@@ -589,9 +593,11 @@ pub fn run_on(
         split.collide += s.collide_s;
         iters += s.iterations;
         *steps += 1;
+        let t_w = Instant::now();
         if let Some(w) = body.and_then(|b| body_forces::wrench(sim, b)) {
             wrench.push((sim.time, w));
         }
+        wrench_s += t_w.elapsed().as_secs_f64();
         if (*steps).is_multiple_of(every) {
             trace.push([
                 sim.time,
@@ -653,6 +659,7 @@ pub fn run_on(
         },
         final_rms_speed_m_s: sim.rms_speed(),
         mean_solver_iterations: iters as f64 / n,
+        body_wrench_ms_per_step: 1e3 * wrench_s / n,
         trace,
         wrench,
     })

@@ -148,7 +148,7 @@ fn a_sheet_on_a_plate_presses_with_its_weight_and_areal_weight() {
                 p.pressure[i]
             );
         }
-        if u < -0.04 || u > 0.24 || s < -0.04 || s > 0.24 {
+        if !(-0.04..=0.24).contains(&u) || !(-0.04..=0.24).contains(&s) {
             assert_eq!(p.pressure[i], 0.0, "plate vertex {i} away from the sheet");
         }
     }
