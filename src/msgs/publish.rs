@@ -80,19 +80,27 @@ pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) ->
     }
 }
 
-/// The garment's wrench on the body as `body/wrench` carries it (force N,
-/// torque N m about the body frame's origin, in the header's frame).
-pub fn body_wrench(w: &crate::body_forces::Wrench, header: Header) -> WrenchStamped {
-    let v = |a: [f64; 3]| Vector3 {
-        x: a[0],
-        y: a[1],
-        z: a[2],
+/// The garment's wrench on the body as `body/wrench` carries it: force N and
+/// torque N m about the origin of the header's frame (the simulation's world,
+/// as a WrenchStamped means it), moved there from the body frame's origin
+/// `origin` (world coordinates) where [`crate::body_forces::Wrench`] takes it.
+pub fn body_wrench(
+    w: &crate::body_forces::Wrench,
+    origin: &nalgebra::Vector3<f64>,
+    header: Header,
+) -> WrenchStamped {
+    let v = |a: nalgebra::Vector3<f64>| Vector3 {
+        x: a.x,
+        y: a.y,
+        z: a.z,
     };
+    let force = nalgebra::Vector3::from(w.force);
+    let torque = nalgebra::Vector3::from(w.torque) + origin.cross(&force);
     WrenchStamped {
         header,
         wrench: Wrench {
-            force: v(w.force),
-            torque: v(w.torque),
+            force: v(force),
+            torque: v(torque),
         },
     }
 }

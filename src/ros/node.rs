@@ -11,7 +11,7 @@
 //! | `cloth/points` | sensor_msgs/msg/PointCloud2 | out: x, y, z, strain, speed (float32) |
 //! | `cloth/mesh` | visualization_msgs/msg/Marker | out: TRIANGLE_LIST coloured by strain |
 //! | `obstacles/markers` | visualization_msgs/msg/MarkerArray | out |
-//! | `body/wrench` | geometry_msgs/msg/WrenchStamped | out, with a body: the garment's force and torque on it |
+//! | `body/wrench` | geometry_msgs/msg/WrenchStamped | out, with a body: the garment's force on it, torque about the frame's origin |
 //! | `body/points` | sensor_msgs/msg/PointCloud2 | out, with a mesh body: its vertices, x, y, z, pressure (float32) |
 //! | `diagnostics` | diagnostic_msgs/msg/DiagnosticArray | out: step time, iterations, RTF, rejected messages |
 //! | `/clock` | rosgraph_msgs/msg/Clock | out: simulated time |
@@ -212,14 +212,15 @@ fn body_forces(
     h: msgs::Header,
 ) -> Option<(msgs::WrenchStamped, Option<msgs::PointCloud2>)> {
     let body = crate::trial::body_handle(sim)?;
+    let origin = sim.obstacles().get(body)?.pose.translation.vector;
     match crate::body_forces::body_pressure(sim, body) {
         Some(p) => Some((
-            publish::body_wrench(&p.wrench, h.clone()),
+            publish::body_wrench(&p.wrench, &origin, h.clone()),
             Some(publish::body_cloud(&p, h)),
         )),
         None => {
             let w = crate::body_forces::wrench(sim, body)?;
-            Some((publish::body_wrench(&w, h), None))
+            Some((publish::body_wrench(&w, &origin, h), None))
         }
     }
 }
