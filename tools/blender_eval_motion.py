@@ -20,6 +20,7 @@ torso shows there.
 """
 
 import json
+import struct
 import sys
 
 import bpy
@@ -76,7 +77,6 @@ def main():
     # the file's end time, from its keyframe times (the glTF sampler input)
     with open(glb, "rb") as f:
         data = f.read()
-    import struct
     jl = struct.unpack_from("<I", data, 12)[0]
     doc = json.loads(data[20:20 + jl])
     acc = doc["accessors"][doc["animations"][0]["samplers"][0]["input"]]
