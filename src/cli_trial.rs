@@ -57,8 +57,10 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     let stop = garment_sim::run::stop_flag()?;
     let mut sew = crate::progress_printer("sewing".into());
     let mut drape = crate::progress_printer("drape".into());
-    let stats = trial::run(
+    let body = trial::body_handle(&sim);
+    let stats = trial::run_on(
         &mut sim,
+        body,
         &t.file.sewing,
         &t.file.settle,
         a.max_time,
@@ -72,8 +74,12 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &|| stop.load(Ordering::Relaxed),
     )?;
     drape(1.0, 1.0);
-    let (fit, vf) = trial::fit(&sim, &g, &t, stats);
+    let (fit, vf, on_body) = trial::fit(&sim, &g, &t, stats);
     trial::write_trace(&fit.run, &a.out.join("trial.csv"))?;
+    trial::write_wrench(&fit.run, &a.out.join("body_wrench.csv"))?;
+    if let Some(p) = &on_body {
+        trial::write_body_ply(p, &a.out.join("body_pressure.ply"))?;
+    }
     trial::write_obj(&sim, &g, &a.out.join("garment.obj"))?;
     trial::write_ply(&sim, &vf, &a.out.join("garment.ply"))?;
     let json = serde_json::to_string_pretty(&fit)?;
@@ -143,6 +149,34 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         fit.largest_seam_gap_mm,
         fit.body_penetrations
     );
+    if let Some(bw) = &fit.body_wrench {
+        let (f, m) = (bw.mean_force_n, bw.mean_torque_nm);
+        println!(
+            "on the body (mean of the last {} s): force ({:.3}, {:.3}, {:.3}) N ({:.3} of the \
+             weight downward), torque ({:.4}, {:.4}, {:.4}) N m; peak force {:.3} N at t = {:.2} s",
+            trial::WRENCH_MEAN_S,
+            f[0],
+            f[1],
+            f[2],
+            bw.mean_down_over_weight,
+            m[0],
+            m[1],
+            m[2],
+            bw.peak_force_n,
+            bw.peak_force_time_s
+        );
+    }
+    if let Some(bp) = &fit.body_pressure {
+        println!(
+            "pressure on the body: {} vertices over {:.1} cm², peak {:.1} Pa, Σ pressure × area \
+             {:.4} N (normal force {:.4} N)",
+            bp.loaded_vertices,
+            1e4 * bp.loaded_area_m2,
+            bp.peak_pressure_pa,
+            bp.pressure_integral_n,
+            bp.normal_force_n
+        );
+    }
     for (name, gf) in &fit.girths {
         if let Some(e) = gf.ease_cm {
             println!(

@@ -14,11 +14,13 @@
 //! simulation) that [`bag`] records as rosbag2 bags, [`ros`] (the ROS 2
 //! node) publishes and [`live`] serves to Foxglove over its WebSocket
 //! protocol. [`pattern`] reads garments (GarmentCode patterns and garment
-//! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body.
+//! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body;
+//! [`body_forces`] are the garment's force and pressure on that body.
 
 pub use garment_core::{cloth, collision, fabric, garment, limits, self_contact, set, solver};
 
 pub mod bag;
+pub mod body_forces;
 pub mod capture;
 pub mod io;
 pub mod lab;

@@ -12,11 +12,13 @@
 //!    own damping; the run ends when the rms speed stays below
 //!    `settle.speed` for `settle.hold` seconds, or at `settle.max_time`.
 
+use crate::body_forces::{self, BodyPressure, Wrench};
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
 use crate::garment::Garment;
 use crate::pattern::GarmentDef;
 use crate::scene::PoseSpec;
+use crate::set::Handle;
 use crate::solver::{LinearSolverKind, Params, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector3;
@@ -323,7 +325,7 @@ impl Trial {
         let ((v, t), _) = load_body(&obj, b.scale)?;
         let pose = b.pose.isometry(&what("pose"))?;
         let body = Obstacle::new(
-            "body",
+            BODY_ID,
             ShapeSpec::Triangles {
                 vertices: v,
                 triangles: t,
@@ -403,6 +405,15 @@ impl Trial {
     }
 }
 
+/// The id of a trial's body among the simulation's obstacles.
+pub const BODY_ID: &str = "body";
+
+/// The body of a simulation: its obstacle named [`BODY_ID`] (a trial's
+/// body, or a scene's obstacle of that id), the first if several.
+pub fn body_handle(sim: &Simulation) -> Option<Handle<Obstacle>> {
+    sim.obstacles().find(|o| o.id == BODY_ID)
+}
+
 /// Does this YAML file describe a trial (it names a garment) rather than a
 /// scene?
 pub fn is_trial_file(path: &Path) -> bool {
@@ -475,16 +486,37 @@ pub struct RunStats {
     pub time_split_ms_per_step: crate::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
+    /// Time spent on the wrench on the body after each step (outside the
+    /// step, included in `ms_per_step`), ms per step.
+    pub body_wrench_ms_per_step: f64,
     /// Every 0.05 s: time (s), rms speed (m/s), vertices in contact, solver
     /// iterations of that step (written as `trial.csv`).
     #[serde(skip)]
     pub trace: Vec<[f64; 4]>,
+    /// The garment's wrench on the body after every step, with the time
+    /// (written as `body_wrench.csv`; empty when run without a body).
+    #[serde(skip)]
+    pub wrench: Vec<(f64, Wrench)>,
 }
 
 /// Sews and drapes (the phases of the module's documentation);
 /// `progress(phase, t, of)` after each step, `stop()` ends the run early.
 pub fn run(
     sim: &mut Simulation,
+    sew: &SewingFile,
+    st: &SettleFile,
+    max_time: Option<f64>,
+    progress: &mut dyn FnMut(&str, f64, f64),
+    stop: &dyn Fn() -> bool,
+) -> Result<RunStats> {
+    run_on(sim, None, sew, st, max_time, progress, stop)
+}
+
+/// [`run`], recording the garment's wrench on obstacle `body` after every
+/// step ([`RunStats::wrench`]).
+pub fn run_on(
+    sim: &mut Simulation,
+    body: Option<Handle<Obstacle>>,
     sew: &SewingFile,
     st: &SettleFile,
     max_time: Option<f64>,
@@ -531,6 +563,8 @@ pub fn run(
     let mut steps = 0u64;
     let mut iters = 0usize;
     let mut trace: Vec<[f64; 4]> = Vec::new();
+    let mut wrench: Vec<(f64, Wrench)> = Vec::new();
+    let mut wrench_s = 0.0;
     let every = ((0.05 / sim.params().dt).round() as u64).max(1);
     let gravity = sim.params().gravity;
     let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
@@ -559,6 +593,11 @@ pub fn run(
         split.collide += s.collide_s;
         iters += s.iterations;
         *steps += 1;
+        let t_w = Instant::now();
+        if let Some(w) = body.and_then(|b| body_forces::wrench(sim, b)) {
+            wrench.push((sim.time, w));
+        }
+        wrench_s += t_w.elapsed().as_secs_f64();
         if (*steps).is_multiple_of(every) {
             trace.push([
                 sim.time,
@@ -620,7 +659,9 @@ pub fn run(
         },
         final_rms_speed_m_s: sim.rms_speed(),
         mean_solver_iterations: iters as f64 / n,
+        body_wrench_ms_per_step: 1e3 * wrench_s / n,
         trace,
+        wrench,
     })
 }
 
@@ -690,11 +731,104 @@ pub struct Fit {
     pub deepest_penetration_cm: f64,
     pub largest_seam_gap_mm: f64,
     pub largest_seam_gap_at: Option<String>,
+    /// The garment's force and torque on the body (`body_wrench.csv` over
+    /// time); `null` without a body.
+    pub body_wrench: Option<BodyWrenchFit>,
+    /// The pressure on the body's vertices at the end (`body_pressure.ply`).
+    pub body_pressure: Option<BodyPressureFit>,
     /// What a designer should not miss: a panel stretched beyond
     /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
     /// garment that did not settle.
     pub warnings: Vec<String>,
     pub run: RunStats,
+}
+
+/// The garment's wrench on the body: at the end of the run, averaged over
+/// its last [`WRENCH_MEAN_S`] seconds, and its largest force over the run.
+#[derive(Debug, Clone, Serialize)]
+pub struct BodyWrenchFit {
+    /// After the last step (force N, torque N m about the body frame's
+    /// origin, normal force N, contacts).
+    pub last: Wrench,
+    /// Mean force and torque of the steps in the last [`WRENCH_MEAN_S`] s.
+    pub mean_force_n: [f64; 3],
+    pub mean_torque_nm: [f64; 3],
+    /// The mean force's downward part over the garment's weight: 1 when the
+    /// body alone holds the garment at rest.
+    pub mean_down_over_weight: f64,
+    /// Largest force over the run, N, and when, s.
+    pub peak_force_n: f64,
+    pub peak_force_time_s: f64,
+}
+
+/// Seconds at the end of a run over which [`BodyWrenchFit`] averages.
+pub const WRENCH_MEAN_S: f64 = 0.5;
+
+/// The pressure on the body's vertices ([`BodyPressure`]) summed up.
+#[derive(Debug, Clone, Serialize)]
+pub struct BodyPressureFit {
+    /// Body vertices under a pressure.
+    pub loaded_vertices: usize,
+    /// Their area, m².
+    pub loaded_area_m2: f64,
+    pub peak_pressure_pa: f64,
+    /// Σ pressure × vertex area over the body's vertices, N (equals
+    /// `normal_force_n`).
+    pub pressure_integral_n: f64,
+    /// Σ of the contacts' normal forces, N.
+    pub normal_force_n: f64,
+}
+
+impl BodyPressureFit {
+    pub fn of(p: &BodyPressure) -> BodyPressureFit {
+        let loaded: Vec<usize> = (0..p.pressure.len())
+            .filter(|&i| p.pressure[i] > 0.0)
+            .collect();
+        BodyPressureFit {
+            loaded_vertices: loaded.len(),
+            loaded_area_m2: loaded.iter().map(|&i| p.area[i]).sum(),
+            peak_pressure_pa: p.pressure.iter().copied().fold(0.0, f64::max),
+            pressure_integral_n: p.integral(),
+            normal_force_n: p.normal_force,
+        }
+    }
+}
+
+impl BodyWrenchFit {
+    /// From a run's wrench history (`None` if it has none) and the garment's
+    /// weight, N.
+    pub fn of(history: &[(f64, Wrench)], weight: f64) -> Option<BodyWrenchFit> {
+        let &(t_end, last) = history.last()?;
+        let tail: Vec<&Wrench> = history
+            .iter()
+            .filter(|(t, _)| *t >= t_end - WRENCH_MEAN_S - 1e-12)
+            .map(|(_, w)| w)
+            .collect();
+        let n = tail.len() as f64;
+        let mean = |f: &dyn Fn(&Wrench) -> [f64; 3]| -> [f64; 3] {
+            let mut m = [0.0; 3];
+            for w in &tail {
+                let v = f(w);
+                for k in 0..3 {
+                    m[k] += v[k] / n;
+                }
+            }
+            m
+        };
+        let mf = mean(&|w| w.force);
+        let (peak_t, peak) = history
+            .iter()
+            .map(|(t, w)| (*t, Vector3::from(w.force).norm()))
+            .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        Some(BodyWrenchFit {
+            last,
+            mean_force_n: mf,
+            mean_torque_nm: mean(&|w| w.torque),
+            mean_down_over_weight: if weight > 0.0 { -mf[2] / weight } else { 0.0 },
+            peak_force_n: peak,
+            peak_force_time_s: peak_t,
+        })
+    }
 }
 
 /// Strain beyond which a panel is reported as overstretched (a pattern that
@@ -798,8 +932,14 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
     }
 }
 
-/// Measures the fit of the garment as it is now.
-pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit, VertexFit) {
+/// Measures the fit of the garment as it is now, with the pressure on the
+/// body's vertices.
+pub fn fit(
+    sim: &Simulation,
+    g: &Garment,
+    trial: &Trial,
+    run: RunStats,
+) -> (Fit, VertexFit, Option<BodyPressure>) {
     let c = &sim.cloth;
     let x = &c.x;
     let n = c.len();
@@ -956,7 +1096,10 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
             run.final_rms_speed_m_s
         ));
     }
+    let on_body = body_handle(sim).and_then(|b| body_forces::body_pressure(sim, b));
     let fit = Fit {
+        body_wrench: BodyWrenchFit::of(&run.wrench, weight),
+        body_pressure: on_body.as_ref().map(BodyPressureFit::of),
         garment: trial.garment.name.clone(),
         fabric: sim
             .fabrics()
@@ -986,7 +1129,59 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
         warnings,
         run,
     };
-    (fit, vf)
+    (fit, vf, on_body)
+}
+
+/// Writes `body_wrench.csv`: the garment's wrench on the body after every
+/// step.
+pub fn write_wrench(run: &RunStats, path: &Path) -> Result<()> {
+    crate::io::write_atomic(path, |w| {
+        writeln!(
+            w,
+            "time_s,force_x_n,force_y_n,force_z_n,torque_x_nm,torque_y_nm,torque_z_nm,\
+             normal_force_n,contacts"
+        )?;
+        for (t, r) in &run.wrench {
+            let (f, m) = (r.force, r.torque);
+            writeln!(
+                w,
+                "{t:.4},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{}",
+                f[0], f[1], f[2], m[0], m[1], m[2], r.normal_force, r.contacts
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// Writes the body with the garment's pressure on its vertices as a PLY
+/// (`body_pressure.ply`): x, y, z (m, world), `pressure` (Pa), `force` (the
+/// normal force the vertex received, N), `area` (m², a third of its
+/// triangles').
+pub fn write_body_ply(p: &BodyPressure, path: &Path) -> Result<()> {
+    crate::io::write_atomic(path, |w| {
+        writeln!(
+            w,
+            "ply\nformat ascii 1.0\ncomment garment_sim body under the garment; metres, \
+             pressure Pa, force N, area m^2"
+        )?;
+        writeln!(w, "element vertex {}", p.vertices.len())?;
+        for f in ["x", "y", "z", "pressure", "force", "area"] {
+            writeln!(w, "property float {f}")?;
+        }
+        writeln!(w, "element face {}", p.triangles.len())?;
+        writeln!(w, "property list uchar int vertex_indices\nend_header")?;
+        for (i, v) in p.vertices.iter().enumerate() {
+            writeln!(
+                w,
+                "{:.6} {:.6} {:.6} {:.6e} {:.6e} {:.6e}",
+                v.x, v.y, v.z, p.pressure[i], p.force[i], p.area[i]
+            )?;
+        }
+        for t in &p.triangles {
+            writeln!(w, "3 {} {} {}", t[0], t[1], t[2])?;
+        }
+        Ok(())
+    })
 }
 
 /// Closed loops where the plane z = `z` cuts a triangle mesh (xy points).

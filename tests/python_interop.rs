@@ -1,6 +1,7 @@
 //! Runs the Python interoperability tests against independent implementations:
-//! C3D files with `ezc3d` (tests/c3d_interop.py) and the ROS 2 interface
-//! definitions with `rosbags` (tests/msg_defs.py). Their Python packages come
+//! C3D files with `ezc3d` (tests/c3d_interop.py), the ROS 2 interface
+//! definitions with `rosbags` (tests/msg_defs.py), and the shipped body motion
+//! against the frames Blender evaluated (tests/anny_motion.py). Their Python packages come
 //! from tests/requirements.txt, which .ci/run installs; without them these
 //! tests fail and say what to install (they never pass silently).
 
@@ -18,4 +19,9 @@ fn c3d_files_round_trip_with_ezc3d() {
 #[test]
 fn ros2_interface_definitions_parse_with_rosbags() {
     pytest("tests/msg_defs.py", "rosbags, numpy, pytest", "2 passed");
+}
+
+#[test]
+fn the_shipped_body_motion_skins_as_blender_does() {
+    pytest("tests/anny_motion.py", "numpy, pytest", "3 passed");
 }

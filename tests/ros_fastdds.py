@@ -6,6 +6,7 @@ msg/garment_sim_msgs) in the venv that tests/ros2_venv.sh makes.
 Run by tests/ros_fastdds.rs with that venv's Python inside a network
 namespace it makes (loopback only). The node binary is in GARMENT_SIM_BIN."""
 
+import json
 import math
 import os
 import subprocess
@@ -18,7 +19,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from garment_sim_msgs.msg import Obstacle, Pin
 from garment_sim_msgs.srv import Step
-from geometry_msgs.msg import Point, Pose
+from geometry_msgs.msg import Point, Pose, WrenchStamped
 from rcl_interfaces.msg import Log, Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, ListParameters, SetParameters
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -50,6 +51,8 @@ TOPICS = {
     "/cloth/points": "sensor_msgs/msg/PointCloud2",
     "/cloth/mesh": "visualization_msgs/msg/Marker",
     "/obstacles/markers": "visualization_msgs/msg/MarkerArray",
+    "/body/wrench": "geometry_msgs/msg/WrenchStamped",
+    "/body/points": "sensor_msgs/msg/PointCloud2",
     "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
     "/clock": "rosgraph_msgs/msg/Clock",
     "/scene_description": "std_msgs/msg/String",
@@ -205,7 +208,7 @@ def test_graph_topics_and_contents(ros):
         subs = {t: [i.topic_type for i in ros.get_subscriptions_info_by_topic(t) if i.node_name == "garment_sim"]
                 for t in TOPICS}
         for t in ["/cloth/points", "/cloth/mesh", "/obstacles/markers", "/diagnostics", "/clock",
-                  "/scene_description", "/rosout"]:
+                  "/scene_description", "/rosout", "/body/wrench", "/body/points"]:
             assert pubs[t] == [TOPICS[t]], (t, pubs[t])
         for t in ["/obstacles", "/pins"]:
             assert subs[t] == [TOPICS[t]], (t, subs[t])
@@ -444,6 +447,61 @@ def test_a_garment_trial_scene(ros):
             assert "no panel" in d.status[0].message, d.status[0].message
         finally:
             ros.destroy_publisher(pins)
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+
+
+def obj_vertices(path):
+    with open(path) as f:
+        return np.array([[float(x) for x in line.split()[1:4]] for line in f if line.startswith("v ")])
+
+
+def test_body_wrench_reports_the_garments_weight(ros, tmp_path):
+    """The skirt trial as the scene, the body still: once the skirt has settled, body/wrench
+    reports its weight, straight down, in the node's frame; body/points carries the body's
+    vertices (those of the shipped body.obj, read here) with the pressure on them."""
+    trial = os.path.join(ROOT, "config/trials/skirt_on_anny.yaml")
+    # the skirt's weight at the node's spacing: Σ vertex masses × g of the trial command's
+    # fit.json (sewn, no drape), not a contact force
+    out = tmp_path / "trial"
+    subprocess.run([BIN, "trial", trial, "--spacing", "0.04", "--max-time", "0", "--out", str(out)],
+                   check=True, capture_output=True)
+    weight = json.load(open(out / "fit.json"))["weight_n"]
+    assert 1.0 < weight < 2.0, weight
+    n = Sim(ros, "-p", f"scene:={trial}", "-p", "spacing:=0.04", "-p", "real_time_factor:=0.0",
+            "-p", "publish_rate:=20.0")
+    try:
+        box = n.subscribe("/body/wrench", WrenchStamped)
+
+        def weight_held():
+            """The latest wrenches, if the last ten in a row (0.5 s simulated) are within 2 %
+            of the weight, downward."""
+            ok = []
+            for w in box:
+                f = w.wrench.force
+                good = abs(-f.z - weight) < 0.02 * weight and math.hypot(f.x, f.y) < 0.02 * weight
+                ok = ok + [w] if good else []
+            return len(ok) >= 10 and ok
+
+        run = n.until("body/wrench reporting the skirt's weight", weight_held, timeout=120.0)
+        last = run[-1]
+        assert last.header.frame_id == "world"
+        stamps = [secs(w.header.stamp) for w in run]
+        assert all(b > a for a, b in zip(stamps, stamps[1:])), stamps
+        print(f"body/wrench at t = {stamps[-1]:.2f} s: force ({last.wrench.force.x:.4f}, "
+              f"{last.wrench.force.y:.4f}, {last.wrench.force.z:.4f}) N, weight {weight:.4f} N")
+        c = n.wait("/body/points", PointCloud2, lambda c: secs(c.header.stamp) >= stamps[-1])
+        assert [f.name for f in c.fields] == ["x", "y", "z", "pressure"]
+        p = decode_cloud(c)
+        body = obj_vertices(os.path.join(ROOT, "assets/bodies/anny/body.obj"))
+        assert len(p) == len(body)
+        assert np.abs(xyz(c) - body).max() < 1e-6
+        assert np.isfinite(p["pressure"]).all() and (p["pressure"] >= 0).all()
+        loaded = body[p["pressure"] > 0]
+        assert len(loaded) > 0
+        # the skirt hangs from the hips
+        assert np.median(loaded[:, 2]) > 0.775 and np.median(loaded[:, 2]) < 1.09, np.median(loaded[:, 2])
     finally:
         code, out = n.stop()
     assert code == 0, out

@@ -3,7 +3,8 @@
 //! venv `bash tests/ros2_venv.sh` makes (target/ros-venv, with
 //! garment_sim_msgs built for Python): graph, topics and types, cloud and mesh
 //! contents, /clock, the node's services, the parameter services, obstacles
-//! and pins, a garment trial as the scene. Everything runs in a network namespace made for the test
+//! and pins, a garment trial as the scene, the garment's weight on
+//! `body/wrench`. Everything runs in a network namespace made for the test
 //! (`unshare -rn`: only a loopback interface), so no packet leaves it.
 
 mod support;
@@ -25,6 +26,6 @@ fn node_interoperates_with_rclpy_on_fast_dds() {
         "tests/ros_fastdds.py",
         true,
         &[("GARMENT_SIM_BIN", &bin), ("RMW_IMPLEMENTATION", &rmw)],
-        "5 passed",
+        "6 passed",
     );
 }

@@ -92,6 +92,22 @@ fn messages_match_rosbags_byte_for_byte() {
     round_trip(&diag);
     write(&dir, "diagnostics", &diag);
     write(&dir, "clock", &Clock { clock: h.stamp });
+    let wrench = publish::body_wrench(
+        &garment_sim::body_forces::Wrench {
+            force: [0.01, -0.02, -1.325],
+            torque: [0.0005, 0.0019, -0.0002],
+            normal_force: 4.3,
+            contacts: 229,
+        },
+        &nalgebra::Vector3::new(0.0, 0.0, 1.0),
+        h.clone(),
+    );
+    assert_eq!(wrench.wrench.force.z, -1.325);
+    // the torque about the world's origin: the body frame's, plus o × F
+    assert!((wrench.wrench.torque.x - (0.0005 + 0.02)).abs() < 1e-12);
+    assert!((wrench.wrench.torque.y - (0.0019 + 0.01)).abs() < 1e-12);
+    round_trip(&wrench);
+    write(&dir, "wrench_stamped", &wrench);
     write(
         &dir,
         "string",

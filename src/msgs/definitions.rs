@@ -44,6 +44,14 @@ pub const DEFINITIONS: &[(&str, &str)] = &[
         "Point position\nQuaternion orientation\n",
     ),
     (
+        "geometry_msgs/msg/Wrench",
+        "Vector3  force\nVector3  torque\n",
+    ),
+    (
+        "geometry_msgs/msg/WrenchStamped",
+        "std_msgs/Header header\nWrench wrench\n",
+    ),
+    (
         "sensor_msgs/msg/PointField",
         "uint8 INT8    = 1\nuint8 UINT8   = 2\nuint8 INT16   = 3\nuint8 UINT16  = 4\n\
 uint8 INT32   = 5\nuint8 UINT32  = 6\nuint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n\n\

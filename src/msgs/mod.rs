@@ -169,6 +169,20 @@ pub struct Twist {
 }
 ros_type!(Twist, "geometry_msgs/msg/Twist");
 
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Wrench {
+    pub force: Vector3,
+    pub torque: Vector3,
+}
+ros_type!(Wrench, "geometry_msgs/msg/Wrench");
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct WrenchStamped {
+    pub header: Header,
+    pub wrench: Wrench,
+}
+ros_type!(WrenchStamped, "geometry_msgs/msg/WrenchStamped");
+
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Polygon {
     pub points: Vec<Point32>,

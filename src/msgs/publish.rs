@@ -80,6 +80,68 @@ pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) ->
     }
 }
 
+/// The garment's wrench on the body as `body/wrench` carries it: force N and
+/// torque N m about the origin of the header's frame (the simulation's world,
+/// as a WrenchStamped means it), moved there from the body frame's origin
+/// `origin` (world coordinates) where [`crate::body_forces::Wrench`] takes it.
+pub fn body_wrench(
+    w: &crate::body_forces::Wrench,
+    origin: &nalgebra::Vector3<f64>,
+    header: Header,
+) -> WrenchStamped {
+    let v = |a: nalgebra::Vector3<f64>| Vector3 {
+        x: a.x,
+        y: a.y,
+        z: a.z,
+    };
+    let force = nalgebra::Vector3::from(w.force);
+    let torque = nalgebra::Vector3::from(w.torque) + origin.cross(&force);
+    WrenchStamped {
+        header,
+        wrench: Wrench {
+            force: v(force),
+            torque: v(torque),
+        },
+    }
+}
+
+/// The fields of `body/points`: the body's vertices and the garment's
+/// pressure on each (float32).
+pub const BODY_CLOUD_FIELDS: [&str; 4] = ["x", "y", "z", "pressure"];
+
+/// The body's vertices with the garment's pressure on each, Pa, as
+/// `body/points` carries them.
+pub fn body_cloud(p: &crate::body_forces::BodyPressure, header: Header) -> PointCloud2 {
+    let n = p.vertices.len();
+    let step = 4 * BODY_CLOUD_FIELDS.len();
+    let mut data = Vec::with_capacity(n * step);
+    for (x, pr) in p.vertices.iter().zip(&p.pressure) {
+        for v in [x.x as f32, x.y as f32, x.z as f32, *pr as f32] {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    PointCloud2 {
+        header,
+        height: 1,
+        width: n as u32,
+        fields: BODY_CLOUD_FIELDS
+            .iter()
+            .enumerate()
+            .map(|(k, name)| PointField {
+                name: name.to_string(),
+                offset: 4 * k as u32,
+                datatype: PointField::FLOAT32,
+                count: 1,
+            })
+            .collect(),
+        is_bigendian: false,
+        point_step: step as u32,
+        row_step: (step * n) as u32,
+        data,
+        is_dense: true,
+    }
+}
+
 /// Reads x, y, z back from a cloud written by [`cloud`] (or any little-endian
 /// cloud with float32 x, y, z fields).
 pub fn cloud_points(c: &PointCloud2) -> anyhow::Result<Vec<[f32; 3]>> {

@@ -11,6 +11,8 @@
 //! | `cloth/points` | sensor_msgs/msg/PointCloud2 | out: x, y, z, strain, speed (float32) |
 //! | `cloth/mesh` | visualization_msgs/msg/Marker | out: TRIANGLE_LIST coloured by strain |
 //! | `obstacles/markers` | visualization_msgs/msg/MarkerArray | out |
+//! | `body/wrench` | geometry_msgs/msg/WrenchStamped | out, with a body: the garment's force on it, torque about the frame's origin |
+//! | `body/points` | sensor_msgs/msg/PointCloud2 | out, with a mesh body: its vertices, x, y, z, pressure (float32) |
 //! | `diagnostics` | diagnostic_msgs/msg/DiagnosticArray | out: step time, iterations, RTF, rejected messages |
 //! | `/clock` | rosgraph_msgs/msg/Clock | out: simulated time |
 //! | `scene_description` | std_msgs/msg/String | out, latched (transient local): scene and fabric YAML |
@@ -56,7 +58,8 @@ message!(
     msgs::SetBoolResponse,
     msgs::StepRequest,
     msgs::StepResponse,
-    msgs::StringMsg
+    msgs::StringMsg,
+    msgs::WrenchStamped
 );
 
 fn to_value(p: &ParameterValue) -> Option<Value> {
@@ -77,6 +80,8 @@ pub struct Names {
     pub points: String,
     pub mesh: String,
     pub obstacle_markers: String,
+    pub body_wrench: String,
+    pub body_points: String,
     pub diagnostics: String,
     pub clock: String,
     pub scene_description: String,
@@ -97,6 +102,8 @@ impl Names {
             points: r("cloth/points"),
             mesh: r("cloth/mesh"),
             obstacle_markers: r("obstacles/markers"),
+            body_wrench: r("body/wrench"),
+            body_points: r("body/points"),
             diagnostics: r("diagnostics"),
             clock: r("/clock"),
             scene_description: r("scene_description"),
@@ -197,6 +204,27 @@ fn cloud(l: &Loaded, h: msgs::Header) -> msgs::PointCloud2 {
     }
 }
 
+/// `body/wrench` and, for a triangle-mesh body, `body/points` with the
+/// pressure on its vertices; `None` without a body (the obstacle named
+/// [`crate::trial::BODY_ID`]).
+fn body_forces(
+    sim: &Simulation,
+    h: msgs::Header,
+) -> Option<(msgs::WrenchStamped, Option<msgs::PointCloud2>)> {
+    let body = crate::trial::body_handle(sim)?;
+    let origin = sim.obstacles().get(body)?.pose.translation.vector;
+    match crate::body_forces::body_pressure(sim, body) {
+        Some(p) => Some((
+            publish::body_wrench(&p.wrench, &origin, h.clone()),
+            Some(publish::body_cloud(&p, h)),
+        )),
+        None => {
+            let w = crate::body_forces::wrench(sim, body)?;
+            Some((publish::body_wrench(&w, &origin, h), None))
+        }
+    }
+}
+
 /// Takes what a subscription holds now: each message, `None` for each one
 /// beyond `cap` (taken and dropped, so a flood cannot stall the steps), and
 /// the errors of those that could not be decoded (the reader moves past
@@ -226,7 +254,8 @@ fn help() -> String {
          \n\
          ROS arguments: -p NAME:=VALUE, --params-file FILE, -r FROM:=TO (also __ns:=/ns, __node:=name)\n\
          Parameters (name, type, default):\n{}\
-         Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout\n\
+         Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout;\n\
+         with a body (a trial's, or a scene obstacle with id body): body/wrench, body/points\n\
          Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin)\n\
          Services: ~/reset (std_srvs/Trigger), ~/set_paused (std_srvs/SetBool), ~/step (garment_sim_msgs/Step)\n\
          Environment: ROS_DOMAIN_ID. See docs/ros.md and launch-notes.md.",
@@ -259,6 +288,8 @@ struct Endpoints {
     points: ros2_client::Publisher<msgs::PointCloud2>,
     mesh: ros2_client::Publisher<msgs::Marker>,
     obstacle_markers: ros2_client::Publisher<msgs::MarkerArray>,
+    body_wrench: ros2_client::Publisher<msgs::WrenchStamped>,
+    body_points: ros2_client::Publisher<msgs::PointCloud2>,
     diagnostics: ros2_client::Publisher<msgs::DiagnosticArray>,
     clock: ros2_client::Publisher<msgs::Clock>,
     scene_description: ros2_client::Publisher<msgs::StringMsg>,
@@ -315,6 +346,8 @@ impl Endpoints {
             points: publisher!(msgs::PointCloud2, &names.points, reliable),
             mesh: publisher!(msgs::Marker, &names.mesh, reliable),
             obstacle_markers: publisher!(msgs::MarkerArray, &names.obstacle_markers, reliable),
+            body_wrench: publisher!(msgs::WrenchStamped, &names.body_wrench, reliable),
+            body_points: publisher!(msgs::PointCloud2, &names.body_points, reliable),
             diagnostics: publisher!(msgs::DiagnosticArray, &names.diagnostics, reliable),
             clock: publisher!(msgs::Clock, &names.clock, clock_qos),
             scene_description: publisher!(msgs::StringMsg, &names.scene_description, latched),
@@ -870,6 +903,7 @@ impl Node {
         let cloud = cloud(&self.loaded, h.clone());
         let mesh = publish::cloth_marker(sim, h.clone());
         let obstacles = publish::obstacle_markers(sim, h.clone());
+        let on_body = body_forces(sim, h.clone());
         let fig = publish::DiagnosticFigures {
             step_time_ms: if c.step_count > 0 {
                 c.step_ms_sum / c.step_count as f64
@@ -924,6 +958,12 @@ impl Node {
         let _ = io.points.publish(cloud);
         let _ = io.mesh.publish(mesh);
         let _ = io.obstacle_markers.publish(obstacles);
+        if let Some((wrench, points)) = on_body {
+            let _ = io.body_wrench.publish(wrench);
+            if let Some(p) = points {
+                let _ = io.body_points.publish(p);
+            }
+        }
         let _ = io.diagnostics.publish(diag);
         let _ = io.clock.publish(clock);
         let c = &mut self.counters;
