@@ -13,6 +13,9 @@ use std::sync::Arc;
 
 type V = Vector3<f64>;
 
+/// A glTF vertex's bind position and skinning (slot, weight), as bits.
+type WeldKey = ([u64; 3], [(u32, u64); 4]);
+
 /// A motion and the triangles of the mesh it moves.
 #[derive(Debug, Clone)]
 pub struct LoadedMotion {
@@ -42,9 +45,13 @@ pub fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
         _ => PathBuf::from("."),
     };
     let mut found: Vec<(String, PathBuf)> = Vec::new();
-    for e in std::fs::read_dir(&dir)
-        .with_context(|| format!("frame pattern {}: cannot list {}", pattern.display(), dir.display()))?
-    {
+    for e in std::fs::read_dir(&dir).with_context(|| {
+        format!(
+            "frame pattern {}: cannot list {}",
+            pattern.display(),
+            dir.display()
+        )
+    })? {
         let e = e?;
         let n = e.file_name().to_string_lossy().to_string();
         if n.len() >= head.len() + tail.len() && n.starts_with(head) && n.ends_with(tail) {
@@ -85,7 +92,11 @@ pub fn load_frames(files: &[PathBuf], fps: f64, scale: f64) -> Result<LoadedMoti
     for (k, f) in files.iter().enumerate() {
         let s = crate::lab::compare::Shape::read(f)
             .with_context(|| format!("frame {k} of the mesh sequence"))?;
-        if let Some(i) = s.vertices.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        if let Some(i) = s
+            .vertices
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
             bail!(
                 "frame file {}: vertex {i} is not finite: {:?}",
                 f.display(),
@@ -125,11 +136,11 @@ pub fn load_frames(files: &[PathBuf], fps: f64, scale: f64) -> Result<LoadedMoti
         frames.push(s.vertices.iter().map(|p| p * scale).collect());
     }
     let n = frames[0].len();
-    let triangles = tris
+    let triangles = tris.iter().map(|t| t.map(|i| i as u32)).collect::<Vec<_>>();
+    if let Some(t) = triangles
         .iter()
-        .map(|t| t.map(|i| i as u32))
-        .collect::<Vec<_>>();
-    if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i as usize >= n)) {
+        .find(|t| t.iter().any(|&i| i as usize >= n))
+    {
         bail!("{}: face {t:?} beyond its {n} vertices", files[0].display());
     }
     let k = Keyframes::at_rate(fps, frames).context("mesh sequence")?;
@@ -317,9 +328,9 @@ fn buffers(doc: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
                 .with_context(|| format!("buffer {}: the file has no binary chunk", b.index()))?,
             gltf::buffer::Source::Uri(uri) => {
                 if let Some(rest) = uri.strip_prefix("data:") {
-                    let (_, payload) = rest
-                        .split_once(";base64,")
-                        .with_context(|| format!("buffer {}: a data URI that is not base64", b.index()))?;
+                    let (_, payload) = rest.split_once(";base64,").with_context(|| {
+                        format!("buffer {}: a data URI that is not base64", b.index())
+                    })?;
                     base64::engine::general_purpose::STANDARD
                         .decode(payload)
                         .with_context(|| format!("buffer {}: bad base64", b.index()))?
@@ -351,7 +362,11 @@ fn buffers(doc: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
 /// the same skinning are one vertex (glTF splits them at texture seams), so
 /// a closed body stays closed. Only triangle primitives are read; an
 /// interpolation other than LINEAR or STEP is refused.
-pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Vec<[u32; 3]>, Skinned)> {
+pub fn load_gltf(
+    path: &Path,
+    animation: Option<&str>,
+    scale: f64,
+) -> Result<(Vec<[u32; 3]>, Skinned)> {
     let ctx = || format!("glTF file {}", path.display());
     (|| -> Result<(Vec<[u32; 3]>, Skinned)> {
         if !(scale.is_finite() && scale > 0.0) {
@@ -385,7 +400,13 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
         let mut stack: Vec<usize> = (0..n).filter(|&k| parent[k].is_none()).collect();
         while let Some(k) = stack.pop() {
             order.push(k);
-            stack.extend(doc.nodes().nth(k).expect("node").children().map(|c| c.index()));
+            stack.extend(
+                doc.nodes()
+                    .nth(k)
+                    .expect("node")
+                    .children()
+                    .map(|c| c.index()),
+            );
         }
         if order.len() != n {
             bail!("its node hierarchy has a cycle");
@@ -437,9 +458,9 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
                     .with_context(|| format!("{}: no output values", what()))?
                 {
                     gltf::animation::util::ReadOutputs::Translations(it)
-                    | gltf::animation::util::ReadOutputs::Scales(it) => {
-                        it.map(|v| [v[0].into(), v[1].into(), v[2].into(), 0.0]).collect()
-                    }
+                    | gltf::animation::util::ReadOutputs::Scales(it) => it
+                        .map(|v| [v[0].into(), v[1].into(), v[2].into(), 0.0])
+                        .collect(),
                     gltf::animation::util::ReadOutputs::Rotations(it) => {
                         it.into_f32().map(|v| v.map(f64::from)).collect()
                     }
@@ -453,7 +474,7 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
                         values.len()
                     );
                 }
-                if times.windows(2).any(|w| !(w[1] > w[0])) || !times.iter().all(|t| t.is_finite()) {
+                if times.windows(2).any(|w| w[1] <= w[0]) || !times.iter().all(|t| t.is_finite()) {
                     bail!("{}: its times must be finite and increase", what());
                 }
                 if values.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
@@ -484,7 +505,7 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
         let mut slots: Vec<(usize, Matrix4<f64>)> = Vec::new();
         let mut bind = Vec::new();
         let mut influences = Vec::new();
-        let mut weld: HashMap<([u64; 3], [(u32, u64); 4]), u32> = HashMap::new();
+        let mut weld: HashMap<WeldKey, u32> = HashMap::new();
         let mut triangles = Vec::new();
         for &k in &in_scene {
             let node = doc.nodes().nth(k).expect("node");
@@ -493,7 +514,8 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
             let skin_slots: Option<Vec<u32>> = match node.skin() {
                 Some(skin) => {
                     let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-                    let ibm: Vec<Matrix4<f64>> = match skin.reader(get).read_inverse_bind_matrices() {
+                    let ibm: Vec<Matrix4<f64>> = match skin.reader(get).read_inverse_bind_matrices()
+                    {
                         Some(it) => it
                             .map(|m| Matrix4::from_fn(|r, c| f64::from(m[c][r])))
                             .collect(),
@@ -529,7 +551,11 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
             for prim in mesh.primitives() {
                 let what = || format!("mesh {}, primitive {}", mesh.index(), prim.index());
                 if prim.mode() != gltf::mesh::Mode::Triangles {
-                    bail!("{}: mode {:?}; only triangles are read", what(), prim.mode());
+                    bail!(
+                        "{}: mode {:?}; only triangles are read",
+                        what(),
+                        prim.mode()
+                    );
                 }
                 let r = prim.reader(get);
                 let pos: Vec<[f32; 3]> = r
@@ -560,7 +586,12 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
                             let mut e = [(0u32, 0.0); 4];
                             for q in 0..4 {
                                 let slot = *ss.get(j[q] as usize).with_context(|| {
-                                    format!("{}: vertex {i} uses joint {} of {}", what(), j[q], ss.len())
+                                    format!(
+                                        "{}: vertex {i} uses joint {} of {}",
+                                        what(),
+                                        j[q],
+                                        ss.len()
+                                    )
                                 })?;
                                 e[q] = (slot, f64::from(w[q]) / sum);
                             }
@@ -577,7 +608,7 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
                     Some(i) => i.into_u32().collect(),
                     None => (0..pos.len() as u32).collect(),
                 };
-                if idx.len() % 3 != 0 {
+                if !idx.len().is_multiple_of(3) {
                     bail!("{}: {} indices, not whole triangles", what(), idx.len());
                 }
                 let mut map = Vec::with_capacity(pos.len());
@@ -600,7 +631,11 @@ pub fn load_gltf(path: &Path, animation: Option<&str>, scale: f64) -> Result<(Ve
                 for t in idx.chunks(3) {
                     let v = [t[0], t[1], t[2]].map(|i| map.get(i as usize).copied());
                     let [Some(a), Some(b), Some(c)] = v else {
-                        bail!("{}: a triangle uses a vertex beyond its {}", what(), pos.len());
+                        bail!(
+                            "{}: a triangle uses a vertex beyond its {}",
+                            what(),
+                            pos.len()
+                        );
                     };
                     if a != b && b != c && a != c {
                         triangles.push([a, b, c]);

@@ -304,7 +304,7 @@ impl GltfBuilder {
         count: usize,
         extra: serde_json::Value,
     ) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -368,8 +368,9 @@ impl GltfBuilder {
         let b: Vec<u8> = t.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         self.push(&b, "SCALAR", 5125, 3 * t.len(), serde_json::json!({}))
     }
-    /// The file: `nodes`, one skinned mesh on node `mesh_node`, `skin`
-    /// joints, one animation of `channels` (sampler JSON built here).
+    /// The file: its `nodes`, one `mesh`, one `skin`, one animation of
+    /// `samplers` and `channels`, the scene's `roots`.
+    #[allow(clippy::too_many_arguments)] // the parts of a glTF document
     fn write(
         &self,
         path: &Path,
