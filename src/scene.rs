@@ -247,11 +247,8 @@ impl MotionFile {
                 if self.fps.is_some() {
                     bail!("motion.fps is for frames; a glTF animation has its own times");
                 }
-                let (triangles, skinned) = crate::motion::load_gltf(
-                    &base.join(g),
-                    self.animation.as_deref(),
-                    self.scale,
-                )?;
+                let (triangles, skinned) =
+                    crate::motion::load_gltf(&base.join(g), self.animation.as_deref(), self.scale)?;
                 Ok(crate::motion::LoadedMotion {
                     triangles,
                     motion: std::sync::Arc::new(skinned),
