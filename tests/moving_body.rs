@@ -812,3 +812,140 @@ fn a_tube_on_a_turning_body_follows_it() {
         "the tube turns at {mean} rad/s, the body at {omega}"
     );
 }
+
+/// Writes a tetrahedron moved by `d` as an OBJ file; `extra` lines appended.
+fn tetra_obj(path: &Path, d: V, extra: &str) {
+    let v = [
+        [0.0, 0.0, 0.0],
+        [0.1, 0.0, 0.0],
+        [0.0, 0.1, 0.0],
+        [0.0, 0.0, 0.1],
+    ];
+    let mut s = String::new();
+    for p in v {
+        s += &format!("v {} {} {}\n", p[0] + d.x, p[1] + d.y, p[2] + d.z);
+    }
+    s += "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    s += extra;
+    std::fs::write(path, s).unwrap();
+}
+
+/// A mesh sequence read from a pattern (frames in the order of their
+/// numbers, f_2 before f_10), interpolated between frames; frames whose
+/// vertex count, faces or coordinates are wrong refused, naming the file.
+#[test]
+fn mesh_sequences_are_read_in_order_and_bad_frames_refused() {
+    let dir = scratch("seq");
+    std::fs::create_dir_all(&dir).unwrap();
+    for (k, n) in [1, 2, 10].iter().enumerate() {
+        tetra_obj(
+            &dir.join(format!("f_{n}.obj")),
+            V::new(0.0, 0.0, 0.1 * k as f64),
+            "",
+        );
+    }
+    let files = garment_sim::motion::expand_pattern(&dir.join("f_*.obj")).unwrap();
+    let names: Vec<String> = files
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().to_string())
+        .collect();
+    assert_eq!(names, ["f_1.obj", "f_2.obj", "f_10.obj"]);
+    let m = garment_sim::motion::load_frames(&files, 10.0, 2.0).unwrap();
+    assert_eq!(m.triangles.len(), 4);
+    assert!((m.motion.duration() - 0.2).abs() < 1e-12);
+    let mut out = vec![V::zeros(); 4];
+    // 0.15 s: half way from f_2 (up 0.1) to f_10 (up 0.2), scaled by 2
+    m.motion.positions(0.15, &mut out);
+    assert!(
+        (out[3] - V::new(0.0, 0.0, 2.0 * (0.1 + 0.15))).norm() < 1e-12,
+        "{}",
+        out[3]
+    );
+    // a frame with an extra vertex, one with other faces, one not finite
+    let bad = dir.join("bad");
+    std::fs::create_dir_all(&bad).unwrap();
+    tetra_obj(&bad.join("a.obj"), V::zeros(), "");
+    tetra_obj(&bad.join("b.obj"), V::zeros(), "v 1 1 1\n");
+    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("b.obj")], 30.0, 1.0)
+        .unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("b.obj") && msg.contains("5 vertices"), "{msg}");
+    std::fs::write(
+        bad.join("c.obj"),
+        std::fs::read_to_string(bad.join("a.obj"))
+            .unwrap()
+            .replace("f 2 3 4", "f 2 4 3"),
+    )
+    .unwrap();
+    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("c.obj")], 30.0, 1.0)
+        .unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("c.obj") && msg.contains("topology"), "{msg}");
+    std::fs::write(
+        bad.join("d.obj"),
+        std::fs::read_to_string(bad.join("a.obj"))
+            .unwrap()
+            .replace("v 0.1 0 0", "v nan 0 0"),
+    )
+    .unwrap();
+    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("d.obj")], 30.0, 1.0)
+        .unwrap_err();
+    let msg = format!("{err:#}");
+    assert!(msg.contains("d.obj") && msg.contains("finite"), "{msg}");
+}
+
+/// A scene file whose obstacle has a `motion`: the body's vertices are
+/// where the frames put them at each step, and its surface velocity is the
+/// frames' rate of change.
+#[test]
+fn a_scene_obstacle_follows_its_frames() {
+    let dir = scratch("scene");
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    // a tetrahedron rising 0.1 m a frame at 10 frames/s (1 m/s), far below
+    // the cloth
+    for k in 0..4 {
+        tetra_obj(
+            &dir.join(format!("frames/t_{k:03}.obj")),
+            V::new(0.0, 0.0, -1.0 + 0.1 * k as f64),
+            "",
+        );
+    }
+    let fabric = std::fs::canonicalize("tests/data/acrylic_test.yaml").unwrap();
+    let yaml = format!(
+        "cloth: {{fabric: {}, size: [0.1, 0.1], spacing: 0.05}}\n\
+         obstacles:\n  - id: body\n    motion: {{frames: frames/t_*.obj, fps: 10, start: 0.05}}\n\
+         dt: 0.01\nduration: 0.2\n",
+        fabric.display()
+    );
+    let path = dir.join("scene.yaml");
+    std::fs::write(&path, yaml).unwrap();
+    let scene = garment_sim::scene::Scene::load(&path).unwrap();
+    let mut sim = scene.build(&Default::default()).unwrap();
+    for _ in 0..20 {
+        sim.step().unwrap();
+        let ob = &sim.obstacles()[0];
+        let b = ob.deforming().unwrap();
+        // held until 0.05 s, then up 1 m/s until the last frame (0.3 s)
+        let t = (sim.time - 0.05).clamp(0.0, 0.3);
+        let want = -1.0 + t;
+        assert!(
+            (b.positions()[0].z - want).abs() < 1e-9,
+            "t {}: {}",
+            sim.time,
+            b.positions()[0].z
+        );
+        let v = b.velocities()[0].z;
+        let expect = if sim.time > 0.05 + 1e-9 { 1.0 } else { 0.0 };
+        assert!((v - expect).abs() < 1e-6, "t {}: velocity {v}", sim.time);
+    }
+    // a shape and a motion together are refused
+    let both = std::fs::read_to_string(&path).unwrap().replace(
+        "    motion:",
+        "    shape: {type: sphere, radius: 0.1}\n    motion:",
+    );
+    std::fs::write(&path, both).unwrap();
+    let err = garment_sim::scene::Scene::load(&path)
+        .and_then(|s| s.build(&Default::default()))
+        .unwrap_err();
+    assert!(format!("{err:#}").contains("not both"), "{err:#}");
+}
