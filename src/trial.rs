@@ -871,12 +871,22 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
     }
 }
 
-/// Measures the fit of the garment as it is now.
+/// The trial's body as it is now in `sim` (a body with a motion moves),
+/// else as the trial made it.
+pub fn body_now<'a>(sim: &'a Simulation, trial: &'a Trial) -> &'a Obstacle {
+    sim.obstacles()
+        .iter()
+        .find(|o| o.id == trial.body.id)
+        .unwrap_or(&trial.body)
+}
+
+/// Measures the fit of the garment as it is now (on the body as it is now).
 pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit, VertexFit) {
     let c = &sim.cloth;
     let x = &c.x;
     let n = c.len();
-    let vf = vertex_fit(sim, g, &trial.body);
+    let body = body_now(sim, trial);
+    let vf = vertex_fit(sim, g, body);
     let np = g.panels.len();
     let mut acc = vec![[(f64::NEG_INFINITY, 0.0, 0usize); 3]; np];
     for (k, a, _, e) in spring_strains(c) {
@@ -935,11 +945,11 @@ pub fn fit(sim: &Simulation, g: &Garment, trial: &Trial, run: RunStats) -> (Fit,
     let mass = c.total_mass();
     let weight = mass * sim.params().gravity.norm();
     let mut girths = BTreeMap::new();
-    let (bv, bt) = trial.body.local_triangles();
+    let (bv, bt) = body.local_triangles();
     let bw: Vec<[f64; 3]> = bv
         .iter()
         .map(|p| {
-            let q = trial.body.pose * nalgebra::Point3::from(Vector3::from(*p));
+            let q = body.pose * nalgebra::Point3::from(Vector3::from(*p));
             [q.x, q.y, q.z]
         })
         .collect();
