@@ -233,7 +233,7 @@ pub fn check_body(v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<(Vec<[u32; 3]>, usiz
         let p = |k: usize| Vector3::from(v[tri[k] as usize]);
         (p(1) - p(0)).cross(&(p(2) - p(0))).norm() / 2.0
     };
-    let (lo, hi) = bbox(&v);
+    let (lo, hi) = bbox(v);
     let size = (Vector3::from(hi) - Vector3::from(lo)).norm();
     let kept: Vec<[u32; 3]> = t
         .iter()
