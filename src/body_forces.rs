@@ -176,14 +176,19 @@ fn barycentric(
 /// mesh (`None` if there is no such obstacle or it is not a triangle mesh).
 pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPressure> {
     let ob = sim.obstacles().get(body)?;
-    let (local, triangles) = match (&ob.spec, &ob.mesh) {
-        (ShapeSpec::Triangles { .. }, Some((v, t))) => (v, t.clone()),
-        _ => return None,
-    };
-    let vertices: Vec<Vector3<f64>> = local
-        .iter()
-        .map(|p| (ob.pose * Point3::from(Vector3::from(*p))).coords)
-        .collect();
+    // a deforming body where it is now; a rigid mesh where its pose puts it
+    let deforming = ob.deforming();
+    let (vertices, triangles): (Vec<Vector3<f64>>, Vec<[u32; 3]>) =
+        match (deforming, &ob.spec, &ob.mesh) {
+            (Some(d), _, _) => (d.positions().to_vec(), d.triangles().to_vec()),
+            (None, ShapeSpec::Triangles { .. }, Some((v, t))) => (
+                v.iter()
+                    .map(|p| (ob.pose * Point3::from(Vector3::from(*p))).coords)
+                    .collect(),
+                t.clone(),
+            ),
+            _ => return None,
+        };
     let mut area = vec![0.0; vertices.len()];
     for t in &triangles {
         let [a, b, c] = t.map(|k| vertices[k as usize]);
@@ -194,7 +199,7 @@ pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPre
     }
     let contacts = contacts_with(sim, body)?;
     let mut force = vec![0.0; vertices.len()];
-    let mesh = ob.shape.as_trimesh();
+    let mesh = deforming.is_none().then(|| ob.shape.as_trimesh()).flatten();
     let corners = |k: usize| triangles[k].map(|i| vertices[i as usize]);
     let mut normal_force = 0.0;
     for c in &contacts {
@@ -205,11 +210,13 @@ pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPre
         normal_force += normal;
         // the triangle parry's query finds (its triangles are the mesh's,
         // in order), checked; else the nearest by a search of them all
-        let found = mesh.and_then(|m| {
-            let (_, (k, _)) =
-                m.project_point_and_get_location(&ob.pose, &Point3::from(c.point), false);
-            let k = k as usize;
-            (k < triangles.len()).then_some(k)
+        let found = deforming.map(|d| d.closest(&c.point).triangle).or_else(|| {
+            mesh.and_then(|m| {
+                let (_, (k, _)) =
+                    m.project_point_and_get_location(&ob.pose, &Point3::from(c.point), false);
+                let k = k as usize;
+                (k < triangles.len()).then_some(k)
+            })
         });
         let pick = found
             .map(|k| {

@@ -88,7 +88,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         vertices: sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
         triangles: sim.cloth.triangles.clone(),
     };
-    let body = vec![Surface::from_obstacle(&t.body)];
+    let body = vec![Surface::from_obstacle(trial::body_now(&sim, &t))];
     let info = vec![
         format!("fabric {}", sim.fabric.name),
         format!(

@@ -6,7 +6,8 @@
 //! crate, re-exported here as [`fabric`] (KES data → laws), [`cloth`] (the
 //! warp/weft grid), [`collision`] (obstacles) and [`solver`] (forces,
 //! Jacobians, implicit step); it reads no files. Above it: [`io`] reads
-//! fabric files, KES curves and OBJ meshes, [`scene`] builds a simulation
+//! fabric files, KES curves and OBJ meshes, [`motion`] body motions (mesh
+//! sequences, glTF skinned animations), [`scene`] builds a simulation
 //! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
 //! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
 //! experiments, [`plot`] draws their curves as PNG and [`render`] pictures
@@ -17,7 +18,9 @@
 //! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body;
 //! [`body_forces`] are the garment's force and pressure on that body.
 
-pub use garment_core::{cloth, collision, fabric, garment, limits, self_contact, set, solver};
+pub use garment_core::{
+    cloth, collision, deforming, fabric, garment, limits, self_contact, set, solver,
+};
 
 pub mod bag;
 pub mod body_forces;
@@ -25,6 +28,7 @@ pub mod capture;
 pub mod io;
 pub mod lab;
 pub mod live;
+pub mod motion;
 pub mod msgs;
 pub mod pattern;
 pub mod plot;

@@ -189,11 +189,86 @@ impl ShapeFile {
     }
 }
 
+/// A body motion read from files (docs/bodies.md): a mesh per frame
+/// (`frames` and `fps`) or a glTF 2.0 skinned animation (`gltf`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotionFile {
+    /// The frames' mesh files (OBJ or ASCII PLY, one topology), relative to
+    /// the scene file: a pattern with one `*` in the file name
+    /// (`walk/frame_*.obj`, in the order of the numbers it stands for), or
+    /// a list of files.
+    #[serde(default)]
+    pub frames: Option<FrameFiles>,
+    /// Frames per second of `frames`.
+    #[serde(default)]
+    pub fps: Option<f64>,
+    /// A glTF 2.0 file (`.gltf` or `.glb`), relative to the scene file.
+    #[serde(default)]
+    pub gltf: Option<String>,
+    /// The glTF animation to play: its name or index (default: the first).
+    #[serde(default)]
+    pub animation: Option<String>,
+    /// Metres per file unit.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Play the motion over and over (its last frame should be its first).
+    #[serde(default, rename = "loop")]
+    pub looping: bool,
+    /// Scene time at which the motion starts, s; until then the body holds
+    /// its first pose, after its end its last.
+    #[serde(default)]
+    pub start: f64,
+}
+
+/// Frame files: a pattern with one `*`, or a list.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum FrameFiles {
+    Pattern(String),
+    List(Vec<String>),
+}
+
+impl MotionFile {
+    /// Reads the motion (paths relative to `base`).
+    pub fn load(&self, base: &Path) -> Result<crate::motion::LoadedMotion> {
+        match (&self.frames, &self.gltf) {
+            (Some(f), None) => {
+                let Some(fps) = self.fps else {
+                    bail!("motion.frames needs motion.fps (frames per second)");
+                };
+                let files = match f {
+                    FrameFiles::Pattern(p) => crate::motion::expand_pattern(&base.join(p))?,
+                    FrameFiles::List(l) => l.iter().map(|p| base.join(p)).collect(),
+                };
+                crate::motion::load_frames(&files, fps, self.scale)
+            }
+            (None, Some(g)) => {
+                if self.fps.is_some() {
+                    bail!("motion.fps is for frames; a glTF animation has its own times");
+                }
+                let (triangles, skinned) =
+                    crate::motion::load_gltf(&base.join(g), self.animation.as_deref(), self.scale)?;
+                Ok(crate::motion::LoadedMotion {
+                    triangles,
+                    motion: std::sync::Arc::new(skinned),
+                })
+            }
+            _ => bail!("motion: give either frames (with fps) or gltf"),
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleSpec {
     pub id: String,
-    pub shape: ShapeFile,
+    /// The geometry; none for an obstacle with a `motion`, whose meshes it is.
+    #[serde(default)]
+    pub shape: Option<ShapeFile>,
+    /// Moves the vertices of a body mesh (docs/bodies.md).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<MotionFile>,
     #[serde(default)]
     pub pose: PoseSpec,
     #[serde(default = "default_obstacle_thickness")]
@@ -442,12 +517,28 @@ impl Scene {
                 .pose
                 .isometry(&format!("obstacles[{k}].pose"))
                 .with_context(ctx)?;
-            let mut ob = o
-                .shape
-                .resolve(&o.id, &base)
-                .and_then(|shape| Obstacle::new(&o.id, shape, pose, o.thickness, o.friction))
-                .with_context(|| format!("obstacles[{k}]"))
-                .with_context(ctx)?;
+            let mut ob = match (&o.shape, &o.motion) {
+                (Some(shape), None) => shape
+                    .resolve(&o.id, &base)
+                    .and_then(|shape| Obstacle::new(&o.id, shape, pose, o.thickness, o.friction)),
+                (None, Some(m)) => m.load(&base).and_then(|l| {
+                    Obstacle::with_motion(
+                        &o.id,
+                        l.triangles,
+                        l.motion,
+                        m.looping,
+                        m.start,
+                        pose,
+                        o.thickness,
+                        o.friction,
+                    )
+                }),
+                _ => Err(anyhow::anyhow!(
+                    "give a shape, or a motion (whose meshes are the shape), not both"
+                )),
+            }
+            .with_context(|| format!("obstacles[{k}]"))
+            .with_context(ctx)?;
             ob.linear_velocity = Vector3::from(o.linear_velocity);
             ob.angular_velocity = Vector3::from(o.angular_velocity);
             obstacles.push(ob);

@@ -11,6 +11,9 @@
 //! 2. **Drape.** Gravity on, the seams at their own stiffness, the fabric's
 //!    own damping; the run ends when the rms speed stays below
 //!    `settle.speed` for `settle.hold` seconds, or at `settle.max_time`.
+//! 3. **Motion** (a body with a `motion`, docs/bodies.md). The body, held
+//!    in its first pose until now, plays its motion (from `motion.start` s
+//!    on); the run ends with it.
 
 use crate::body_forces::{self, BodyPressure, Wrench};
 use crate::collision::{Obstacle, ShapeSpec};
@@ -46,8 +49,16 @@ fn d_scale() -> f64 {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodyFile {
-    /// Closed, outward-oriented triangle mesh (OBJ), relative to the trial file.
-    pub obj: PathBuf,
+    /// Closed, outward-oriented triangle mesh (OBJ), relative to the trial
+    /// file (or give `motion`).
+    #[serde(default)]
+    pub obj: Option<PathBuf>,
+    /// A body that moves (docs/bodies.md): its meshes, closed and
+    /// outward-oriented, in place of `obj`. The garment is sewn and draped
+    /// on its first pose; then the body plays its motion (from `start` s
+    /// after the drape ends), and the run ends with the motion.
+    #[serde(default)]
+    pub motion: Option<crate::scene::MotionFile>,
     /// Metres per OBJ unit.
     #[serde(default = "d_scale")]
     pub scale: f64,
@@ -210,11 +221,21 @@ pub fn load_body(path: &Path, scale: f64) -> Result<(crate::collision::MeshData,
         vertices: v.len(),
         ..Default::default()
     };
+    let (kept, dropped) =
+        check_body(&v, &t).with_context(|| format!("body mesh {}", path.display()))?;
+    check.degenerate_dropped = dropped;
+    check.triangles = kept.len();
+    Ok(((v, kept), check))
+}
+
+/// Checks a body mesh can have an inside (see [`load_body`]): its
+/// triangles without the zero-area ones, and how many those were.
+pub fn check_body(v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<(Vec<[u32; 3]>, usize)> {
     let area = |tri: &[u32; 3]| {
         let p = |k: usize| Vector3::from(v[tri[k] as usize]);
         (p(1) - p(0)).cross(&(p(2) - p(0))).norm() / 2.0
     };
-    let (lo, hi) = bbox(&v);
+    let (lo, hi) = bbox(v);
     let size = (Vector3::from(hi) - Vector3::from(lo)).norm();
     let kept: Vec<[u32; 3]> = t
         .iter()
@@ -226,8 +247,6 @@ pub fn load_body(path: &Path, scale: f64) -> Result<(crate::collision::MeshData,
                 && area(tri) > 1e-14 * size * size
         })
         .collect();
-    check.degenerate_dropped = t.len() - kept.len();
-    check.triangles = kept.len();
     let mut edges: HashMap<(u32, u32), usize> = HashMap::new();
     for tri in &kept {
         for k in 0..3 {
@@ -240,11 +259,10 @@ pub fn load_body(path: &Path, scale: f64) -> Result<(crate::collision::MeshData,
         let (&(a, _), &c) = *open.iter().min().expect("non-empty");
         let p = v[a as usize];
         bail!(
-            "body mesh {}: {} edges are not shared by exactly two triangles (e.g. at vertex {} \
+            "{} edges are not shared by exactly two triangles (e.g. at vertex {} \
              ({:.3}, {:.3}, {:.3}) m, an edge of {c} triangle(s)): the body must be closed to have \
              an inside; close its holes (e.g. Blender: Select ▸ All by Trait ▸ Non Manifold, then \
              Face ▸ Fill)",
-            path.display(),
             open.len(),
             a + 1,
             p[0],
@@ -261,12 +279,12 @@ pub fn load_body(path: &Path, scale: f64) -> Result<(crate::collision::MeshData,
         .sum();
     if vol.is_nan() || vol <= 0.0 {
         bail!(
-            "body mesh {}: encloses a volume of {vol:.4} m³: its faces must face outward \
-             (counter-clockwise seen from outside)",
-            path.display()
+            "encloses a volume of {vol:.4} m³: its faces must face outward \
+             (counter-clockwise seen from outside)"
         );
     }
-    Ok(((v, kept), check))
+    let dropped = t.len() - kept.len();
+    Ok((kept, dropped))
 }
 
 fn bbox(v: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
@@ -321,19 +339,45 @@ impl Trial {
             "",
             "a Coulomb coefficient",
         )?;
-        let obj = dir.join(&b.obj);
-        let ((v, t), _) = load_body(&obj, b.scale)?;
         let pose = b.pose.isometry(&what("pose"))?;
-        let body = Obstacle::new(
-            BODY_ID,
-            ShapeSpec::Triangles {
-                vertices: v,
-                triangles: t,
-            },
-            pose,
-            b.skin_offset,
-            b.friction,
-        )?;
+        let body = match (&b.obj, &b.motion) {
+            (Some(obj), None) => {
+                let ((v, t), _) = load_body(&dir.join(obj), b.scale)?;
+                Obstacle::new(
+                    BODY_ID,
+                    ShapeSpec::Triangles {
+                        vertices: v,
+                        triangles: t,
+                    },
+                    pose,
+                    b.skin_offset,
+                    b.friction,
+                )?
+            }
+            (None, Some(m)) => {
+                let l = m.load(&dir).with_context(|| what("motion"))?;
+                let mut first = vec![Vector3::zeros(); l.motion.vertex_count()];
+                l.motion.positions(0.0, &mut first);
+                let v: Vec<[f64; 3]> = first.iter().map(|p| [p.x, p.y, p.z]).collect();
+                check_body(&v, &l.triangles).with_context(|| what("motion (its first pose)"))?;
+                let mut o = Obstacle::with_motion(
+                    BODY_ID,
+                    l.triangles,
+                    l.motion,
+                    m.looping,
+                    m.start,
+                    pose,
+                    b.skin_offset,
+                    b.friction,
+                )?;
+                // still while the garment is sewn and draped on it
+                if let Some(d) = o.deforming_mut() {
+                    d.held = true;
+                }
+                o
+            }
+            _ => bail!("{}: give obj or motion", what("obj")),
+        };
         Ok(Trial {
             file,
             path: path.to_path_buf(),
@@ -480,6 +524,10 @@ pub struct RunStats {
     /// not settle within `settle.max_time`.
     pub settle_time_s: Option<f64>,
     pub simulated_s: f64,
+    /// Simulated time of the body's motion after the drape (a body with a
+    /// `motion`), s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motion_s: Option<f64>,
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
@@ -643,12 +691,37 @@ pub fn run_on(
         }
         progress("drape", sim.time - sewing_s, max_time);
     }
+    // 3. motion: a body held in its first pose while the garment was sewn
+    //    and draped moves; the run lasts until its motion ends
+    let held: Vec<_> = sim
+        .obstacles()
+        .with_handles()
+        .filter(|(_, o)| o.deforming().is_some_and(|b| b.held))
+        .map(|(h, _)| h)
+        .collect();
+    let mut motion_s = None;
+    if !held.is_empty() && !stop() {
+        let mut play: f64 = 0.0;
+        for h in held {
+            if let Some(b) = sim.obstacle_mut(h).and_then(|o| o.deforming_mut()) {
+                b.release();
+                play = play.max(b.remaining());
+            }
+        }
+        let t0 = sim.time;
+        while sim.time - t0 < play - 1e-12 && !stop() {
+            step(sim, &mut steps)?;
+            progress("motion", sim.time - t0, play);
+        }
+        motion_s = Some(sim.time - t0);
+    }
     let wall = start.elapsed().as_secs_f64();
     let n = steps.max(1) as f64;
     Ok(RunStats {
         sewing_s,
         settle_time_s: settle,
         simulated_s: sim.time,
+        motion_s,
         steps,
         wall_s: wall,
         ms_per_step: 1e3 * wall / n,
@@ -932,6 +1005,15 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
     }
 }
 
+/// The trial's body as it is now in `sim` (a body with a motion moves),
+/// else as the trial made it.
+pub fn body_now<'a>(sim: &'a Simulation, trial: &'a Trial) -> &'a Obstacle {
+    sim.obstacles()
+        .iter()
+        .find(|o| o.id == trial.body.id)
+        .unwrap_or(&trial.body)
+}
+
 /// Measures the fit of the garment as it is now, with the pressure on the
 /// body's vertices.
 pub fn fit(
@@ -943,7 +1025,8 @@ pub fn fit(
     let c = &sim.cloth;
     let x = &c.x;
     let n = c.len();
-    let vf = vertex_fit(sim, g, &trial.body);
+    let body = body_now(sim, trial);
+    let vf = vertex_fit(sim, g, body);
     let np = g.panels.len();
     let mut acc = vec![[(f64::NEG_INFINITY, 0.0, 0usize); 3]; np];
     for (k, a, _, e) in spring_strains(c) {
@@ -1002,11 +1085,11 @@ pub fn fit(
     let mass = c.total_mass();
     let weight = mass * sim.params().gravity.norm();
     let mut girths = BTreeMap::new();
-    let (bv, bt) = trial.body.local_triangles();
+    let (bv, bt) = body.local_triangles();
     let bw: Vec<[f64; 3]> = bv
         .iter()
         .map(|p| {
-            let q = trial.body.pose * nalgebra::Point3::from(Vector3::from(*p));
+            let q = body.pose * nalgebra::Point3::from(Vector3::from(*p));
             [q.x, q.y, q.z]
         })
         .collect();

@@ -1,7 +1,9 @@
 //! Scene obstacles as `parry` shapes with a pose, a thickness and a Coulomb
 //! friction coefficient, static or moving with a prescribed velocity
-//! (thesis §3.3, §6.4.1.2: objects are thickened for robust contact).
+//! (thesis §3.3, §6.4.1.2: objects are thickened for robust contact), or
+//! triangle meshes whose vertices move ([`crate::deforming`]).
 
+use crate::deforming::{DeformingBody, Motion};
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::query::{PointQueryWithLocation, Ray};
@@ -75,6 +77,9 @@ pub struct Obstacle {
     /// A triangle mesh every edge of which two triangles share: it has an
     /// inside (found with the mesh's pseudo-normals), like the primitives.
     pub closed: bool,
+    /// A mesh whose vertices move (see [`Obstacle::with_motion`]): its
+    /// queries read it, not `shape` (the mesh at the motion's start).
+    deforming: Option<Box<DeformingBody>>,
 }
 
 impl std::fmt::Debug for Obstacle {
@@ -190,7 +195,70 @@ impl Obstacle {
             friction,
             closed: mesh.as_ref().is_some_and(|(_, t)| is_closed(t)),
             mesh,
+            deforming: None,
         })
+    }
+
+    /// A triangle mesh of `triangles` whose vertices (in the obstacle's
+    /// frame, placed by `pose`) follow `motion`: from `start` s after the
+    /// obstacle is made (holding its first pose until then), to its end
+    /// (then holding its last), or over and over with `looping`. The
+    /// obstacle's linear and angular velocity, if set, move its frame as
+    /// they move a rigid obstacle's.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_motion(
+        id: &str,
+        triangles: Vec<[u32; 3]>,
+        motion: std::sync::Arc<dyn Motion>,
+        looping: bool,
+        start: f64,
+        pose: Isometry3<f64>,
+        thickness: f64,
+        friction: f64,
+    ) -> Result<Obstacle> {
+        let n = motion.vertex_count();
+        let mut first = vec![Vector3::zeros(); n];
+        motion.positions(0.0, &mut first);
+        let vertices: Vec<[f64; 3]> = first.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let mut o = Obstacle::new(
+            id,
+            ShapeSpec::Triangles {
+                vertices,
+                triangles: triangles.clone(),
+            },
+            pose,
+            thickness,
+            friction,
+        )?;
+        let body = DeformingBody::new(motion, triangles, o.closed, &pose, looping, start)
+            .map_err(|e| e.context(format!("obstacle {id:?}")))?;
+        o.deforming = Some(Box::new(body));
+        Ok(o)
+    }
+
+    /// The moving mesh of an obstacle made with [`Obstacle::with_motion`].
+    pub fn deforming(&self) -> Option<&DeformingBody> {
+        self.deforming.as_deref()
+    }
+
+    /// The moving mesh, to change its start or looping.
+    pub fn deforming_mut(&mut self) -> Option<&mut DeformingBody> {
+        self.deforming.as_deref_mut()
+    }
+
+    /// Readies a step of length `dt`: a deforming mesh takes its positions at
+    /// the step's end and its vertices' velocities over the step (a rigid
+    /// obstacle has nothing to do). Refuses a motion that gives a
+    /// non-finite position.
+    pub fn begin_step(&mut self, dt: f64) -> Result<()> {
+        if self.deforming.is_none() {
+            return Ok(());
+        }
+        let next = self.pose_after(dt);
+        let id = self.id.clone();
+        let b = self.deforming.as_deref_mut().expect("deforming");
+        b.prepare(dt, &next)
+            .map_err(|e| e.context(format!("obstacle {id:?}")))
     }
 
     /// The deepest cloth vertex inside this obstacle's shape (not its
@@ -244,6 +312,15 @@ impl Obstacle {
     /// Signed distance, outward normal and surface velocity at the point
     /// closest to `p`.
     pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {
+        if let Some(b) = &self.deforming {
+            let c = b.closest(p);
+            return Proximity {
+                distance: c.distance,
+                normal: c.normal,
+                point: c.point,
+                velocity: c.velocity,
+            };
+        }
         let iso = self.pose * self.shape_pose_offset;
         let pt = Point3::from(*p);
         let proj = match self.shape.as_trimesh() {
@@ -281,7 +358,11 @@ impl Obstacle {
     }
 
     /// Velocity of the obstacle's material at `p` (world frame), m/s.
+    /// (A deforming mesh: the velocity of its surface point closest to `p`.)
     pub fn velocity_at(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        if let Some(b) = &self.deforming {
+            return b.closest(p).velocity;
+        }
         self.linear_velocity
             + self
                 .angular_velocity
@@ -291,12 +372,17 @@ impl Obstacle {
     /// Where the segment `a → b` (world frame, the obstacle where it is now)
     /// first enters the obstacle's own shape (not thickened): the fraction of
     /// the segment and the outward normal of the face it crosses. `None` when
-    /// it does not reach the shape, or starts inside it.
+    /// it does not reach the shape, or starts inside it. (A deforming mesh:
+    /// its triangles where they are now, met from either side.)
     pub fn first_crossing(
         &self,
         a: &Vector3<f64>,
         b: &Vector3<f64>,
     ) -> Option<(f64, Vector3<f64>)> {
+        if let Some(m) = &self.deforming {
+            let hit = m.first_hit_static(a, b)?;
+            return Some((hit.s, m.face_normal(hit.triangle) * hit.side));
+        }
         let iso = self.pose * self.shape_pose_offset;
         let d = b - a;
         let ray = Ray::new(Point3::from(*a), d);
@@ -316,7 +402,15 @@ impl Obstacle {
 
     /// World-space bounding box grown by `margin` (broad phase: a point outside
     /// it is farther than `margin` from the obstacle).
+    /// (A deforming mesh: over the current step.)
     pub fn bounds(&self, margin: f64) -> ([f64; 3], [f64; 3]) {
+        if let Some(b) = &self.deforming {
+            let (a, b) = b.bounds();
+            return (
+                [a.x - margin, a.y - margin, a.z - margin],
+                [b.x + margin, b.y + margin, b.z + margin],
+            );
+        }
         let aabb = self
             .shape
             .compute_aabb(&(self.pose * self.shape_pose_offset));
@@ -327,22 +421,36 @@ impl Obstacle {
         )
     }
 
-    /// Advances a moving obstacle by its prescribed velocity over `dt`.
+    /// Advances a moving obstacle by its prescribed velocity over `dt`, and
+    /// a deforming mesh to its positions at the end of the step.
     pub fn advance(&mut self, dt: f64) {
+        let next = self.pose_after(dt);
+        if let Some(b) = self.deforming.as_deref_mut() {
+            b.advance(dt, &next);
+        }
+        self.pose = next;
+    }
+
+    /// The pose after `dt` at the prescribed velocities.
+    fn pose_after(&self, dt: f64) -> Isometry3<f64> {
         if self.linear_velocity == Vector3::zeros() && self.angular_velocity == Vector3::zeros() {
-            return;
+            return self.pose;
         }
         let rot = UnitQuaternion::from_scaled_axis(self.angular_velocity * dt);
         let t = self.pose.translation.vector;
-        self.pose = Isometry3::from_parts(
+        Isometry3::from_parts(
             Translation3::from(t + self.linear_velocity * dt),
             rot * self.pose.rotation,
-        );
+        )
     }
 
     /// Surface triangles in the obstacle's own frame (for markers and exports):
     /// primitives tessellated, meshes as given.
+    /// A deforming mesh: where its vertices are now.
     pub fn local_triangles(&self) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+        if let Some(b) = &self.deforming {
+            return (b.local_positions(&self.pose), b.triangles().to_vec());
+        }
         if let Some((v, t)) = &self.mesh {
             return (v.clone(), t.clone());
         }

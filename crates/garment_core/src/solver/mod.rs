@@ -710,7 +710,12 @@ impl Simulation {
             self.pins.retain(|p| !due(p));
             self.index_pins();
         }
-        // 1. constraints for this step: pins, then contacts (filter, z, y)
+        // 1. constraints for this step: pins, then contacts (filter, z, y);
+        //    a deforming obstacle first takes its positions at the step's
+        //    end and its velocities over the step
+        for ob in self.obstacles.iter_mut() {
+            ob.begin_step(h)?;
+        }
         self.ws.bounds.clear();
         for ob in &self.obstacles {
             let e = ob.thickness + self.params.cloth_thickness;

@@ -9,6 +9,7 @@ use super::linear::Filter;
 use super::sparse::BlockMatrix;
 use super::{FrictionState, Pin, STICK_SPEED};
 use crate::collision::{Obstacle, Proximity};
+use crate::deforming::HIT_TOLERANCE;
 use nalgebra::Vector3;
 
 /// Axis-aligned box (min, max corners).
@@ -250,20 +251,41 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
         }
         for (ob_i, ob) in s.obstacles.iter().enumerate() {
             let e = ob.thickness + s.cloth_thickness;
-            // a vertex that moved farther than the contact distance relative
-            // to the obstacle may have crossed its surface, even gone
-            // through a thin one (it started the step outside the thickened
-            // shape): put it back on the side it came from
-            let start = x0 + ob.velocity_at(&x0) * h;
-            if (o.x[k] - start).norm_squared() >= e * e
-                && overlaps(&s.bounds[ob_i], &start, &o.x[k])
-            {
-                if let Some((t, n)) = ob.first_crossing(&start, &o.x[k]) {
-                    let entry = start + (o.x[k] - start) * t;
-                    o.x[k] += n * (e - (o.x[k] - entry).dot(&n));
-                    let vn = (o.v[k] - ob.velocity_at(&entry)).dot(&n);
-                    if vn < 0.0 {
-                        o.v[k] -= n * vn;
+            if let Some(body) = ob.deforming() {
+                // a deforming mesh: the vertex's path over the step against
+                // the triangles' (each point moving linearly); met from
+                // outside (either side of an open mesh), it is put back on
+                // that side of the triangle it met, at the contact distance
+                if overlaps(&s.bounds[ob_i], &x0, &o.x[k]) {
+                    if let Some(hit) = body.first_hit(&x0, &o.x[k], HIT_TOLERANCE) {
+                        if hit.side > 0.0 || !body.closed() {
+                            let n = body.face_normal(hit.triangle) * hit.side;
+                            let c = body.point_on(hit.triangle, hit.weights);
+                            o.x[k] += n * (e - (o.x[k] - c).dot(&n));
+                            let vo = body.velocity_on(hit.triangle, hit.weights);
+                            let vn = (o.v[k] - vo).dot(&n);
+                            if vn < 0.0 {
+                                o.v[k] -= n * vn;
+                            }
+                        }
+                    }
+                }
+            } else {
+                // a vertex that moved farther than the contact distance relative
+                // to the obstacle may have crossed its surface, even gone
+                // through a thin one (it started the step outside the thickened
+                // shape): put it back on the side it came from
+                let start = x0 + ob.velocity_at(&x0) * h;
+                if (o.x[k] - start).norm_squared() >= e * e
+                    && overlaps(&s.bounds[ob_i], &start, &o.x[k])
+                {
+                    if let Some((t, n)) = ob.first_crossing(&start, &o.x[k]) {
+                        let entry = start + (o.x[k] - start) * t;
+                        o.x[k] += n * (e - (o.x[k] - entry).dot(&n));
+                        let vn = (o.v[k] - ob.velocity_at(&entry)).dot(&n);
+                        if vn < 0.0 {
+                            o.v[k] -= n * vn;
+                        }
                     }
                 }
             }
