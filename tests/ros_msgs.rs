@@ -73,6 +73,9 @@ fn messages_match_rosbags_byte_for_byte() {
             recovered_steps: 1,
             paused: false,
             last_error: "pin: vertex 99999 out of range".into(),
+            body_messages: 12,
+            body_late: 1,
+            body_refused: vec![("out_of_order", 2)],
         },
     );
     let keys: Vec<&str> = diag.status[0]
@@ -86,6 +89,9 @@ fn messages_match_rosbags_byte_for_byte() {
         "contacts_held",
         "real_time_factor",
         "recovered_steps",
+        "body_messages",
+        "body_late_frames",
+        "body_refused_out_of_order",
     ] {
         assert!(keys.contains(&k), "diagnostics lack {k}: {keys:?}");
     }

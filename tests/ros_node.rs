@@ -1,7 +1,7 @@
 //! The node against an independent DDS implementation (Eclipse Cyclone DDS
 //! through its Python binding, tests/ros_interop.py): topics, namespaces and
-//! remaps, params files, obstacles and pins, bad input, services and the ROS 2
-//! parameter services. Everything runs in a network namespace made for the
+//! remaps, params files, obstacles and pins, bad input, services, the ROS 2
+//! parameter services and a streamed body. Everything runs in a network namespace made for the
 //! test (`unshare -rn`: only a loopback interface), so no packet leaves it.
 
 mod support;
@@ -24,6 +24,6 @@ fn node_interoperates_with_cyclone_dds() {
         "cyclonedds, numpy, pytest",
         true,
         &[("GARMENT_SIM_BIN", &bin), ("CYCLONEDDS_URI", &uri)],
-        "6 passed",
+        "7 passed",
     );
 }

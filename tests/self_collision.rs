@@ -742,6 +742,7 @@ fn the_drape_summary_and_the_node_diagnostics_report_it() {
                 recovered_steps: 0,
                 paused: false,
                 last_error: String::new(),
+                ..Default::default()
             },
         );
         let value = |k: &str| {

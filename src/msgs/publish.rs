@@ -284,6 +284,11 @@ pub struct DiagnosticFigures {
     pub recovered_steps: u64,
     pub paused: bool,
     pub last_error: String,
+    /// `body` messages taken (late ones included), late ones, and refused
+    /// ones by kind (docs/bodies.md).
+    pub body_messages: u64,
+    pub body_late: u64,
+    pub body_refused: Vec<(&'static str, u64)>,
 }
 
 /// One DiagnosticStatus `garment_sim: solver` with the step figures.
@@ -315,6 +320,13 @@ pub fn diagnostics(sim: &Simulation, header: Header, f: &DiagnosticFigures) -> D
         kv("pins", sim.pins().len().to_string()),
         kv("obstacles", sim.obstacles().len().to_string()),
     ];
+    if f.body_messages > 0 || !f.body_refused.is_empty() {
+        values.push(kv("body_messages", f.body_messages.to_string()));
+        values.push(kv("body_late_frames", f.body_late.to_string()));
+        for (k, n) in &f.body_refused {
+            values.push(kv(&format!("body_refused_{k}"), n.to_string()));
+        }
+    }
     if sim.params().self_collision {
         // the cloth against itself (docs/self_collision.md): the last step's
         // pairs pushed apart and paths that crossed, and its time

@@ -17,8 +17,16 @@
 //! - a non-finite value, a vertex index out of range or a vertex count that
 //!   differs from the topology's is refused.
 
+use super::control::ObstacleRegistry;
+use crate::collision::{Obstacle, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS};
+use crate::deforming::Motion;
 use crate::msgs;
+use crate::solver::Simulation;
+use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;
+use std::sync::{Arc, RwLock};
+
+type V = Vector3<f64>;
 
 /// Largest number of vertices of a streamed body.
 pub const MAX_BODY_VERTICES: usize = 1_000_000;
@@ -84,9 +92,77 @@ struct Stream {
     last: f64,
 }
 
+/// A body's motion fed frame by frame: frames at increasing times (the
+/// body's clock, 0 when its topology arrived), interpolated linearly; after
+/// the last frame the body holds it.
+#[derive(Debug)]
+pub struct StreamedMotion {
+    vertices: usize,
+    frames: RwLock<Vec<(f64, Vec<V>)>>,
+}
+
+impl StreamedMotion {
+    pub fn new(first: Vec<V>) -> StreamedMotion {
+        StreamedMotion {
+            vertices: first.len(),
+            frames: RwLock::new(vec![(0.0, first)]),
+        }
+    }
+
+    /// Adds the frame at time `t` (a frame at or before the last one
+    /// replaces it), and forgets the frames before the one in force at
+    /// `now`, which the body has passed.
+    pub fn push(&self, t: f64, x: Vec<V>, now: f64) {
+        let mut f = self.frames.write().expect("no panic holds the lock");
+        match f.last_mut() {
+            Some(last) if t <= last.0 => last.1 = x,
+            _ => f.push((t, x)),
+        }
+        let passed = f.partition_point(|(s, _)| *s <= now).saturating_sub(1);
+        f.drain(..passed);
+    }
+
+    /// Frames held.
+    pub fn len(&self) -> usize {
+        self.frames.read().expect("no panic holds the lock").len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+impl Motion for StreamedMotion {
+    fn vertex_count(&self) -> usize {
+        self.vertices
+    }
+
+    fn duration(&self) -> f64 {
+        let f = self.frames.read().expect("no panic holds the lock");
+        f.last().map_or(0.0, |l| l.0)
+    }
+
+    fn positions(&self, t: f64, out: &mut [V]) {
+        let f = self.frames.read().expect("no panic holds the lock");
+        let k = f.partition_point(|(s, _)| *s <= t).max(1) - 1;
+        if k + 1 >= f.len() || t <= f[k].0 {
+            out.copy_from_slice(&f[k].1);
+            return;
+        }
+        let (t0, a) = (&f[k].0, &f[k].1);
+        let (t1, b) = (&f[k + 1].0, &f[k + 1].1);
+        let w = ((t - t0) / (t1 - t0)).clamp(0.0, 1.0);
+        for ((o, p), q) in out.iter_mut().zip(a).zip(b) {
+            *o = p + (q - p) * w;
+        }
+    }
+}
+
 /// The bodies streamed so far: each one's vertex count and last frame time.
 #[derive(Debug, Default, Clone)]
 pub struct BodyStreams {
+    /// Each body's motion and the simulation time its clock started at.
+    motions: HashMap<String, (Arc<StreamedMotion>, f64)>,
     streams: HashMap<String, Stream>,
     refused: HashMap<Refusal, u64>,
     late: u64,
@@ -134,7 +210,7 @@ impl BodyStreams {
                 ),
             );
         }
-        if m.positions.len() % 3 != 0 {
+        if !m.positions.len().is_multiple_of(3) {
             return fail(
                 Refusal::VertexCount,
                 format!(
@@ -198,13 +274,13 @@ impl BodyStreams {
                 late,
             });
         }
-        if n < 3 || n > MAX_BODY_VERTICES {
+        if !(3..=MAX_BODY_VERTICES).contains(&n) {
             return fail(
                 Refusal::VertexCount,
                 format!("{n} vertices: a body has 3 to {MAX_BODY_VERTICES} (MAX_BODY_VERTICES)"),
             );
         }
-        if m.triangles.len() % 3 != 0 {
+        if !m.triangles.len().is_multiple_of(3) {
             return fail(
                 Refusal::Triangles,
                 format!(
@@ -260,6 +336,98 @@ impl BodyStreams {
     /// Forgets a body (its obstacle was removed).
     pub fn remove(&mut self, id: &str) {
         self.streams.remove(id);
+        self.motions.remove(id);
+    }
+
+    /// The streamed body `id`'s motion, if it is one.
+    pub fn motion(&self, id: &str) -> Option<&Arc<StreamedMotion>> {
+        self.motions.get(id).map(|m| &m.0)
+    }
+
+    /// Applies a `body` message to the simulation: a topology makes (or
+    /// replaces) the obstacle `id`, a body moved by its frames; a frame
+    /// becomes the body's position at its stamp. Returns what to log (empty
+    /// for a frame: they come at the avatar's frame rate).
+    pub fn apply(
+        &mut self,
+        sim: &mut Simulation,
+        reg: &mut ObstacleRegistry,
+        m: &msgs::Body,
+        frame_id: &str,
+    ) -> Result<String, String> {
+        let (now, dt) = (sim.time, sim.params().dt);
+        match self.accept(m, frame_id, now, dt).map_err(|e| e.1)? {
+            BodyUpdate::Start {
+                id,
+                triangles,
+                positions,
+                thickness,
+                friction,
+                ..
+            } => {
+                let motion = Arc::new(StreamedMotion::new(
+                    positions.iter().map(|p| V::from(*p)).collect(),
+                ));
+                let made = Obstacle::with_motion(
+                    &id,
+                    triangles,
+                    motion.clone(),
+                    false,
+                    0.0,
+                    Isometry3::identity(),
+                    if thickness.is_nan() {
+                        DEFAULT_OBSTACLE_THICKNESS
+                    } else {
+                        thickness
+                    },
+                    if friction.is_nan() {
+                        DEFAULT_FRICTION
+                    } else {
+                        friction
+                    },
+                )
+                .and_then(|o| o.check_overlap(&sim.cloth.x).map(|_| o));
+                let o = match made {
+                    Ok(o) => o,
+                    Err(e) => {
+                        // refused: the stream did not start
+                        self.streams.remove(&id);
+                        *self.refused.entry(Refusal::Triangles).or_default() += 1;
+                        self.accepted -= 1;
+                        return Err(format!("body {id:?}: {e:#}"));
+                    }
+                };
+                let replaced = reg.remove_from(sim, &id);
+                let h = sim.add_obstacle(o);
+                reg.insert_single(&id, h);
+                self.motions.insert(id.clone(), (motion, now));
+                Ok(format!(
+                    "{} body {id:?}: {} vertices, {} triangles",
+                    if replaced { "replaced" } else { "added" },
+                    positions.len(),
+                    m.triangles.len() / 3
+                ))
+            }
+            BodyUpdate::Frame {
+                id,
+                positions,
+                time,
+                ..
+            } => {
+                let Some((motion, t0)) = self.motions.get(&id).filter(|_| reg.contains(&id)) else {
+                    self.remove(&id);
+                    return Err(format!(
+                        "body {id:?}: its obstacle was removed (send the triangles again)"
+                    ));
+                };
+                motion.push(
+                    time - t0,
+                    positions.iter().map(|p| V::from(*p)).collect(),
+                    now - t0,
+                );
+                Ok(String::new())
+            }
+        }
     }
 
     /// Messages taken (late ones included), late ones, and refusals by kind.

@@ -39,6 +39,30 @@ impl ObstacleRegistry {
         self.parts.len()
     }
 
+    /// Removes the obstacle `id` (all its shapes) from the simulation and the
+    /// registry; says whether there was one.
+    pub fn remove_from(&mut self, sim: &mut Simulation, id: &str) -> bool {
+        match self.parts.remove(id) {
+            Some(parts) => {
+                for (h, _) in parts {
+                    sim.remove_obstacle(h);
+                }
+                true
+            }
+            None => false,
+        }
+    }
+
+    pub fn contains(&self, id: &str) -> bool {
+        self.parts.contains_key(id)
+    }
+
+    /// Registers the obstacle `id` as the one shape `h`.
+    pub fn insert_single(&mut self, id: &str, h: Handle<Obstacle>) {
+        self.parts
+            .insert(id.to_string(), vec![(h, Isometry3::identity())]);
+    }
+
     pub fn is_empty(&self) -> bool {
         self.parts.is_empty()
     }

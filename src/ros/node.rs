@@ -19,6 +19,7 @@
 //! | `/rosout` | rcl_interfaces/msg/Log | out: what the node does and refuses |
 //! | `obstacles` | garment_sim_msgs/msg/Obstacle | in: add, move, remove |
 //! | `pins` | garment_sim_msgs/msg/Pin | in: pin, move, release |
+//! | `body` | garment_sim_msgs/msg/Body | in: a deforming body's topology, then its frames |
 //! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameter `scene`) |
 //! | `~/set_paused` | std_srvs/srv/SetBool | |
 //! | `~/step` | garment_sim_msgs/srv/Step | N steps while paused |
@@ -87,6 +88,7 @@ pub struct Names {
     pub scene_description: String,
     pub obstacles: String,
     pub pins: String,
+    pub body: String,
     pub reset: String,
     pub set_paused: String,
     pub step: String,
@@ -109,6 +111,7 @@ impl Names {
             scene_description: r("scene_description"),
             obstacles: r("obstacles"),
             pins: r("pins"),
+            body: r("body"),
             reset: r("~/reset"),
             set_paused: r("~/set_paused"),
             step: r("~/step"),
@@ -134,6 +137,8 @@ struct Loaded {
     description: String,
     /// A garment trial's garment and body.
     worn: Option<Worn>,
+    /// The bodies streamed on `body`.
+    bodies: super::body::BodyStreams,
 }
 
 /// The garment of a trial scene (its panels name pins' grid nodes) and the
@@ -166,6 +171,7 @@ fn load(s: &Settings) -> Result<Loaded> {
                 garment: g,
                 body: t.body.clone(),
             }),
+            bodies: Default::default(),
         });
     }
     let scene = Scene::load(&path)?;
@@ -178,6 +184,7 @@ fn load(s: &Settings) -> Result<Loaded> {
         registry,
         description,
         worn: None,
+        bodies: Default::default(),
     })
 }
 
@@ -187,7 +194,11 @@ fn load(s: &Settings) -> Result<Loaded> {
 fn cloud(l: &Loaded, h: msgs::Header) -> msgs::PointCloud2 {
     match &l.worn {
         Some(w) => {
-            let f = crate::trial::vertex_fit(&l.sim, &w.garment, &w.body);
+            // the body where it is now (a streamed body replaces the trial's)
+            let body = crate::trial::body_handle(&l.sim)
+                .and_then(|b| l.sim.obstacles().get(b))
+                .unwrap_or(&w.body);
+            let f = crate::trial::vertex_fit(&l.sim, &w.garment, body);
             publish::cloud_with(
                 &l.sim,
                 h,
@@ -256,7 +267,7 @@ fn help() -> String {
          Parameters (name, type, default):\n{}\
          Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout;\n\
          with a body (a trial's, or a scene obstacle with id body): body/wrench, body/points\n\
-         Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin)\n\
+         Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin), body (garment_sim_msgs/Body)\n\
          Services: ~/reset (std_srvs/Trigger), ~/set_paused (std_srvs/SetBool), ~/step (garment_sim_msgs/Step)\n\
          Environment: ROS_DOMAIN_ID. See docs/ros.md and launch-notes.md.",
         params::help_lines()
@@ -295,6 +306,7 @@ struct Endpoints {
     scene_description: ros2_client::Publisher<msgs::StringMsg>,
     obstacles: ros2_client::Subscription<msgs::Obstacle>,
     pins: ros2_client::Subscription<msgs::Pin>,
+    body: ros2_client::Subscription<msgs::Body>,
     reset: ros2_client::Server<msgs::TriggerRequest, msgs::TriggerResponse>,
     set_paused: ros2_client::Server<msgs::SetBoolRequest, msgs::SetBoolResponse>,
     step: ros2_client::Server<msgs::StepRequest, msgs::StepResponse>,
@@ -353,6 +365,7 @@ impl Endpoints {
             scene_description: publisher!(msgs::StringMsg, &names.scene_description, latched),
             obstacles: subscription!(msgs::Obstacle, &names.obstacles),
             pins: subscription!(msgs::Pin, &names.pins),
+            body: subscription!(msgs::Body, &names.body),
             reset: server!(
                 msgs::TriggerRequest,
                 msgs::TriggerResponse,
@@ -641,6 +654,14 @@ impl Node {
         if handled > 0 {
             self.publish_now = true;
         }
+        let bodies = &self.io.body;
+        let taken = drain(|| bodies.take().map(|m| m.map(|(m, _)| m)), cap);
+        let topic = self.names.body.clone();
+        self.apply_taken(taken, &topic, |node, m| {
+            let l = &mut node.loaded;
+            l.bodies
+                .apply(&mut l.sim, &mut l.registry, m, &node.settings.frame_id)
+        });
         let pins = &self.io.pins;
         let taken = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);
         let topic = self.names.pins.clone();
@@ -703,6 +724,7 @@ impl Node {
     /// Logs what a message did, or counts and logs its refusal.
     fn report(&mut self, applied: std::result::Result<String, String>, topic: &str) {
         match applied {
+            Ok(what) if what.is_empty() => {}
             Ok(what) => self.info(&what),
             Err(e) => {
                 self.counters.rejected += 1;
@@ -917,6 +939,9 @@ impl Node {
             recovered_steps: self.recovery.recovered,
             paused: self.settings.paused,
             last_error: c.last_error.clone(),
+            body_messages: self.loaded.bodies.counts().0,
+            body_late: self.loaded.bodies.counts().1,
+            body_refused: self.loaded.bodies.counts().2,
         };
         let diag = publish::diagnostics(sim, h.clone(), &fig);
         let clock = msgs::Clock { clock: h.stamp };
