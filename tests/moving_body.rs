@@ -1172,3 +1172,88 @@ fn the_shipped_motion_skins_as_blender_skins_it() {
     }
     assert!(moved > 0.2, "the hands rise: {moved} m");
 }
+
+/// The shipped trial config/trials/tshirt_arms_raise.yaml at 2 cm: the
+/// T-shirt sewn and draped on the body in its first pose, then the shipped
+/// motion raises the arms 42° to shoulder height. The sleeves go up with the
+/// arms (against the same trial on the still body) and no cloth vertex ends
+/// inside the body.
+#[test]
+fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
+    use garment_sim::trial::{self, Trial, TrialOverrides};
+    let run = |t: &Trial| {
+        let (mut sim, g) = t
+            .build(&TrialOverrides {
+                spacing: Some(0.02),
+                threads: Some(1),
+                ..Default::default()
+            })
+            .unwrap();
+        let st = trial::run(
+            &mut sim,
+            &t.file.sewing,
+            &t.file.settle,
+            None,
+            &mut |_, _, _| {},
+            &|| false,
+        )
+        .unwrap();
+        let (fit, _, _) = trial::fit(&sim, &g, t, st.clone());
+        (sim, fit, st)
+    };
+    let moving = Trial::load(Path::new("config/trials/tshirt_arms_raise.yaml")).unwrap();
+    let mut still = moving.clone();
+    still.body = Trial::load(Path::new("config/trials/tshirt_on_anny.yaml"))
+        .unwrap()
+        .body;
+    still.file.body.motion = None;
+    let (s0, _, st0) = run(&still);
+    let (s1, fit1, st1) = run(&moving);
+    assert!(st0.motion_s.is_none());
+    assert!(
+        (st1.motion_s.unwrap() - 3.0).abs() < 0.01,
+        "{:?}",
+        st1.motion_s
+    );
+    // the sleeves: the vertices more than 20 cm out from the body's axis on the still body
+    let sleeve: Vec<usize> = (0..s0.cloth.len())
+        .filter(|&i| s0.cloth.x[i].x.abs() > 0.2)
+        .collect();
+    let mean_z =
+        |s: &Simulation| sleeve.iter().map(|&i| s.cloth.x[i].z).sum::<f64>() / sleeve.len() as f64;
+    let rise = mean_z(&s1) - mean_z(&s0);
+    // how far the arm under them rose: the body vertex nearest each sleeve
+    // vertex on the still body, from the first pose to the last
+    let body = s1.obstacles()[0].deforming().unwrap();
+    let mut first = vec![Vector3::zeros(); body.positions().len()];
+    body.motion().positions(0.0, &mut first);
+    let last = body.positions();
+    let arm_rise = sleeve
+        .iter()
+        .map(|&i| {
+            let p = s0.cloth.x[i];
+            let k = (0..first.len())
+                .min_by(|&a, &b| (first[a] - p).norm().total_cmp(&(first[b] - p).norm()))
+                .unwrap();
+            last[k].z - first[k].z
+        })
+        .sum::<f64>()
+        / sleeve.len() as f64;
+    let deepest = s1.obstacles()[0].deepest_inside(&s1.cloth.x);
+    println!(
+        "T-shirt on the arms raise: {} sleeve vertices rose {:.1} cm, the arm under them {:.1} cm; \
+         {} inside the body",
+        sleeve.len(),
+        rise * 100.0,
+        arm_rise * 100.0,
+        fit1.body_penetrations
+    );
+    assert!(sleeve.len() > 20, "{}", sleeve.len());
+    assert!(arm_rise > 0.03, "the arm rose {arm_rise} m");
+    assert!(
+        rise > 0.7 * arm_rise,
+        "the sleeves rose {rise} m, the arm under them {arm_rise} m"
+    );
+    assert!(deepest.is_none(), "{deepest:?}");
+    assert_eq!(fit1.body_penetrations, 0);
+}
