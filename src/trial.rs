@@ -159,6 +159,10 @@ pub struct TrialFile {
     pub linear_solver: Option<LinearSolverKind>,
     #[serde(default)]
     pub threads: Option<usize>,
+    /// Keep the garment from passing through itself (docs/self_collision.md;
+    /// off when absent, on in the shipped trials).
+    #[serde(default)]
+    pub self_collision: bool,
 }
 
 /// A trial as read, with its files resolved.
@@ -394,7 +398,7 @@ impl Trial {
             threads: ov.threads.or(self.file.threads).unwrap_or(0),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
-            self_collision: ov.self_collision.unwrap_or(false),
+            self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;

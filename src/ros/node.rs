@@ -17,7 +17,7 @@
 //! | `/rosout` | rcl_interfaces/msg/Log | out: what the node does and refuses |
 //! | `obstacles` | garment_sim_msgs/msg/Obstacle | in: add, move, remove |
 //! | `pins` | garment_sim_msgs/msg/Pin | in: pin, move, release |
-//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameter `scene`) |
+//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameters `scene`, `self_collision`) |
 //! | `~/set_paused` | std_srvs/srv/SetBool | |
 //! | `~/step` | garment_sim_msgs/srv/Step | N steps while paused |
 
@@ -732,14 +732,17 @@ impl Node {
     /// Reloads the scene named by the parameter `scene` (a scene that fails
     /// to load leaves the old one running).
     fn reset(&mut self) -> msgs::TriggerResponse {
-        let fresh = self
-            .ros
-            .get_parameter("scene")
-            .as_ref()
-            .and_then(to_value)
-            .map(|v| self.settings.set("scene", &v));
-        if let Some(Err(e)) = fresh {
-            self.warn(&format!("{e:#}"));
+        // the parameters read on reset besides at start
+        for name in ["scene", "self_collision"] {
+            let fresh = self
+                .ros
+                .get_parameter(name)
+                .as_ref()
+                .and_then(to_value)
+                .map(|v| self.settings.set(name, &v));
+            if let Some(Err(e)) = fresh {
+                self.warn(&format!("{e:#}"));
+            }
         }
         match load(&self.settings) {
             Ok(l) => {

@@ -28,6 +28,8 @@ pub struct Settings {
     pub foxglove: String,
     pub max_messages_per_step: i64,
     pub max_mesh_triangles: i64,
+    /// `None`: the scene's or trial's own `self_collision`.
+    pub self_collision: Option<bool>,
 }
 
 impl Default for Settings {
@@ -47,6 +49,7 @@ impl Default for Settings {
             foxglove: String::new(),
             max_messages_per_step: 100,
             max_mesh_triangles: 200_000,
+            self_collision: None,
         }
     }
 }
@@ -93,6 +96,10 @@ pub enum Kind {
     Integer,
     Double,
     String,
+    /// `true`, `false` or empty (the scene's own setting): a string in ROS,
+    /// set from a bool (`-p NAME:=true`, a params file's `NAME: false`,
+    /// `ros2 param set … true`) or from one of those three strings.
+    Switch,
 }
 
 impl Kind {
@@ -101,7 +108,7 @@ impl Kind {
             Kind::Bool => "bool",
             Kind::Integer => "integer",
             Kind::Double => "double",
-            Kind::String => "string",
+            Kind::String | Kind::Switch => "string",
         }
     }
 }
@@ -139,6 +146,8 @@ impl Parameter {
             (Kind::Double, Value::Int(i)) => Value::Double(*i as f64),
             // `-p foxglove:=8765` reads as a YAML integer
             (Kind::String, Value::Int(i)) => Value::Str(i.to_string()),
+            (Kind::Switch, Value::Bool(b)) => Value::Str(b.to_string()),
+            (Kind::Switch, Value::Str(_)) => v.clone(),
             (k, other) => bail!("parameter {name}: {other:?} is not a {}", k.name()),
         };
         let shown = match &v {
@@ -387,6 +396,30 @@ pub const PARAMETERS: &[Parameter] = &[
             Ok(())
         },
     },
+    Parameter {
+        name: "self_collision",
+        kind: Kind::Switch,
+        runtime: false,
+        description: "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
+                      `true` or `false` (a bool or a string), empty for the scene's or trial's own \
+                      `self_collision` (the shipped garment trials have it on); read at start and \
+                      on `~/reset`",
+        get: |s| {
+            Value::Str(match s.self_collision {
+                None => String::new(),
+                Some(b) => b.to_string(),
+            })
+        },
+        put: |s, v| {
+            s.self_collision = match text(v).as_str() {
+                "" => None,
+                "true" => Some(true),
+                "false" => Some(false),
+                _ => return Err("`true`, `false` or empty (the scene's own)".into()),
+            };
+            Ok(())
+        },
+    },
 ];
 
 /// The parameter called `name`.
@@ -427,6 +460,7 @@ impl Settings {
                 k => Some(k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?),
             },
             threads: (self.threads > 0).then_some(self.threads as usize),
+            self_collision: self.self_collision,
             ..Default::default()
         })
     }
@@ -531,7 +565,7 @@ mod tests {
             assert_eq!(p.get(&s), v, "{}", p.name);
             let wrong = match p.kind {
                 Kind::String | Kind::Integer | Kind::Double => Value::Bool(true),
-                Kind::Bool => Value::Str("yes".into()),
+                Kind::Bool | Kind::Switch => Value::Str("yes".into()),
             };
             let e = format!("{:#}", p.set(&mut s, &wrong).unwrap_err());
             assert!(e.contains(p.name), "{e}");
