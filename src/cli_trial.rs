@@ -63,7 +63,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &t.file.sewing,
         &t.file.settle,
         a.max_time,
-        &mut |phase, x, of| {
+        &mut |_, phase, x, of| {
             if phase == "sewing" {
                 sew(x, of)
             } else {

@@ -458,7 +458,7 @@ impl Trial {
             &self.file.sewing,
             &self.file.settle,
             Some(0.0),
-            &mut |_, _, _| {},
+            &mut |_, _, _, _| {},
             &|| false,
         )?;
         Ok((sim, g))
@@ -486,13 +486,14 @@ pub struct RunStats {
 }
 
 /// Sews and drapes (the phases of the module's documentation);
-/// `progress(phase, t, of)` after each step, `stop()` ends the run early.
+/// `progress(sim, phase, t, of)` after each step (the state as it is
+/// then), `stop()` ends the run early.
 pub fn run(
     sim: &mut Simulation,
     sew: &SewingFile,
     st: &SettleFile,
     max_time: Option<f64>,
-    progress: &mut dyn FnMut(&str, f64, f64),
+    progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
     stop: &dyn Fn() -> bool,
 ) -> Result<RunStats> {
     crate::limits::check_range(
@@ -578,7 +579,7 @@ pub fn run(
             break;
         }
         step(sim, &mut steps)?;
-        progress("sewing", sim.time, sew.duration);
+        progress(sim, "sewing", sim.time, sew.duration);
     }
     let sewing_s = sim.time;
     // 2. drape
@@ -606,7 +607,7 @@ pub fn run(
         } else {
             calm_since = None;
         }
-        progress("drape", sim.time - sewing_s, max_time);
+        progress(sim, "drape", sim.time - sewing_s, max_time);
     }
     let wall = start.elapsed().as_secs_f64();
     let n = steps.max(1) as f64;

@@ -1025,6 +1025,37 @@ mod tests {
         .unwrap()
     }
 
+    /// The node's `self_collision` parameter reaches the simulation: unset,
+    /// the scene's or trial's own (off in the table drape, on in the
+    /// shipped skirt trial); set, it wins over either.
+    #[test]
+    fn the_self_collision_parameter_reaches_the_simulation() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let table = root
+            .join("config/scenes/table_drape.yaml")
+            .display()
+            .to_string();
+        let skirt = root
+            .join("config/trials/skirt_on_anny.yaml")
+            .display()
+            .to_string();
+        for (scene, set, want) in [
+            (&table, None, false),
+            (&table, Some(true), true),
+            (&skirt, None, true),
+            (&skirt, Some(false), false),
+        ] {
+            let l = super::load(&super::Settings {
+                scene: scene.clone(),
+                spacing: 0.05,
+                self_collision: set,
+                ..Default::default()
+            })
+            .unwrap();
+            assert_eq!(l.sim.params().self_collision, want, "{scene} {set:?}");
+        }
+    }
+
     #[test]
     fn a_garment_trial_is_a_scene_the_node_loads_sewn() {
         let l = skirt_trial();

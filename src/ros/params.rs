@@ -400,7 +400,8 @@ pub const PARAMETERS: &[Parameter] = &[
         name: "self_collision",
         kind: Kind::Switch,
         runtime: false,
-        description: "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
+        description:
+            "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
                       `true` or `false` (a bool or a string), empty for the scene's or trial's own \
                       `self_collision` (the shipped garment trials have it on); read at start and \
                       on `~/reset`",
@@ -597,6 +598,71 @@ mod tests {
             s.max_mesh_triangles,
             crate::collision::MAX_MESH_TRIANGLES as i64
         );
+    }
+
+    #[test]
+    fn self_collision_is_set_by_p_a_params_file_or_left_to_the_scene() {
+        let s = |a: &[&str]| a.iter().map(|t| t.to_string()).collect::<Vec<_>>();
+        let of = |ra: &RosArgs| {
+            settings_from_args(ra, "/garment_sim")
+                .unwrap()
+                .overrides()
+                .unwrap()
+                .self_collision
+        };
+        // unset: the scene's own; declared as an empty string
+        let (_, ra) = args::parse(&s(&["--ros-args"])).unwrap();
+        assert_eq!(of(&ra), None);
+        let d = parameter("self_collision").unwrap();
+        assert_eq!(
+            d.declared(&Settings::default()),
+            ParameterValue::String(String::new())
+        );
+        // `-p self_collision:=true` (a YAML bool) and `:=false`
+        for (text, want) in [("true", true), ("false", false)] {
+            let p = format!("self_collision:={text}");
+            let (_, ra) = args::parse(&s(&["--ros-args", "-p", &p])).unwrap();
+            assert_eq!(of(&ra), Some(want), "{p}");
+        }
+        // a params file says false, `-p` wins over it
+        let dir = std::env::temp_dir().join(format!("gs_selfcol_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("p.yaml");
+        std::fs::write(
+            &f,
+            "garment_sim:\n  ros__parameters:\n    self_collision: false\n",
+        )
+        .unwrap();
+        let fs = f.display().to_string();
+        let (_, ra) = args::parse(&s(&["--ros-args", "--params-file", &fs])).unwrap();
+        assert_eq!(of(&ra), Some(false));
+        let (_, ra) = args::parse(&s(&[
+            "--ros-args",
+            "--params-file",
+            &fs,
+            "-p",
+            "self_collision:=true",
+        ]))
+        .unwrap();
+        assert_eq!(of(&ra), Some(true));
+        let _ = std::fs::remove_dir_all(&dir);
+        // the parameter services: a bool or one of the three strings, the
+        // value read back as the string
+        let mut st = Settings::default();
+        st.set("self_collision", &Value::Bool(true)).unwrap();
+        assert_eq!(st.self_collision, Some(true));
+        assert_eq!(d.get(&st), Value::Str("true".into()));
+        st.set("self_collision", &Value::Str("false".into()))
+            .unwrap();
+        assert_eq!(st.self_collision, Some(false));
+        st.set("self_collision", &Value::Str(String::new()))
+            .unwrap();
+        assert_eq!(st.self_collision, None);
+        for bad in [Value::Str("on".into()), Value::Int(1), Value::Double(1.0)] {
+            let e = format!("{:#}", st.set("self_collision", &bad).unwrap_err());
+            assert!(e.contains("self_collision"), "{e}");
+        }
+        assert_eq!(st.self_collision, None);
     }
 
     #[test]

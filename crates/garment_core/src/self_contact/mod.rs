@@ -260,7 +260,11 @@ impl SelfContact {
         let mean_edge = if edges.is_empty() {
             0.0
         } else {
-            edges.iter().map(|&[a, b]| (x[a] - x[b]).norm()).sum::<f64>() / edges.len() as f64
+            edges
+                .iter()
+                .map(|&[a, b]| (x[a] - x[b]).norm())
+                .sum::<f64>()
+                / edges.len() as f64
         };
         Ok(SelfContact {
             tris: tris.to_vec(),
