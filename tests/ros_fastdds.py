@@ -351,16 +351,16 @@ def test_parameter_services(ros):
         assert [value(v) for v in r.values] == [5.0, 1.0]
 
         # self-collision: on from -p (the table drape's file leaves it off), its counts in the
-        # diagnostics; set off through the parameter service (a bool, as `ros2 param set` sends
-        # it), it takes effect at ~/reset
+        # diagnostics; set off through the parameter service (a string, its declared type), it
+        # takes effect at ~/reset
         def keys(d):
             return {kv.key for kv in d.status[0].values}
 
         d = n.wait("/diagnostics", DiagnosticArray)
         assert "self_contacts" in keys(d), keys(d)
         r = n.call(SetParameters, "/garment_sim/set_parameters", SetParameters.Request(parameters=[
-            Parameter(name="self_collision", value=ParameterValue(type=ParameterType.PARAMETER_BOOL,
-                                                                  bool_value=False))]))
+            Parameter(name="self_collision", value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                                                  string_value="false"))]))
         assert r.results[0].successful, r.results[0].reason
         r = n.call(SetParameters, "/garment_sim/set_parameters", SetParameters.Request(parameters=[
             Parameter(name="self_collision", value=ParameterValue(type=ParameterType.PARAMETER_STRING,

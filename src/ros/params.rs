@@ -97,8 +97,8 @@ pub enum Kind {
     Double,
     String,
     /// `true`, `false` or empty (the scene's own setting): a string in ROS,
-    /// set from a bool (`-p NAME:=true`, a params file's `NAME: false`,
-    /// `ros2 param set … true`) or from one of those three strings.
+    /// set from one of those three strings or, on the command line and in
+    /// params files, from a bool (`-p NAME:=true`, `NAME: false`).
     Switch,
 }
 
@@ -402,9 +402,9 @@ pub const PARAMETERS: &[Parameter] = &[
         runtime: false,
         description:
             "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
-                      `true` or `false` (a bool or a string), empty for the scene's or trial's own \
-                      `self_collision` (the shipped garment trials have it on); read at start and \
-                      on `~/reset`",
+                      `true` or `false`, empty for the scene's or trial's own `self_collision` \
+                      (the shipped garment trials have it on); a string (`-p` and params files \
+                      also take a bool); read at start and on `~/reset`",
         get: |s| {
             Value::Str(match s.self_collision {
                 None => String::new(),
@@ -646,8 +646,8 @@ mod tests {
         .unwrap();
         assert_eq!(of(&ra), Some(true));
         let _ = std::fs::remove_dir_all(&dir);
-        // the parameter services: a bool or one of the three strings, the
-        // value read back as the string
+        // a bool (`-p`, params files) or one of the three strings (also the
+        // parameter services), read back as the string
         let mut st = Settings::default();
         st.set("self_collision", &Value::Bool(true)).unwrap();
         assert_eq!(st.self_collision, Some(true));
