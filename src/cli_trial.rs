@@ -26,7 +26,7 @@ pub struct TrialArgs {
     #[arg(long)]
     threads: Option<usize>,
     /// Keep the garment from passing through itself, true or false (default: the trial's
-    /// `self_collision`, on in the shipped trials).
+    /// `self_collision`, on in the shipped skirt trial).
     #[arg(long)]
     self_collision: Option<bool>,
 }

@@ -160,7 +160,7 @@ pub struct TrialFile {
     #[serde(default)]
     pub threads: Option<usize>,
     /// Keep the garment from passing through itself (docs/self_collision.md;
-    /// off when absent, on in the shipped trials).
+    /// off when absent, on in the shipped skirt trial).
     #[serde(default)]
     pub self_collision: bool,
 }

@@ -403,7 +403,7 @@ pub const PARAMETERS: &[Parameter] = &[
         description:
             "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
                       `true` or `false`, empty for the scene's or trial's own `self_collision` \
-                      (the shipped garment trials have it on); a string (`-p` and params files \
+                      (the shipped skirt trial has it on); a string (`-p` and params files \
                       also take a bool); read at start and on `~/reset`",
         get: |s| {
             Value::Str(match s.self_collision {

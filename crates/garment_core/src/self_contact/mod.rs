@@ -189,10 +189,6 @@ pub struct SelfContact {
     listed: Vec<Pair>,
     listed_at: Vec<Aabb>,
     margin: f64,
-    /// The margin of the present list (at most `margin`), and the passes it
-    /// has served.
-    listed_margin: f64,
-    served: usize,
     listed_ok: bool,
     builds: usize,
     stack: Vec<(u32, u32)>,
@@ -292,8 +288,6 @@ impl SelfContact {
             listed: Vec::new(),
             listed_at: Vec::new(),
             margin: CANDIDATE_MARGIN * mean_edge,
-            listed_margin: CANDIDATE_MARGIN * mean_edge,
-            served: 0,
             listed_ok: false,
             builds: 0,
             stack: Vec::new(),
@@ -309,7 +303,6 @@ impl SelfContact {
     /// and so the results, do not depend on it.
     pub fn set_candidate_margin(&mut self, margin: f64) {
         self.margin = margin.max(0.0);
-        self.listed_margin = self.margin;
         self.listed_ok = false;
     }
 
@@ -418,32 +411,15 @@ impl SelfContact {
                 under = under.inf(&(p - b.lo));
             }
         }
-        (0..3).all(|k| over[k] - under[k] <= 2.0 * self.listed_margin)
+        (0..3).all(|k| over[k] - under[k] <= 2.0 * self.margin)
     }
 
     /// The candidate pairs for paths `x0 → x1` with the vertices' boxes
     /// grown by `r` (at most the largest thickness), into `self.pairs` in
-    /// the list's order: the list rebuilt first if it does not hold. Its
-    /// margin adapts: halved (to none below an eighth of δ) when the last
-    /// list served at most two passes, so that a cloth deforming fast pays
-    /// little more than a search of the tree each pass, doubled back towards
-    /// δ when it served more.
+    /// the list's order: the list rebuilt first if it does not hold.
     fn select(&mut self, x0: &[V], x1: &[V], r: f64) {
-        if self.list_holds(x0, x1) {
-            self.served += 1;
-        } else {
-            if self.listed_ok && self.served <= 2 {
-                self.listed_margin *= 0.5;
-                if self.listed_margin < 0.125 * self.margin {
-                    self.listed_margin = 0.0;
-                }
-            } else if self.listed_ok {
-                self.listed_margin = (2.0 * self.listed_margin)
-                    .max(0.125 * self.margin)
-                    .min(self.margin);
-            }
-            self.served = 0;
-            self.boxes(x0, x1, self.max_thickness + self.listed_margin);
+        if !self.list_holds(x0, x1) {
+            self.boxes(x0, x1, self.max_thickness + self.margin);
             self.refit_tree();
             self.gather();
             std::mem::swap(&mut self.listed, &mut self.pairs);
