@@ -25,7 +25,8 @@ pub struct TrialArgs {
     /// Threads of the assembly, the PCG and the contacts.
     #[arg(long)]
     threads: Option<usize>,
-    /// Keep the garment from passing through itself, on or off (default off).
+    /// Keep the garment from passing through itself, true or false (default: the trial's
+    /// `self_collision`, on in the shipped skirt trial).
     #[arg(long)]
     self_collision: Option<bool>,
 }
@@ -64,7 +65,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &t.file.sewing,
         &t.file.settle,
         a.max_time,
-        &mut |phase, x, of| {
+        &mut |_, phase, x, of| {
             if phase == "sewing" {
                 sew(x, of)
             } else {

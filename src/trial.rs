@@ -172,6 +172,10 @@ pub struct TrialFile {
     pub linear_solver: Option<LinearSolverKind>,
     #[serde(default)]
     pub threads: Option<usize>,
+    /// Keep the garment from passing through itself (docs/self_collision.md;
+    /// off when absent, on in the shipped skirt trial).
+    #[serde(default)]
+    pub self_collision: bool,
 }
 
 /// A trial as read, with its files resolved.
@@ -440,7 +444,7 @@ impl Trial {
             threads: ov.threads.or(self.file.threads).unwrap_or(0),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
-            self_collision: ov.self_collision.unwrap_or(false),
+            self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
@@ -509,7 +513,7 @@ impl Trial {
             &self.file.sewing,
             &self.file.settle,
             Some(0.0),
-            &mut |_, _, _| {},
+            &mut |_, _, _, _| {},
             &|| false,
         )?;
         Ok((sim, g))
@@ -548,13 +552,14 @@ pub struct RunStats {
 }
 
 /// Sews and drapes (the phases of the module's documentation);
-/// `progress(phase, t, of)` after each step, `stop()` ends the run early.
+/// `progress(sim, phase, t, of)` after each step (the state as it is
+/// then), `stop()` ends the run early.
 pub fn run(
     sim: &mut Simulation,
     sew: &SewingFile,
     st: &SettleFile,
     max_time: Option<f64>,
-    progress: &mut dyn FnMut(&str, f64, f64),
+    progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
     stop: &dyn Fn() -> bool,
 ) -> Result<RunStats> {
     run_on(sim, None, sew, st, max_time, progress, stop)
@@ -568,7 +573,7 @@ pub fn run_on(
     sew: &SewingFile,
     st: &SettleFile,
     max_time: Option<f64>,
-    progress: &mut dyn FnMut(&str, f64, f64),
+    progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
     stop: &dyn Fn() -> bool,
 ) -> Result<RunStats> {
     crate::limits::check_range(
@@ -661,7 +666,7 @@ pub fn run_on(
             break;
         }
         step(sim, &mut steps)?;
-        progress("sewing", sim.time, sew.duration);
+        progress(sim, "sewing", sim.time, sew.duration);
     }
     let sewing_s = sim.time;
     // 2. drape
@@ -689,7 +694,7 @@ pub fn run_on(
         } else {
             calm_since = None;
         }
-        progress("drape", sim.time - sewing_s, max_time);
+        progress(sim, "drape", sim.time - sewing_s, max_time);
     }
     // 3. motion: a body held in its first pose while the garment was sewn
     //    and draped moves; the run lasts until its motion ends
@@ -711,7 +716,7 @@ pub fn run_on(
         let t0 = sim.time;
         while sim.time - t0 < play - 1e-12 && !stop() {
             step(sim, &mut steps)?;
-            progress("motion", sim.time - t0, play);
+            progress(sim, "motion", sim.time - t0, play);
         }
         motion_s = Some(sim.time - t0);
     }

@@ -87,7 +87,7 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut |_, _, _| {},
+        &mut |_, _, _, _| {},
         &|| false,
     )
     .unwrap();

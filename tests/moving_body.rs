@@ -1083,7 +1083,7 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
             &t.file.sewing,
             &t.file.settle,
             None,
-            &mut |_, _, _| {},
+            &mut |_, _, _, _| {},
             &|| false,
         )
         .unwrap();
@@ -1194,7 +1194,7 @@ fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
             &t.file.sewing,
             &t.file.settle,
             None,
-            &mut |_, _, _| {},
+            &mut |_, _, _, _| {},
             &|| false,
         )
         .unwrap();

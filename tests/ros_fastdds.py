@@ -307,7 +307,8 @@ def value(v: ParameterValue):
 
 
 def test_parameter_services(ros):
-    n = Sim(ros, "-p", "spacing:=0.05", "-p", "frame_id:=lab", "-p", "publish_rate:=20.0")
+    n = Sim(ros, "-p", "spacing:=0.05", "-p", "frame_id:=lab", "-p", "publish_rate:=20.0",
+            "-p", "self_collision:=true")
     try:
         n.wait("/cloth/points", PointCloud2)
         r = n.call(ListParameters, "/garment_sim/list_parameters", ListParameters.Request())
@@ -318,7 +319,7 @@ def test_parameter_services(ros):
         assert set(names) - {"use_sim_time"} == set(PARAMETERS), set(names) ^ set(PARAMETERS)
         r = n.call(GetParameters, "/garment_sim/get_parameters", GetParameters.Request(names=list(PARAMETERS)))
         got = dict(zip(PARAMETERS, r.values))
-        given = {"spacing": 0.05, "frame_id": "lab", "publish_rate": 20.0}
+        given = {"spacing": 0.05, "frame_id": "lab", "publish_rate": 20.0, "self_collision": "true"}
         for k, (typ, default) in PARAMETERS.items():
             v = got[k]
             assert v.type == TYPES[typ][0], (k, typ, v)
@@ -351,6 +352,27 @@ def test_parameter_services(ros):
         r = n.call(GetParameters, "/garment_sim/get_parameters",
                    GetParameters.Request(names=["publish_rate", "real_time_factor"]))
         assert [value(v) for v in r.values] == [5.0, 1.0]
+
+        # self-collision: on from -p (the table drape's file leaves it off), its counts in the
+        # diagnostics; set off through the parameter service (a string, its declared type), it
+        # takes effect at ~/reset
+        def keys(d):
+            return {kv.key for kv in d.status[0].values}
+
+        d = n.wait("/diagnostics", DiagnosticArray)
+        assert "self_contacts" in keys(d), keys(d)
+        r = n.call(SetParameters, "/garment_sim/set_parameters", SetParameters.Request(parameters=[
+            Parameter(name="self_collision", value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                                                  string_value="false"))]))
+        assert r.results[0].successful, r.results[0].reason
+        r = n.call(SetParameters, "/garment_sim/set_parameters", SetParameters.Request(parameters=[
+            Parameter(name="self_collision", value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                                                  string_value="sometimes"))]))
+        assert not r.results[0].successful and "self_collision" in r.results[0].reason
+        r = n.call(Trigger, "/garment_sim/reset", Trigger.Request())
+        assert r.success, r.message
+        d = n.wait("/diagnostics", DiagnosticArray, lambda d: "self_contacts" not in keys(d))
+        print(f"self_collision: on from -p (diagnostics carry self_contacts), off after set_parameters and ~/reset")
     finally:
         code, out = n.stop()
     assert code == 0, out

@@ -20,7 +20,7 @@
 //! | `obstacles` | garment_sim_msgs/msg/Obstacle | in: add, move, remove |
 //! | `pins` | garment_sim_msgs/msg/Pin | in: pin, move, release |
 //! | `body` | garment_sim_msgs/msg/Body | in: a deforming body's topology, then its frames |
-//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameter `scene`) |
+//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameters `scene`, `self_collision`) |
 //! | `~/set_paused` | std_srvs/srv/SetBool | |
 //! | `~/step` | garment_sim_msgs/srv/Step | N steps while paused |
 
@@ -787,14 +787,17 @@ impl Node {
     /// Reloads the scene named by the parameter `scene` (a scene that fails
     /// to load leaves the old one running).
     fn reset(&mut self) -> msgs::TriggerResponse {
-        let fresh = self
-            .ros
-            .get_parameter("scene")
-            .as_ref()
-            .and_then(to_value)
-            .map(|v| self.settings.set("scene", &v));
-        if let Some(Err(e)) = fresh {
-            self.warn(&format!("{e:#}"));
+        // the parameters read on reset besides at start
+        for name in ["scene", "self_collision"] {
+            let fresh = self
+                .ros
+                .get_parameter(name)
+                .as_ref()
+                .and_then(to_value)
+                .map(|v| self.settings.set(name, &v));
+            if let Some(Err(e)) = fresh {
+                self.warn(&format!("{e:#}"));
+            }
         }
         match load(&self.settings) {
             Ok(l) => {
@@ -1085,6 +1088,37 @@ mod tests {
             ..Default::default()
         })
         .unwrap()
+    }
+
+    /// The node's `self_collision` parameter reaches the simulation: unset,
+    /// the scene's or trial's own (off in the table drape, on in the
+    /// shipped skirt trial); set, it wins over either.
+    #[test]
+    fn the_self_collision_parameter_reaches_the_simulation() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let table = root
+            .join("config/scenes/table_drape.yaml")
+            .display()
+            .to_string();
+        let skirt = root
+            .join("config/trials/skirt_on_anny.yaml")
+            .display()
+            .to_string();
+        for (scene, set, want) in [
+            (&table, None, false),
+            (&table, Some(true), true),
+            (&skirt, None, true),
+            (&skirt, Some(false), false),
+        ] {
+            let l = super::load(&super::Settings {
+                scene: scene.clone(),
+                spacing: 0.05,
+                self_collision: set,
+                ..Default::default()
+            })
+            .unwrap();
+            assert_eq!(l.sim.params().self_collision, want, "{scene} {set:?}");
+        }
     }
 
     #[test]

@@ -28,6 +28,8 @@ pub struct Settings {
     pub foxglove: String,
     pub max_messages_per_step: i64,
     pub max_mesh_triangles: i64,
+    /// `None`: the scene's or trial's own `self_collision`.
+    pub self_collision: Option<bool>,
 }
 
 impl Default for Settings {
@@ -47,6 +49,7 @@ impl Default for Settings {
             foxglove: String::new(),
             max_messages_per_step: 100,
             max_mesh_triangles: 200_000,
+            self_collision: None,
         }
     }
 }
@@ -93,6 +96,10 @@ pub enum Kind {
     Integer,
     Double,
     String,
+    /// `true`, `false` or empty (the scene's own setting): a string in ROS,
+    /// set from one of those three strings or, on the command line and in
+    /// params files, from a bool (`-p NAME:=true`, `NAME: false`).
+    Switch,
 }
 
 impl Kind {
@@ -101,7 +108,7 @@ impl Kind {
             Kind::Bool => "bool",
             Kind::Integer => "integer",
             Kind::Double => "double",
-            Kind::String => "string",
+            Kind::String | Kind::Switch => "string",
         }
     }
 }
@@ -139,6 +146,8 @@ impl Parameter {
             (Kind::Double, Value::Int(i)) => Value::Double(*i as f64),
             // `-p foxglove:=8765` reads as a YAML integer
             (Kind::String, Value::Int(i)) => Value::Str(i.to_string()),
+            (Kind::Switch, Value::Bool(b)) => Value::Str(b.to_string()),
+            (Kind::Switch, Value::Str(_)) => v.clone(),
             (k, other) => bail!("parameter {name}: {other:?} is not a {}", k.name()),
         };
         let shown = match &v {
@@ -387,6 +396,31 @@ pub const PARAMETERS: &[Parameter] = &[
             Ok(())
         },
     },
+    Parameter {
+        name: "self_collision",
+        kind: Kind::Switch,
+        runtime: false,
+        description:
+            "keeps the cloth from passing through itself ([self_collision.md](self_collision.md)): \
+                      `true` or `false`, empty for the scene's or trial's own `self_collision` \
+                      (the shipped skirt trial has it on); a string (`-p` and params files \
+                      also take a bool); read at start and on `~/reset`",
+        get: |s| {
+            Value::Str(match s.self_collision {
+                None => String::new(),
+                Some(b) => b.to_string(),
+            })
+        },
+        put: |s, v| {
+            s.self_collision = match text(v).as_str() {
+                "" => None,
+                "true" => Some(true),
+                "false" => Some(false),
+                _ => return Err("`true`, `false` or empty (the scene's own)".into()),
+            };
+            Ok(())
+        },
+    },
 ];
 
 /// The parameter called `name`.
@@ -427,6 +461,7 @@ impl Settings {
                 k => Some(k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?),
             },
             threads: (self.threads > 0).then_some(self.threads as usize),
+            self_collision: self.self_collision,
             ..Default::default()
         })
     }
@@ -531,7 +566,7 @@ mod tests {
             assert_eq!(p.get(&s), v, "{}", p.name);
             let wrong = match p.kind {
                 Kind::String | Kind::Integer | Kind::Double => Value::Bool(true),
-                Kind::Bool => Value::Str("yes".into()),
+                Kind::Bool | Kind::Switch => Value::Str("yes".into()),
             };
             let e = format!("{:#}", p.set(&mut s, &wrong).unwrap_err());
             assert!(e.contains(p.name), "{e}");
@@ -563,6 +598,71 @@ mod tests {
             s.max_mesh_triangles,
             crate::collision::MAX_MESH_TRIANGLES as i64
         );
+    }
+
+    #[test]
+    fn self_collision_is_set_by_p_a_params_file_or_left_to_the_scene() {
+        let s = |a: &[&str]| a.iter().map(|t| t.to_string()).collect::<Vec<_>>();
+        let of = |ra: &RosArgs| {
+            settings_from_args(ra, "/garment_sim")
+                .unwrap()
+                .overrides()
+                .unwrap()
+                .self_collision
+        };
+        // unset: the scene's own; declared as an empty string
+        let (_, ra) = args::parse(&s(&["--ros-args"])).unwrap();
+        assert_eq!(of(&ra), None);
+        let d = parameter("self_collision").unwrap();
+        assert_eq!(
+            d.declared(&Settings::default()),
+            ParameterValue::String(String::new())
+        );
+        // `-p self_collision:=true` (a YAML bool) and `:=false`
+        for (text, want) in [("true", true), ("false", false)] {
+            let p = format!("self_collision:={text}");
+            let (_, ra) = args::parse(&s(&["--ros-args", "-p", &p])).unwrap();
+            assert_eq!(of(&ra), Some(want), "{p}");
+        }
+        // a params file says false, `-p` wins over it
+        let dir = std::env::temp_dir().join(format!("gs_selfcol_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("p.yaml");
+        std::fs::write(
+            &f,
+            "garment_sim:\n  ros__parameters:\n    self_collision: false\n",
+        )
+        .unwrap();
+        let fs = f.display().to_string();
+        let (_, ra) = args::parse(&s(&["--ros-args", "--params-file", &fs])).unwrap();
+        assert_eq!(of(&ra), Some(false));
+        let (_, ra) = args::parse(&s(&[
+            "--ros-args",
+            "--params-file",
+            &fs,
+            "-p",
+            "self_collision:=true",
+        ]))
+        .unwrap();
+        assert_eq!(of(&ra), Some(true));
+        let _ = std::fs::remove_dir_all(&dir);
+        // a bool (`-p`, params files) or one of the three strings (also the
+        // parameter services), read back as the string
+        let mut st = Settings::default();
+        st.set("self_collision", &Value::Bool(true)).unwrap();
+        assert_eq!(st.self_collision, Some(true));
+        assert_eq!(d.get(&st), Value::Str("true".into()));
+        st.set("self_collision", &Value::Str("false".into()))
+            .unwrap();
+        assert_eq!(st.self_collision, Some(false));
+        st.set("self_collision", &Value::Str(String::new()))
+            .unwrap();
+        assert_eq!(st.self_collision, None);
+        for bad in [Value::Str("on".into()), Value::Int(1), Value::Double(1.0)] {
+            let e = format!("{:#}", st.set("self_collision", &bad).unwrap_err());
+            assert!(e.contains("self_collision"), "{e}");
+        }
+        assert_eq!(st.self_collision, None);
     }
 
     #[test]

@@ -51,6 +51,8 @@ struct Node {
     /// Children (inner node), or `LEAF` and the triangle.
     left: u32,
     right: u32,
+    /// Leaves under it.
+    leaves: u32,
 }
 
 const LEAF: u32 = u32::MAX;
@@ -87,6 +89,7 @@ impl Bvh {
             b: Aabb::empty(),
             left: LEAF,
             right: 0,
+            leaves: items.len() as u32,
         });
         if items.len() == 1 {
             self.nodes[me as usize].right = items[0].0;
@@ -132,7 +135,11 @@ impl Bvh {
     }
 
     /// Calls `f(s, t)` for every pair of distinct leaves whose boxes
-    /// overlap, in an order fixed by the tree.
+    /// overlap, in an order fixed by the tree alone: which node of a pair is
+    /// opened depends on the tree, not on the boxes, so the pairs of boxes
+    /// that lie inside larger ones come in the order the larger ones' pairs
+    /// do (a candidate list built with grown boxes, then sifted, keeps the
+    /// order of a search with the boxes themselves).
     pub fn self_pairs(&self, stack: &mut Vec<(u32, u32)>, mut f: impl FnMut(usize, usize)) {
         stack.clear();
         if self.nodes.is_empty() {
@@ -164,9 +171,8 @@ impl Bvh {
                     stack.push((a, nb.left));
                 }
                 (false, false) => {
-                    let va = (na.b.hi - na.b.lo).norm_squared();
-                    let vb = (nb.b.hi - nb.b.lo).norm_squared();
-                    if va >= vb {
+                    // the node with more leaves (the first on a tie)
+                    if na.leaves >= nb.leaves {
                         stack.push((na.right, b));
                         stack.push((na.left, b));
                     } else {
