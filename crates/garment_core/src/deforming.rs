@@ -22,6 +22,7 @@
 //! move linearly at a root of the coplanarity cubic (Provot 1997) at which the
 //! vertex lies in the triangle ([`DeformingBody::first_hit`]).
 
+use crate::bvh::{Aabb, Bvh};
 use crate::self_contact::geometry::{coplanarity_cubic, cubic_roots, point_triangle};
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Vector3};
@@ -125,209 +126,23 @@ impl Motion for Keyframes {
     }
 }
 
-/// Axis-aligned box (min, max corners).
-#[derive(Debug, Clone, Copy)]
-struct Aabb {
-    lo: V,
-    hi: V,
-}
-
-impl Aabb {
-    fn empty() -> Aabb {
-        Aabb {
-            lo: V::repeat(f64::INFINITY),
-            hi: V::repeat(f64::NEG_INFINITY),
+/// New boxes for the tree over `tris`: each triangle's at both `x` and `y`
+/// (its start and end of the step).
+fn refit(bvh: &mut Bvh, tris: &[[u32; 3]], x: &[V], y: &[V]) {
+    bvh.refit(|t| {
+        let mut b = Aabb::empty();
+        for &i in &tris[t] {
+            b.add(&x[i as usize]);
+            b.add(&y[i as usize]);
         }
-    }
-    fn add(&mut self, p: &V) {
-        self.lo = self.lo.inf(p);
-        self.hi = self.hi.sup(p);
-    }
-    fn merge(&self, o: &Aabb) -> Aabb {
-        Aabb {
-            lo: self.lo.inf(&o.lo),
-            hi: self.hi.sup(&o.hi),
-        }
-    }
-    fn overlaps(&self, o: &Aabb) -> bool {
-        (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
-    }
-    /// Squared distance from `p` to the box (0 inside).
-    fn distance2(&self, p: &V) -> f64 {
-        let mut d = 0.0;
-        for k in 0..3 {
-            let e = (self.lo[k] - p[k]).max(p[k] - self.hi[k]).max(0.0);
-            d += e * e;
-        }
-        d
-    }
+        b
+    });
 }
-
-/// Node of the tree: a leaf holds one triangle (`left == LEAF`, the
-/// triangle in `right`), an inner node its two children.
-#[derive(Debug, Clone, Copy)]
-struct Node {
-    b: Aabb,
-    left: u32,
-    right: u32,
-}
-
-const LEAF: u32 = u32::MAX;
 
 /// How near a triangle a point at a root of the coplanarity cubic must be
 /// to count as meeting it, m (a point crossing a shared edge meets one of
 /// its triangles to rounding).
 pub const HIT_TOLERANCE: f64 = 1e-9;
-
-/// Bounding-volume hierarchy over triangles; nodes in pre-order (a parent
-/// before its children), so a refit walks them backwards.
-#[derive(Debug, Clone, Default)]
-struct Bvh {
-    nodes: Vec<Node>,
-}
-
-impl Bvh {
-    fn build(tris: &[[u32; 3]], x: &[V]) -> Bvh {
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * tris.len()),
-        };
-        let mut items: Vec<(u32, V)> = tris
-            .iter()
-            .enumerate()
-            .map(|(t, &[a, b, c])| {
-                (
-                    t as u32,
-                    (x[a as usize] + x[b as usize] + x[c as usize]) / 3.0,
-                )
-            })
-            .collect();
-        if !items.is_empty() {
-            bvh.split(&mut items);
-        }
-        bvh
-    }
-
-    fn split(&mut self, items: &mut [(u32, V)]) -> u32 {
-        let me = self.nodes.len() as u32;
-        self.nodes.push(Node {
-            b: Aabb::empty(),
-            left: LEAF,
-            right: 0,
-        });
-        if items.len() == 1 {
-            self.nodes[me as usize].right = items[0].0;
-            return me;
-        }
-        let mut b = Aabb::empty();
-        for (_, c) in items.iter() {
-            b.add(c);
-        }
-        let e = b.hi - b.lo;
-        let axis = if e.x >= e.y && e.x >= e.z {
-            0
-        } else if e.y >= e.z {
-            1
-        } else {
-            2
-        };
-        let mid = items.len() / 2;
-        items.select_nth_unstable_by(mid, |p, q| {
-            p.1[axis].total_cmp(&q.1[axis]).then(p.0.cmp(&q.0))
-        });
-        let (l, r) = items.split_at_mut(mid);
-        let left = self.split(l);
-        let right = self.split(r);
-        self.nodes[me as usize].left = left;
-        self.nodes[me as usize].right = right;
-        me
-    }
-
-    /// New boxes: each leaf's triangle at both `x` and `y`.
-    fn refit(&mut self, tris: &[[u32; 3]], x: &[V], y: &[V]) {
-        for k in (0..self.nodes.len()).rev() {
-            let n = self.nodes[k];
-            self.nodes[k].b = if n.left == LEAF {
-                let mut b = Aabb::empty();
-                for &i in &tris[n.right as usize] {
-                    b.add(&x[i as usize]);
-                    b.add(&y[i as usize]);
-                }
-                b
-            } else {
-                self.nodes[n.left as usize]
-                    .b
-                    .merge(&self.nodes[n.right as usize].b)
-            };
-        }
-    }
-
-    fn root(&self) -> Aabb {
-        self.nodes.first().map_or(Aabb::empty(), |n| n.b)
-    }
-
-    /// Calls `f(t)` for each triangle whose box meets `q`.
-    fn overlapping(&self, q: &Aabb, mut f: impl FnMut(usize)) {
-        if self.nodes.is_empty() {
-            return;
-        }
-        let mut stack = [0u32; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let n = self.nodes[stack[top] as usize];
-            if !n.b.overlaps(q) {
-                continue;
-            }
-            if n.left == LEAF {
-                f(n.right as usize);
-            } else {
-                stack[top] = n.left;
-                stack[top + 1] = n.right;
-                top += 2;
-            }
-        }
-    }
-
-    /// The triangle nearest `p` by `dist2(t)` (squared distance to triangle
-    /// t), branch and bound on the boxes, nearer child first.
-    fn nearest(&self, p: &V, mut dist2: impl FnMut(usize) -> f64) -> Option<(usize, f64)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let mut best: Option<(usize, f64)> = None;
-        let mut stack = [(0u32, 0.0f64); 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let (k, d) = stack[top];
-            if best.is_some_and(|(_, b)| d > b) {
-                continue;
-            }
-            let n = self.nodes[k as usize];
-            if n.left == LEAF {
-                let d = dist2(n.right as usize);
-                // ties go to the lower triangle index: the same answer
-                // whatever the order of the walk
-                if best.is_none_or(|(t, b)| d < b || (d == b && (n.right as usize) < t)) {
-                    best = Some((n.right as usize, d));
-                }
-                continue;
-            }
-            let dl = self.nodes[n.left as usize].b.distance2(p);
-            let dr = self.nodes[n.right as usize].b.distance2(p);
-            // push the farther first so the nearer is taken next
-            if dl <= dr {
-                stack[top] = (n.right, dr);
-                stack[top + 1] = (n.left, dl);
-            } else {
-                stack[top] = (n.left, dl);
-                stack[top + 1] = (n.right, dr);
-            }
-            top += 2;
-        }
-        best
-    }
-}
 
 /// A vertex meeting a moving triangle within the step.
 #[derive(Debug, Clone, Copy)]
@@ -461,8 +276,11 @@ impl DeformingBody {
         b.pose_at(0.0, pose, true)?;
         b.x = b.next.clone();
         b.prev = b.x.clone();
-        b.bvh = Bvh::build(&b.tris, &b.x);
-        b.bvh.refit(&b.tris, &b.x, &b.x);
+        b.bvh = Bvh::build_with(b.tris.len(), |t| {
+            let [i, j, k] = b.tris[t].map(|v| b.x[v as usize]);
+            (i + j + k) / 3.0
+        });
+        refit(&mut b.bvh, &b.tris, &b.x, &b.x);
         b.normals();
         Ok(b)
     }
@@ -511,7 +329,7 @@ impl DeformingBody {
         for i in 0..self.x.len() {
             self.vel[i] = (self.next[i] - self.x[i]) / h;
         }
-        self.bvh.refit(&self.tris, &self.x, &self.next);
+        refit(&mut self.bvh, &self.tris, &self.x, &self.next);
         self.prepared = Some(h);
         Ok(())
     }

@@ -10,6 +10,7 @@
 //! command line: the `garment_sim` crate above it loads scenes and fabrics,
 //! and runs the node, the bags and the lab.
 
+pub mod bvh;
 pub mod cloth;
 pub mod collision;
 pub mod deforming;

@@ -45,7 +45,7 @@
 //! its path `x0 → x1` grown by the thickness (by [`HIT_DISTANCE`] of it in
 //! the collision passes), an edge's and a triangle's the union of their
 //! vertices'. They are taken from a list kept over steps (a Verlet list):
-//! it is built by a bounding-volume hierarchy over the triangles ([`bvh`],
+//! it is built by a bounding-volume hierarchy over the triangles ([`crate::bvh`],
 //! refitted then) with the boxes grown by a further margin δ, and holds,
 //! with no pair missed, as long as the vertices' paths stay within δ of
 //! their boxes at the build after one common shift of the whole cloth (box
@@ -69,11 +69,10 @@
 //! Everything runs on one thread in a fixed order, so a run is
 //! bit-reproducible whatever the solver's thread count.
 
-pub mod bvh;
 pub mod geometry;
 
+use crate::bvh::{Aabb, Bvh};
 use anyhow::{bail, Result};
-use bvh::{Aabb, Bvh};
 use geometry::*;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;

@@ -1,9 +1,10 @@
-//! A bounding-volume hierarchy of axis-aligned boxes over the cloth's
-//! triangles: its tree is built once from the starting shape (median splits
-//! along the longest axis of the centroids), and only its boxes are refitted
-//! every step (the cloth's connectivity never changes, so a tree of
-//! neighbouring triangles stays one of neighbouring triangles; Bridson,
-//! Fedkiw & Anderson 2002 §6 and ARCSim refit theirs the same way).
+//! A bounding-volume hierarchy of axis-aligned boxes over triangles (the
+//! cloth's, for its contacts with itself; a deforming body's): its tree is
+//! built once from the starting shape (median splits along the longest axis
+//! of the centroids), and only its boxes are refitted every step (the
+//! connectivity never changes, so a tree of neighbouring triangles stays one
+//! of neighbouring triangles; Bridson, Fedkiw & Anderson 2002 §6 and ARCSim
+//! refit theirs the same way).
 
 use nalgebra::Vector3;
 
@@ -43,6 +44,16 @@ impl Aabb {
     pub fn overlaps(&self, o: &Aabb) -> bool {
         (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
     }
+
+    /// Squared distance from `p` to the box (0 inside).
+    pub fn distance2(&self, p: &Vector3<f64>) -> f64 {
+        let mut d = 0.0;
+        for k in 0..3 {
+            let e = (self.lo[k] - p[k]).max(p[k] - self.hi[k]).max(0.0);
+            d += e * e;
+        }
+        d
+    }
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -67,18 +78,21 @@ pub struct Bvh {
 impl Bvh {
     /// The tree over `tris` at positions `x` (one leaf per triangle).
     pub fn build(tris: &[[usize; 3]], x: &[Vector3<f64>]) -> Bvh {
-        let mut bvh = Bvh {
-            nodes: Vec::with_capacity(2 * tris.len()),
-        };
-        if tris.is_empty() {
-            return bvh;
-        }
-        let centroid = |t: usize| {
+        Bvh::build_with(tris.len(), |t| {
             let [a, b, c] = tris[t];
             (x[a] + x[b] + x[c]) / 3.0
+        })
+    }
+
+    /// The tree over `n` leaves whose centroids `centroid(t)` gives.
+    pub fn build_with(n: usize, centroid: impl Fn(usize) -> Vector3<f64>) -> Bvh {
+        let mut bvh = Bvh {
+            nodes: Vec::with_capacity(2 * n),
         };
-        let mut order: Vec<(u32, Vector3<f64>)> =
-            (0..tris.len()).map(|t| (t as u32, centroid(t))).collect();
+        if n == 0 {
+            return bvh;
+        }
+        let mut order: Vec<(u32, Vector3<f64>)> = (0..n).map(|t| (t as u32, centroid(t))).collect();
         bvh.split(&mut order);
         bvh
     }
@@ -132,6 +146,77 @@ impl Bvh {
                     .merge(&self.nodes[n.right as usize].b)
             };
         }
+    }
+
+    /// The box of the whole tree.
+    pub fn root(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::empty(), |n| n.b)
+    }
+
+    /// Calls `f(t)` for each leaf whose box meets `q`.
+    pub fn overlapping(&self, q: &Aabb, mut f: impl FnMut(usize)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = self.nodes[stack[top] as usize];
+            if !n.b.overlaps(q) {
+                continue;
+            }
+            if n.left == LEAF {
+                f(n.right as usize);
+            } else {
+                stack[top] = n.left;
+                stack[top + 1] = n.right;
+                top += 2;
+            }
+        }
+    }
+
+    /// The leaf nearest `p` by `dist2(t)` (squared distance to leaf t's
+    /// triangle), branch and bound on the boxes, nearer child first; ties go
+    /// to the lower index, the same answer whatever the order of the walk.
+    pub fn nearest(
+        &self,
+        p: &Vector3<f64>,
+        mut dist2: impl FnMut(usize) -> f64,
+    ) -> Option<(usize, f64)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let mut best: Option<(usize, f64)> = None;
+        let mut stack = [(0u32, 0.0f64); 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (k, d) = stack[top];
+            if best.is_some_and(|(_, b)| d > b) {
+                continue;
+            }
+            let n = self.nodes[k as usize];
+            if n.left == LEAF {
+                let d = dist2(n.right as usize);
+                if best.is_none_or(|(t, b)| d < b || (d == b && (n.right as usize) < t)) {
+                    best = Some((n.right as usize, d));
+                }
+                continue;
+            }
+            let dl = self.nodes[n.left as usize].b.distance2(p);
+            let dr = self.nodes[n.right as usize].b.distance2(p);
+            // push the farther first so the nearer is taken next
+            if dl <= dr {
+                stack[top] = (n.right, dr);
+                stack[top + 1] = (n.left, dl);
+            } else {
+                stack[top] = (n.left, dl);
+                stack[top + 1] = (n.right, dr);
+            }
+            top += 2;
+        }
+        best
     }
 
     /// Calls `f(s, t)` for every pair of distinct leaves whose boxes
