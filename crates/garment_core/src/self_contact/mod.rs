@@ -99,6 +99,9 @@ pub const COLLISION_SEPARATION: f64 = 0.1;
 /// Distance at a coplanarity time below which a pair counts as colliding,
 /// as a fraction of the thickness.
 pub const HIT_DISTANCE: f64 = 1e-3;
+/// Longest run of plain searches before a candidate list is tried again.
+const MAX_PLAIN_GAP: u32 = 16;
+
 /// The candidate list's margin δ, as a fraction of the cloth's mean edge
 /// length: a larger one lists more pairs to sift in every pass, a smaller
 /// one has the list rebuilt more often.
@@ -190,6 +193,13 @@ pub struct SelfContact {
     margin: f64,
     listed_ok: bool,
     builds: usize,
+    /// Whether the list was used again after its last build; while it is
+    /// not (the cloth moves too far each step), passes search the tree
+    /// plainly for `plain_left` more passes, a gap that doubles up to
+    /// [`MAX_PLAIN_GAP`] each time a new list is not used again.
+    reused: bool,
+    plain_left: u32,
+    plain_gap: u32,
     stack: Vec<(u32, u32)>,
     moved: Vec<bool>,
     /// Colliding pairs of the last detection without impulses.
@@ -289,6 +299,9 @@ impl SelfContact {
             margin: CANDIDATE_MARGIN * mean_edge,
             listed_ok: false,
             builds: 0,
+            reused: true,
+            plain_left: 0,
+            plain_gap: 1,
             stack: Vec::new(),
             moved: vec![false; n],
             found: Vec::new(),
@@ -305,7 +318,8 @@ impl SelfContact {
         self.listed_ok = false;
     }
 
-    /// How many times the candidate list was built.
+    /// How many times the tree was searched (a candidate list built, or a
+    /// plain search while lists are not used again).
     pub fn candidate_builds(&self) -> usize {
         self.builds
     }
@@ -417,7 +431,29 @@ impl SelfContact {
     /// grown by `r` (at most the largest thickness), into `self.pairs` in
     /// the list's order: the list rebuilt first if it does not hold.
     fn select(&mut self, x0: &[V], x1: &[V], r: f64) {
-        if !self.list_holds(x0, x1) {
+        if self.plain_left > 0 || (!self.reused && !self.list_holds(x0, x1)) {
+            // the last list served one pass only: a plain search costs less
+            // than building and sifting a list every pass (same pairs, same
+            // order: the tree's)
+            if self.plain_left == 0 {
+                self.plain_left = self.plain_gap;
+                self.plain_gap = (2 * self.plain_gap).min(MAX_PLAIN_GAP);
+            }
+            self.plain_left -= 1;
+            self.listed_ok = false;
+            self.reused = true;
+            self.builds += 1;
+            self.boxes(x0, x1, r);
+            self.refit_tree();
+            self.gather();
+            return;
+        }
+        if self.list_holds(x0, x1) {
+            if !self.reused {
+                self.plain_gap = 1;
+            }
+            self.reused = true;
+        } else {
             self.boxes(x0, x1, self.max_thickness + self.margin);
             self.refit_tree();
             self.gather();
@@ -430,6 +466,7 @@ impl SelfContact {
                 b
             }));
             self.listed_ok = true;
+            self.reused = false;
             self.builds += 1;
         }
         self.boxes(x0, x1, r);
