@@ -28,6 +28,33 @@ pub fn vertex_strain(sim: &Simulation) -> Vec<f64> {
 /// Fields of `cloth/points`: x, y, z (m), strain (1), speed (m/s), all float32.
 pub const CLOUD_FIELDS: [&str; 5] = ["x", "y", "z", "strain", "speed"];
 
+/// An unorganised (height 1) PointCloud2 of `n` points whose fields
+/// `names` are float32, packed in that order, little-endian, in `data`.
+fn float_cloud(header: Header, names: &[&str], n: usize, data: Vec<u8>) -> PointCloud2 {
+    let step = 4 * names.len();
+    debug_assert_eq!(data.len(), n * step);
+    PointCloud2 {
+        header,
+        height: 1,
+        width: n as u32,
+        fields: names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| PointField {
+                name: name.to_string(),
+                offset: 4 * k as u32,
+                datatype: PointField::FLOAT32,
+                count: 1,
+            })
+            .collect(),
+        is_bigendian: false,
+        point_step: step as u32,
+        row_step: (step * n) as u32,
+        data,
+        is_dense: true,
+    }
+}
+
 /// The cloth vertices as an unorganised PointCloud2 (height 1), little-endian.
 pub fn cloud(sim: &Simulation, header: Header) -> PointCloud2 {
     cloud_with(sim, header, &[])
@@ -58,26 +85,7 @@ pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) ->
             data.extend_from_slice(&v.to_le_bytes());
         }
     }
-    PointCloud2 {
-        header,
-        height: 1,
-        width: n as u32,
-        fields: names
-            .iter()
-            .enumerate()
-            .map(|(k, name)| PointField {
-                name: name.to_string(),
-                offset: 4 * k as u32,
-                datatype: PointField::FLOAT32,
-                count: 1,
-            })
-            .collect(),
-        is_bigendian: false,
-        point_step: step as u32,
-        row_step: (step * n) as u32,
-        data,
-        is_dense: true,
-    }
+    float_cloud(header, &names, n, data)
 }
 
 /// The garment's wrench on the body as `body/wrench` carries it: force N and
@@ -120,26 +128,7 @@ pub fn body_cloud(p: &crate::body_forces::BodyPressure, header: Header) -> Point
             data.extend_from_slice(&v.to_le_bytes());
         }
     }
-    PointCloud2 {
-        header,
-        height: 1,
-        width: n as u32,
-        fields: BODY_CLOUD_FIELDS
-            .iter()
-            .enumerate()
-            .map(|(k, name)| PointField {
-                name: name.to_string(),
-                offset: 4 * k as u32,
-                datatype: PointField::FLOAT32,
-                count: 1,
-            })
-            .collect(),
-        is_bigendian: false,
-        point_step: step as u32,
-        row_step: (step * n) as u32,
-        data,
-        is_dense: true,
-    }
+    float_cloud(header, &BODY_CLOUD_FIELDS, n, data)
 }
 
 /// Reads x, y, z back from a cloud written by [`cloud`] (or any little-endian

@@ -929,6 +929,7 @@ impl Node {
         let mesh = publish::cloth_marker(sim, h.clone());
         let obstacles = publish::obstacle_markers(sim, h.clone());
         let on_body = body_forces(sim, h.clone());
+        let (body_messages, body_late, body_refused) = self.loaded.bodies.counts();
         let fig = publish::DiagnosticFigures {
             step_time_ms: if c.step_count > 0 {
                 c.step_ms_sum / c.step_count as f64
@@ -942,9 +943,9 @@ impl Node {
             recovered_steps: self.recovery.recovered,
             paused: self.settings.paused,
             last_error: c.last_error.clone(),
-            body_messages: self.loaded.bodies.counts().0,
-            body_late: self.loaded.bodies.counts().1,
-            body_refused: self.loaded.bodies.counts().2,
+            body_messages,
+            body_late,
+            body_refused,
         };
         let diag = publish::diagnostics(sim, h.clone(), &fig);
         let clock = msgs::Clock { clock: h.stamp };
