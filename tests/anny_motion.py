@@ -2,8 +2,9 @@
 its bind pose is body.obj, nothing moves at t = 0, and its linear blend skinning
 (tools/motion_from_anny.py's reader, glTF 2.0: slerp between keys) gives the vertices
 Blender's glTF importer and armature modifier gave at t = 0, 1.5 and 3 s
-(tests/data/anny_motion_blender_frames.json, by tools/blender_eval_motion.py).
-numpy only; run by tests/python_interop.rs."""
+(tests/data/anny_motion_blender_frames.json, by tools/blender_eval_motion.py);
+and the shipped turn assets/bodies/anny/turn.glb is body.obj turned about the
+vertical axis by its ramp-and-hold angle. numpy only; run by tests/python_interop.rs."""
 
 import json
 import os
@@ -72,3 +73,23 @@ def test_the_arms_end_horizontal():
     # the legs and the head (above the neck, 1.5 m) do not move
     still = (b[:, 2] < 0.7) | (b[:, 2] > 1.5)
     assert moved[still].max() < 1e-6
+
+
+def test_the_turn_is_a_rigid_turn_at_a_steady_rate():
+    """assets/bodies/anny/turn.glb: body.obj turned about the vertical axis
+    x = y = 0 by the angle of the ramp-and-hold closed form (keys every
+    0.05 s, slerp between them: at the keys and, after the 0.5 s ramp,
+    everywhere), so at 1 rad/s after the ramp."""
+    with open(os.path.join(ROOT, "assets/bodies/anny/turn.glb"), "rb") as f:
+        doc, acc = m.read_glb(f.read())
+    assert doc["animations"][0]["name"] == "turn"
+    b = body()
+
+    def angle(t):  # the closed form, independent of the tool's constants
+        return t * t if t < 0.5 else t - 0.25
+
+    for t in [0.0, 0.25, 0.5, 0.52, 1.0, 2.345, 3.99, 4.0]:
+        a = angle(t)
+        r = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        err = np.abs(m.skin(doc, acc, t) @ m.TO_GLTF - b @ r.T).max()
+        assert err < 1e-5, (t, err)

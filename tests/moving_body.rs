@@ -1373,6 +1373,10 @@ fn the_shipped_turn_turns_at_a_steady_rate() {
     );
 }
 
+/// Skirt's and body's rates (rad/s), the rates of each 0.5 s (start, skirt,
+/// body) and the deepest skirt vertex inside the body.
+type TurnRun = (f64, f64, Vec<(f64, f64, f64)>, Option<(usize, f64)>);
+
 /// The skirt of the shipped trial config/trials/skirt_turn.yaml at 3 cm
 /// (a shorter drape of 1 s) on the turning body: the angular velocity
 /// about the vertical axis over `window` of the motion (s) of the skirt
@@ -1381,10 +1385,7 @@ fn the_shipped_turn_turns_at_a_steady_rate() {
 /// from the axis), the rate of each 0.5 s for the record, and the deepest
 /// skirt vertex inside the body at the end. `alpha`: the fabric's
 /// mass-proportional damping, 1/s (negative), in place of its own.
-fn skirt_on_the_turn(
-    alpha: Option<f64>,
-    window: (f64, f64),
-) -> (f64, f64, Vec<(f64, f64, f64)>, Option<(usize, f64)>) {
+fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
     use garment_sim::trial::{self, Trial, TrialOverrides};
     let mut t = Trial::load(Path::new("config/trials/skirt_turn.yaml")).unwrap();
     t.file.settle.max_time = 1.0;

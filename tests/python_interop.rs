@@ -1,9 +1,10 @@
 //! Runs the Python interoperability tests against independent implementations:
 //! C3D files with `ezc3d` (tests/c3d_interop.py), the ROS 2 interface
-//! definitions with `rosbags` (tests/msg_defs.py), and the shipped body motion
-//! against the frames Blender evaluated (tests/anny_motion.py). Their Python packages come
-//! from tests/requirements.txt, which .ci/run installs; without them these
-//! tests fail and say what to install (they never pass silently).
+//! definitions with `rosbags` (tests/msg_defs.py), and the shipped body motions
+//! against the frames Blender evaluated and the turn's closed form
+//! (tests/anny_motion.py). Their Python packages come from
+//! tests/requirements.txt, which .ci/run installs; without them these tests
+//! fail and say what to install (they never pass silently).
 
 mod support;
 
@@ -23,5 +24,5 @@ fn ros2_interface_definitions_parse_with_rosbags() {
 
 #[test]
 fn the_shipped_body_motion_skins_as_blender_does() {
-    pytest("tests/anny_motion.py", "numpy, pytest", "3 passed");
+    pytest("tests/anny_motion.py", "numpy, pytest", "4 passed");
 }
