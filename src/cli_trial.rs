@@ -58,6 +58,8 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     let stop = garment_sim::run::stop_flag()?;
     let mut sew = crate::progress_printer("sewing".into());
     let mut drape = crate::progress_printer("drape".into());
+    let mut motion = crate::progress_printer("motion".into());
+    let mut moving = false;
     let body = trial::body_handle(&sim);
     let stats = trial::run_on(
         &mut sim,
@@ -65,16 +67,25 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &t.file.sewing,
         &t.file.settle,
         a.max_time,
-        &mut |_, phase, x, of| {
-            if phase == "sewing" {
-                sew(x, of)
-            } else {
-                drape(x, of)
+        &mut |_, phase, x, of| match phase {
+            "sewing" => sew(x, of),
+            "motion" => {
+                if !moving {
+                    // the drape is over
+                    drape(1.0, 1.0);
+                    moving = true;
+                }
+                motion(x, of)
             }
+            _ => drape(x, of),
         },
         &|| stop.load(Ordering::Relaxed),
     )?;
-    drape(1.0, 1.0);
+    if moving {
+        motion(1.0, 1.0);
+    } else {
+        drape(1.0, 1.0);
+    }
     let (fit, vf, on_body) = trial::fit(&sim, &g, &t, stats);
     trial::write_trace(&fit.run, &a.out.join("trial.csv"))?;
     trial::write_wrench(&fit.run, &a.out.join("body_wrench.csv"))?;
