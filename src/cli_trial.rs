@@ -151,6 +151,23 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         r.mean_solver_iterations,
         r.time_split_ms_per_step.collide
     );
+    if let (Some(m), Some(play)) = (&r.motion, r.motion_s) {
+        let c = &m.time_split_ms_per_step;
+        println!(
+            "the body's motion: {} steps, {:.1} s wall for {:.2} s (real-time factor {:.2}; {:.1} ms/step: \
+             assemble {:.1}, solve {:.1}, the body's contacts {:.1} ({:.0} %), its wrench {:.2})",
+            m.steps,
+            m.wall_s,
+            play,
+            play / m.wall_s.max(1e-12),
+            m.ms_per_step,
+            c.assemble,
+            c.solve,
+            c.collide,
+            100.0 * c.collide / m.ms_per_step.max(1e-12),
+            m.body_wrench_ms_per_step
+        );
+    }
     println!(
         "weight {:.3} N, force on the body {:.3} N over {:.1} cm² (mean pressure {:.1} Pa, peak {:.1} Pa); largest seam gap {:.2} mm; {} vertices inside the body",
         fit.weight_n,

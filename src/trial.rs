@@ -520,6 +520,60 @@ impl Trial {
     }
 }
 
+/// Time and solver work summed over steps (seconds, iterations).
+#[derive(Debug, Clone, Copy, Default)]
+struct Spent {
+    split: crate::run::TimeSplit,
+    iterations: usize,
+    wrench_s: f64,
+}
+
+impl Spent {
+    fn since(&self, before: &Spent) -> Spent {
+        Spent {
+            split: crate::run::TimeSplit {
+                assemble: self.split.assemble - before.split.assemble,
+                solve: self.split.solve - before.split.solve,
+                collide: self.split.collide - before.split.collide,
+            },
+            iterations: self.iterations - before.iterations,
+            wrench_s: self.wrench_s - before.wrench_s,
+        }
+    }
+
+    fn per_step(&self, steps: u64, wall_s: f64) -> PhaseCost {
+        let n = steps.max(1) as f64;
+        PhaseCost {
+            steps,
+            wall_s,
+            ms_per_step: 1e3 * wall_s / n,
+            time_split_ms_per_step: crate::run::TimeSplit {
+                assemble: 1e3 * self.split.assemble / n,
+                solve: 1e3 * self.split.solve / n,
+                collide: 1e3 * self.split.collide / n,
+            },
+            mean_solver_iterations: self.iterations as f64 / n,
+            body_wrench_ms_per_step: 1e3 * self.wrench_s / n,
+        }
+    }
+}
+
+/// The cost of a phase of a run, per step.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseCost {
+    pub steps: u64,
+    pub wall_s: f64,
+    /// Wall time per step, the wrench included, ms.
+    pub ms_per_step: f64,
+    /// Of which: assembly, linear solve, and contacts with the obstacles
+    /// (for a moving body: its tree's refit, the contacts' detection and
+    /// the swept check after the step; self-collision not included), ms.
+    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub mean_solver_iterations: f64,
+    /// The garment's wrench on the body after each step, ms.
+    pub body_wrench_ms_per_step: f64,
+}
+
 /// How the run went.
 #[derive(Debug, Clone, Serialize)]
 pub struct RunStats {
@@ -541,6 +595,10 @@ pub struct RunStats {
     /// Time spent on the wrench on the body after each step (outside the
     /// step, included in `ms_per_step`), ms per step.
     pub body_wrench_ms_per_step: f64,
+    /// The same figures for the body's motion alone (a body with a
+    /// `motion`): the cost of following a moving body.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motion: Option<PhaseCost>,
     /// Every 0.05 s: time (s), rms speed (m/s), vertices in contact, solver
     /// iterations of that step (written as `trial.csv`).
     #[serde(skip)]
@@ -612,12 +670,10 @@ pub fn run_on(
     crate::limits::check_range("settle.speed", st.speed, 1e-6, 1.0, "m/s", "an rms speed")?;
     crate::limits::check_range("settle.hold", st.hold, 0.0, 10.0, "s", "a hold time")?;
     let start = Instant::now();
-    let mut split = crate::run::TimeSplit::default();
+    let mut acc = Spent::default();
     let mut steps = 0u64;
-    let mut iters = 0usize;
     let mut trace: Vec<[f64; 4]> = Vec::new();
     let mut wrench: Vec<(f64, Wrench)> = Vec::new();
-    let mut wrench_s = 0.0;
     let every = ((0.05 / sim.params().dt).round() as u64).max(1);
     let gravity = sim.params().gravity;
     let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
@@ -637,20 +693,20 @@ pub fn run_on(
         s.d *= sew.stiffness_factor;
     }
     let sew_steps = (sew.duration / sim.params().dt).round() as u64;
-    let mut step = |sim: &mut Simulation, steps: &mut u64| -> Result<()> {
+    let mut step = |sim: &mut Simulation, steps: &mut u64, acc: &mut Spent| -> Result<()> {
         let s = sim
             .step()
             .with_context(|| format!("step {} (t = {:.4} s)", *steps + 1, sim.time))?;
-        split.assemble += s.assemble_s;
-        split.solve += s.solve_s;
-        split.collide += s.collide_s;
-        iters += s.iterations;
+        acc.split.assemble += s.assemble_s;
+        acc.split.solve += s.solve_s;
+        acc.split.collide += s.collide_s;
+        acc.iterations += s.iterations;
         *steps += 1;
         let t_w = Instant::now();
         if let Some(w) = body.and_then(|b| body_forces::wrench(sim, b)) {
             wrench.push((sim.time, w));
         }
-        wrench_s += t_w.elapsed().as_secs_f64();
+        acc.wrench_s += t_w.elapsed().as_secs_f64();
         if (*steps).is_multiple_of(every) {
             trace.push([
                 sim.time,
@@ -665,7 +721,7 @@ pub fn run_on(
         if stop() {
             break;
         }
-        step(sim, &mut steps)?;
+        step(sim, &mut steps, &mut acc)?;
         progress(sim, "sewing", sim.time, sew.duration);
     }
     let sewing_s = sim.time;
@@ -684,7 +740,7 @@ pub fn run_on(
     let mut calm_since: Option<f64> = None;
     let mut settle = None;
     while sim.time - sewing_s < max_time - 1e-12 && !stop() {
-        step(sim, &mut steps)?;
+        step(sim, &mut steps, &mut acc)?;
         if sim.rms_speed() < st.speed {
             let since = *calm_since.get_or_insert(sim.time);
             if sim.time - since >= st.hold - 1e-12 {
@@ -705,6 +761,7 @@ pub fn run_on(
         .map(|(h, _)| h)
         .collect();
     let mut motion_s = None;
+    let mut motion = None;
     if !held.is_empty() && !stop() {
         let mut play: f64 = 0.0;
         for h in held {
@@ -714,14 +771,18 @@ pub fn run_on(
             }
         }
         let t0 = sim.time;
+        let (wall0, steps0, acc0) = (Instant::now(), steps, acc);
         while sim.time - t0 < play - 1e-12 && !stop() {
-            step(sim, &mut steps)?;
+            step(sim, &mut steps, &mut acc)?;
             progress(sim, "motion", sim.time - t0, play);
         }
         motion_s = Some(sim.time - t0);
+        let n = steps - steps0;
+        let wall = wall0.elapsed().as_secs_f64();
+        motion = Some(acc.since(&acc0).per_step(n, wall));
     }
     let wall = start.elapsed().as_secs_f64();
-    let n = steps.max(1) as f64;
+    let all = acc.per_step(steps, wall);
     Ok(RunStats {
         sewing_s,
         settle_time_s: settle,
@@ -729,15 +790,12 @@ pub fn run_on(
         motion_s,
         steps,
         wall_s: wall,
-        ms_per_step: 1e3 * wall / n,
-        time_split_ms_per_step: crate::run::TimeSplit {
-            assemble: 1e3 * split.assemble / n,
-            solve: 1e3 * split.solve / n,
-            collide: 1e3 * split.collide / n,
-        },
+        ms_per_step: all.ms_per_step,
+        time_split_ms_per_step: all.time_split_ms_per_step,
         final_rms_speed_m_s: sim.rms_speed(),
-        mean_solver_iterations: iters as f64 / n,
-        body_wrench_ms_per_step: 1e3 * wrench_s / n,
+        mean_solver_iterations: all.mean_solver_iterations,
+        body_wrench_ms_per_step: all.body_wrench_ms_per_step,
+        motion,
         trace,
         wrench,
     })

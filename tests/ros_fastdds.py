@@ -59,6 +59,8 @@ TOPICS = {
     "/rosout": "rcl_interfaces/msg/Log",
     "/obstacles": "garment_sim_msgs/msg/Obstacle",
     "/pins": "garment_sim_msgs/msg/Pin",
+    "/body": "garment_sim_msgs/msg/Body",
+    "/body_mesh": "mesh_msgs/msg/MeshGeometryStamped",
 }
 SERVICES = {
     "/garment_sim/reset": "std_srvs/srv/Trigger",
@@ -210,7 +212,7 @@ def test_graph_topics_and_contents(ros):
         for t in ["/cloth/points", "/cloth/mesh", "/obstacles/markers", "/diagnostics", "/clock",
                   "/scene_description", "/rosout", "/body/wrench", "/body/points"]:
             assert pubs[t] == [TOPICS[t]], (t, pubs[t])
-        for t in ["/obstacles", "/pins"]:
+        for t in ["/obstacles", "/pins", "/body", "/body_mesh"]:
             assert subs[t] == [TOPICS[t]], (t, subs[t])
 
         # the cloud: fields, layout, values

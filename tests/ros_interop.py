@@ -1,7 +1,9 @@
 """The garment_sim node against an independent DDS implementation: Eclipse
 Cyclone DDS (the `cyclonedds` Python binding, the DDS of ROS 2's
 rmw_cyclonedds), speaking the ROS 2 topic and service conventions by hand
-(`rt/` topics, `rq/`/`rr/` service topics, `pkg::msg::dds_::Type_` type names).
+(`rt/` topics, `rq/`/`rr/` service topics, `pkg::msg::dds_::Type_` type names),
+with the types written here from their .msg definitions (ROS 2 Jazzy,
+garment_sim_msgs in msg/, mesh_msgs of naturerobots/mesh_tools).
 
 Run by tests/ros_node.rs inside a network namespace it makes (loopback only).
 The node binary is in GARMENT_SIM_BIN."""
@@ -272,6 +274,26 @@ class Body(IdlStruct, typename=ros("garment_sim_msgs", "msg", "Body")):
     positions: t.sequence[t.float32] = field(default_factory=list)
     thickness: float = math.nan
     friction: float = math.nan
+
+
+# ---- mesh_msgs (naturerobots/mesh_tools, the meshes of RViz's mesh plugin) ----
+@dataclass
+class MeshTriangleIndices(IdlStruct, typename=ros("mesh_msgs", "msg", "MeshTriangleIndices")):
+    vertex_indices: t.array[t.uint32, 3]
+
+
+@dataclass
+class MeshGeometry(IdlStruct, typename=ros("mesh_msgs", "msg", "MeshGeometry")):
+    vertices: t.sequence[Point] = field(default_factory=list)
+    vertex_normals: t.sequence[Point] = field(default_factory=list)
+    faces: t.sequence[MeshTriangleIndices] = field(default_factory=list)
+
+
+@dataclass
+class MeshGeometryStamped(IdlStruct, typename=ros("mesh_msgs", "msg", "MeshGeometryStamped")):
+    header: Header = field(default_factory=Header)
+    uuid: str = ""
+    mesh_geometry: MeshGeometry = field(default_factory=MeshGeometry)
 
 
 # ---- services (request/reply types of the ROS 2 DDS mapping) ----
@@ -823,12 +845,10 @@ def box_frames(n):
     return frames, tris
 
 
-def test_a_body_streamed_frame_by_frame_moves_the_cloth_as_its_frames_from_files(tmp_path):
-    """A box streamed on `body` (topology once, then frames stamped k/32 s, the node
-    stepped in lockstep) lifts the cloth as the same frames read from OBJ files by a
-    scene's `motion` do headless; bad frames are refused, counted, and the node runs on."""
-    import numpy as np
-
+def box_from_files(tmp_path):
+    """The box of `box_frames(10)` lifting a 30 cm cloth, run headless with the frames
+    read from OBJ files by a scene's `motion` (thickness 4 mm, friction 0.4): the
+    frames, the triangles, the final cloth, and the path of the same scene without the box."""
     frames, tris = box_frames(10)
     (tmp_path / "frames").mkdir()
     for k, f in enumerate(frames):
@@ -844,8 +864,17 @@ def test_a_body_streamed_frame_by_frame_moves_the_cloth_as_its_frames_from_files
     out = subprocess.run([BIN, "drape", str(tmp_path / "files.yaml"), "--threads", "1",
                           "--out", str(tmp_path / "ref")], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    ref = read_ply(tmp_path / "ref" / "final.ply")
-    n = Node("-p", f"scene:={tmp_path / 'stream.yaml'}", "-p", "paused:=true", "-p", "threads:=1",
+    return frames, tris, read_ply(tmp_path / "ref" / "final.ply"), tmp_path / "stream.yaml"
+
+
+def test_a_body_streamed_frame_by_frame_moves_the_cloth_as_its_frames_from_files(tmp_path):
+    """A box streamed on `body` (topology once, then frames stamped k/32 s, the node
+    stepped in lockstep) lifts the cloth as the same frames read from OBJ files by a
+    scene's `motion` do headless; bad frames are refused, counted, and the node runs on."""
+    import numpy as np
+
+    frames, tris, ref, scene = box_from_files(tmp_path)
+    n = Node("-p", f"scene:={scene}", "-p", "paused:=true", "-p", "threads:=1",
              "-p", "publish_rate:=32.0")
     try:
         c = n.wait("/cloth/points", PointCloud2)
@@ -887,3 +916,71 @@ def test_a_body_streamed_frame_by_frame_moves_the_cloth_as_its_frames_from_files
         code, out = n.stop()
     assert code == 0, out
     assert "positions[4] (vertex 1, y) is NaN" in out, out
+
+
+def test_a_mesh_geometry_stream_moves_the_cloth_as_the_same_frames_from_files(tmp_path):
+    """The same box sent on `body_mesh` as mesh_msgs/MeshGeometryStamped, the whole mesh
+    (float64 vertices, normals, faces) in every message: the first is the topology, the
+    next ones, with the same faces, its frames. With the box's thickness and friction as
+    the node's parameters, the cloth ends where the frames from files put it; bad
+    meshes are refused, counted by kind, and the node runs on."""
+    import numpy as np
+
+    frames, tris, ref, scene = box_from_files(tmp_path)
+    n = Node("-p", f"scene:={scene}", "-p", "paused:=true", "-p", "threads:=1",
+             "-p", "publish_rate:=32.0", "-p", "body_mesh_thickness:=0.004",
+             "-p", "body_mesh_friction:=0.4")
+    try:
+        c = n.wait("/cloth/points", PointCloud2)
+        start = xyz(c)
+        body = n.writer("/body_mesh", MeshGeometryStamped)
+        faces = [MeshTriangleIndices(list(f)) for f in tris]
+        hdr = lambda k: Header(stamp=Time(sec=0, nanosec=k * 31250000), frame_id="world")
+
+        def mesh(k, f, faces=faces, uuid="box"):
+            centre = np.mean(f, axis=0)
+            normals = [(np.array(p) - centre) / np.linalg.norm(np.array(p) - centre) for p in f]
+            return MeshGeometryStamped(header=hdr(k), uuid=uuid, mesh_geometry=MeshGeometry(
+                vertices=[Point(x=x, y=y, z=z) for x, y, z in f],
+                vertex_normals=[Point(x=float(a), y=float(b), z=float(c)) for a, b, c in normals],
+                faces=faces))
+
+        body.write(mesh(0, frames[0]))
+        n.wait("/rosout", Log, lambda l: 'added body "box": 8 vertices, 12 triangles' in l.msg)
+        for k in range(1, len(frames)):
+            body.write(mesh(k, frames[k]))
+        n.wait("/diagnostics", DiagnosticArray, lambda d: n.diag(d).get("body_messages") == "10")
+        r = n.call("/garment_sim/step", Step_Request, Step_Response, Step_Request(steps=96))
+        assert r.success and abs(secs(r.sim_time) - 0.375) < 1e-9, r
+        c = n.wait("/cloth/points", PointCloud2, lambda c: abs(stamp(c.header) - 0.375) < 1e-9)
+        err = float(np.abs(xyz(c) - ref).max())
+        lifted = float(ref[:, 2].max() - start[:, 2].max())
+        print(f"MeshGeometryStamped vs files: {err:.2e} m after 96 steps; the box lifted the cloth "
+              f"{lifted * 1e3:.1f} mm")
+        assert lifted > 0.05, lifted
+        assert err < 1e-5, err
+        # bad meshes: refused, counted by kind, the node runs on
+        body.write(mesh(20, frames[9] + [(0.0, 0.0, 1.0)]))  # the box's faces, 9 vertices
+        nan = [list(p) for p in frames[9]]
+        nan[1][1] = math.nan
+        body.write(mesh(21, nan))
+        body.write(mesh(5, frames[9]))  # before the last frame
+        body.write(mesh(22, frames[9], faces=faces[:-1] + [MeshTriangleIndices([0, 1, 8])]))
+        body.write(MeshGeometryStamped(header=hdr(23), uuid="box"))  # empty
+        want = {"body_refused_vertex_count": "1", "body_refused_non_finite": "1",
+                "body_refused_out_of_order": "1", "body_refused_triangles": "1",
+                "body_refused_empty": "1"}
+        d = n.wait("/diagnostics", DiagnosticArray,
+                   lambda d: all(n.diag(d).get(k) == v for k, v in want.items()))
+        assert n.diag(d)["body_messages"] == "10" and int(n.diag(d)["rejected_messages"]) == 5
+        # the box as it was: a frame with its faces is still taken
+        body.write(mesh(24, frames[9]))
+        n.wait("/diagnostics", DiagnosticArray, lambda d: n.diag(d).get("body_messages") == "11")
+        r = n.call("/garment_sim/step", Step_Request, Step_Response, Step_Request(steps=2))
+        assert r.success, r
+    finally:
+        code, out = n.stop()
+    assert code == 0, out
+    for why in ["mesh_geometry.vertices[1].y is NaN", "9 vertices, the body's topology has 8",
+                "mesh_geometry.faces[11].vertex_indices[2] is vertex 8", "a topology with no vertices"]:
+        assert why in out, (why, out)

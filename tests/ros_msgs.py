@@ -1,6 +1,6 @@
 """Byte-for-byte check of the Rust ROS 2 message types against the independent
 `rosbags` type system and CDR codec (ROS 2 Jazzy definitions, plus the
-garment_sim_msgs package in msg/).
+garment_sim_msgs package in msg/ and mesh_msgs/MeshGeometryStamped).
 
 Run by tests/ros_msgs.rs, which writes for every sample message NAME.cdr (what
 Rust serialised, with the 4-byte encapsulation header), NAME.json (the same
@@ -39,6 +39,15 @@ def store():
     types.update(get_types_from_msg("bool success\nstring message", "std_srvs/msg/Trigger_Response"))
     types.update(get_types_from_msg("bool data", "std_srvs/msg/SetBool_Request"))
     types.update(get_types_from_msg("bool success\nstring message", "std_srvs/msg/SetBool_Response"))
+    # mesh_msgs (naturerobots/mesh_tools) is not in rosbags' store either: the three types
+    # of MeshGeometryStamped, as in its mesh_msgs/msg/.
+    types.update(get_types_from_msg("uint32[3] vertex_indices", "mesh_msgs/msg/MeshTriangleIndices"))
+    types.update(get_types_from_msg(
+        "geometry_msgs/Point[] vertices\ngeometry_msgs/Point[] vertex_normals\n"
+        "mesh_msgs/MeshTriangleIndices[] faces", "mesh_msgs/msg/MeshGeometry"))
+    types.update(get_types_from_msg(
+        "std_msgs/Header header\nstring uuid\nmesh_msgs/MeshGeometry mesh_geometry",
+        "mesh_msgs/msg/MeshGeometryStamped"))
     ts.register(types)
     return ts
 

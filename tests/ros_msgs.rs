@@ -1,7 +1,7 @@
 //! The Rust ROS 2 message types serialise byte for byte as the independent
 //! `rosbags` CDR codec does (tests/ros_msgs.py): samples built from a real
-//! simulation (cloud, cloth and obstacle markers, diagnostics) and the
-//! garment_sim_msgs types from msg/.
+//! simulation (cloud, cloth and obstacle markers, diagnostics), the
+//! garment_sim_msgs types from msg/ and mesh_msgs/MeshGeometryStamped.
 
 mod support;
 
@@ -257,6 +257,38 @@ fn messages_match_rosbags_byte_for_byte() {
     };
     round_trip(&frame);
     write(&dir, "body_frame", &frame);
+    // a body as mesh_msgs sends it: float64 vertices, their normals, faces
+    let mesh = MeshGeometryStamped {
+        header: h.clone(),
+        uuid: "avatar".into(),
+        mesh_geometry: MeshGeometry {
+            vertices: (0..4)
+                .map(|k| Point {
+                    x: 0.1 * k as f64,
+                    y: 0.25,
+                    z: 1.0 + 1e-9 * k as f64,
+                })
+                .collect(),
+            vertex_normals: vec![
+                Point {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 1.0
+                };
+                4
+            ],
+            faces: vec![
+                MeshTriangleIndices {
+                    vertex_indices: [0, 1, 2],
+                },
+                MeshTriangleIndices {
+                    vertex_indices: [0, 2, 3],
+                },
+            ],
+        },
+    };
+    round_trip(&mesh);
+    write(&dir, "mesh_geometry_stamped", &mesh);
     write(&dir, "step_request", &StepRequest { steps: 12 });
     write(
         &dir,

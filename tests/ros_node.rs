@@ -1,7 +1,8 @@
 //! The node against an independent DDS implementation (Eclipse Cyclone DDS
 //! through its Python binding, tests/ros_interop.py): topics, namespaces and
 //! remaps, params files, obstacles and pins, bad input, services, the ROS 2
-//! parameter services and a streamed body. Everything runs in a network namespace made for the
+//! parameter services and a streamed body (garment_sim_msgs/Body and
+//! mesh_msgs/MeshGeometryStamped). Everything runs in a network namespace made for the
 //! test (`unshare -rn`: only a loopback interface), so no packet leaves it.
 
 mod support;
@@ -24,6 +25,6 @@ fn node_interoperates_with_cyclone_dds() {
         "cyclonedds, numpy, pytest",
         true,
         &[("GARMENT_SIM_BIN", &bin), ("CYCLONEDDS_URI", &uri)],
-        "7 passed",
+        "8 passed",
     );
 }

@@ -498,6 +498,35 @@ pub struct Body {
 }
 ros_type!(Body, "garment_sim_msgs/msg/Body");
 
+// ---------------------------------------------------------------- mesh_msgs
+// The mesh messages of naturerobots/mesh_tools (BSD-3-Clause), which RViz's
+// mesh plugin displays: laid out field for field as mesh_msgs/msg/*.msg.
+
+/// `mesh_msgs/msg/MeshTriangleIndices`: one triangle's vertex indices.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshTriangleIndices {
+    pub vertex_indices: [u32; 3],
+}
+ros_type!(MeshTriangleIndices, "mesh_msgs/msg/MeshTriangleIndices");
+
+/// `mesh_msgs/msg/MeshGeometry`: vertices (float64), their normals, faces.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshGeometry {
+    pub vertices: Vec<Point>,
+    pub vertex_normals: Vec<Point>,
+    pub faces: Vec<MeshTriangleIndices>,
+}
+ros_type!(MeshGeometry, "mesh_msgs/msg/MeshGeometry");
+
+/// `mesh_msgs/msg/MeshGeometryStamped`: a whole mesh, named by `uuid`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshGeometryStamped {
+    pub header: Header,
+    pub uuid: String,
+    pub mesh_geometry: MeshGeometry,
+}
+ros_type!(MeshGeometryStamped, "mesh_msgs/msg/MeshGeometryStamped");
+
 /// `garment_sim_msgs/msg/Pin` (msg/garment_sim_msgs/msg/Pin.msg).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct Pin {

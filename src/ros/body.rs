@@ -1,14 +1,20 @@
-//! What the `body` messages (`garment_sim_msgs/msg/Body`) do: a deforming
-//! body's topology, sent once, then its vertex positions frame by frame.
-//! Every message is checked in full before it is taken: a bad one is refused
+//! What the `body` messages (`garment_sim_msgs/msg/Body`) and the
+//! `body_mesh` messages (`mesh_msgs/msg/MeshGeometryStamped`) do: a
+//! deforming body's topology, then its vertex positions frame by frame. Both
+//! are read into one form ([`BodyInput`]) and go through the same checks:
+//! every message is checked in full before it is taken; a bad one is refused
 //! with an error naming the body, the field and the index, counted by kind,
 //! and the body is left as it was.
 //!
 //! Policy (docs/bodies.md):
-//! - a message with `triangles` starts (or replaces) the body `id`: its
-//!   topology and its first frame;
-//! - a message without `triangles` is a frame of a body already started, with
-//!   as many vertices;
+//! - a `Body` with `triangles` starts (or replaces) the body `id`: its
+//!   topology and its first frame; a `Body` without `triangles` is a frame
+//!   of a body already started, with as many vertices;
+//! - a `MeshGeometryStamped` carries its whole mesh every time: its faces
+//!   start (or replace) the body `uuid` when the body has none yet or other
+//!   faces (other indices, or another number of them); with the very faces
+//!   the body has, it is a frame, with as many vertices; no faces or no
+//!   vertices is refused (empty);
 //! - a frame stamped at or before the body's last accepted frame is out of
 //!   order, and refused;
 //! - a frame stamped at or before the simulation's time is late: it is taken
@@ -47,6 +53,8 @@ pub enum Refusal {
     OutOfOrder,
     /// Another frame than the simulation's.
     Frame,
+    /// A topology without vertices or without triangles.
+    Empty,
 }
 
 impl Refusal {
@@ -58,6 +66,7 @@ impl Refusal {
             Refusal::Triangles => "triangles",
             Refusal::OutOfOrder => "out_of_order",
             Refusal::Frame => "frame",
+            Refusal::Empty => "empty",
         }
     }
 }
@@ -86,10 +95,90 @@ pub enum BodyUpdate {
     },
 }
 
+/// The message a body came in: it names the fields in refusals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    /// `garment_sim_msgs/msg/Body`.
+    Body,
+    /// `mesh_msgs/msg/MeshGeometryStamped`.
+    Mesh,
+}
+
+impl Source {
+    /// Where coordinate `k` (vertex `k / 3`, axis `k % 3`) is in the message.
+    fn coordinate(self, k: usize) -> String {
+        let axis = ["x", "y", "z"][k % 3];
+        match self {
+            Source::Body => format!("positions[{k}] (vertex {}, {axis})", k / 3),
+            Source::Mesh => format!("mesh_geometry.vertices[{}].{axis}", k / 3),
+        }
+    }
+
+    /// Where vertex index `k` (of triangle `k / 3`) is in the message.
+    fn index(self, k: usize) -> String {
+        match self {
+            Source::Body => format!("triangles[{k}] (triangle {})", k / 3),
+            Source::Mesh => format!("mesh_geometry.faces[{}].vertex_indices[{}]", k / 3, k % 3),
+        }
+    }
+
+    /// Triangle `t` as the message names it.
+    fn triangle(self, t: usize) -> String {
+        match self {
+            Source::Body => format!("triangle {t}"),
+            Source::Mesh => format!("mesh_geometry.faces[{t}]"),
+        }
+    }
+
+    /// How a sender changes a body's topology.
+    fn new_topology(self) -> &'static str {
+        match self {
+            Source::Body => "send new triangles to change it",
+            Source::Mesh => "other faces start a new topology",
+        }
+    }
+}
+
+/// A body message as the checks read it, whichever type it came in.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyInput {
+    pub source: Source,
+    pub id: String,
+    pub frame_id: String,
+    /// When the positions hold, s (the header's stamp).
+    pub time: f64,
+    /// A topology, three vertex indices per triangle: the body starts (or
+    /// restarts) here. `None`: a frame of the body.
+    pub triangles: Option<Vec<u32>>,
+    /// x, y, z of every vertex in turn, m.
+    pub positions: Vec<f64>,
+    /// Contact thickness, m, and friction coefficient; NaN: the defaults.
+    pub thickness: f64,
+    pub friction: f64,
+}
+
+impl BodyInput {
+    /// A `Body`: a topology when `triangles` is not empty, else a frame.
+    pub fn from_body(m: &msgs::Body) -> BodyInput {
+        BodyInput {
+            source: Source::Body,
+            id: m.id.clone(),
+            frame_id: m.header.frame_id.clone(),
+            time: m.header.stamp.secs(),
+            triangles: (!m.triangles.is_empty()).then(|| m.triangles.clone()),
+            positions: m.positions.iter().map(|&v| v as f64).collect(),
+            thickness: m.thickness,
+            friction: m.friction,
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 struct Stream {
     vertices: usize,
     last: f64,
+    /// The topology, three vertex indices per triangle.
+    triangles: Vec<u32>,
 }
 
 /// A body's motion fed frame by frame: frames at increasing times (the
@@ -170,11 +259,38 @@ pub struct BodyStreams {
 }
 
 impl BodyStreams {
+    /// A `MeshGeometryStamped` as a body message: a frame of the body `uuid`
+    /// when its faces are that body's topology (the same indices in the same
+    /// order), else a topology with `thickness` and `friction` (the node's
+    /// parameters). Vertex normals are not read.
+    pub fn mesh_input(
+        &self,
+        m: &msgs::MeshGeometryStamped,
+        thickness: f64,
+        friction: f64,
+    ) -> BodyInput {
+        let g = &m.mesh_geometry;
+        let faces = || g.faces.iter().flat_map(|f| f.vertex_indices);
+        let same = self.streams.get(&m.uuid).is_some_and(|s| {
+            s.triangles.len() == 3 * g.faces.len() && faces().eq(s.triangles.iter().copied())
+        });
+        BodyInput {
+            source: Source::Mesh,
+            id: m.uuid.clone(),
+            frame_id: m.header.frame_id.clone(),
+            time: m.header.stamp.secs(),
+            triangles: (!same).then(|| faces().collect()),
+            positions: g.vertices.iter().flat_map(|p| [p.x, p.y, p.z]).collect(),
+            thickness,
+            friction,
+        }
+    }
+
     /// Checks a message against the bodies so far; `now` is the simulation's
     /// time and `dt` its step, `frame_id` its frame.
     pub fn accept(
         &mut self,
-        m: &msgs::Body,
+        m: &BodyInput,
         frame_id: &str,
         now: f64,
         dt: f64,
@@ -193,20 +309,20 @@ impl BodyStreams {
 
     fn check(
         &mut self,
-        m: &msgs::Body,
+        m: &BodyInput,
         frame_id: &str,
         now: f64,
         dt: f64,
     ) -> Result<BodyUpdate, (Refusal, String)> {
-        let id = &m.id;
+        let (id, src) = (&m.id, m.source);
         let fail = |k: Refusal, what: String| Err((k, format!("body {id:?}: {what}")));
-        if !m.header.frame_id.is_empty() && m.header.frame_id != frame_id {
+        if !m.frame_id.is_empty() && m.frame_id != frame_id {
             return fail(
                 Refusal::Frame,
                 format!(
                     "header.frame_id {:?} is not the simulation frame {frame_id:?} (the node \
                      does not use TF: send positions in {frame_id:?})",
-                    m.header.frame_id
+                    m.frame_id
                 ),
             );
         }
@@ -223,21 +339,16 @@ impl BodyStreams {
         if let Some(k) = m.positions.iter().position(|v| !v.is_finite()) {
             return fail(
                 Refusal::NonFinite,
-                format!(
-                    "positions[{k}] (vertex {}, {}) is {}",
-                    k / 3,
-                    ["x", "y", "z"][k % 3],
-                    m.positions[k]
-                ),
+                format!("{} is {}", src.coordinate(k), m.positions[k]),
             );
         }
         let positions: Vec<[f64; 3]> = m
             .positions
             .chunks_exact(3)
-            .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+            .map(|p| [p[0], p[1], p[2]])
             .collect();
-        let time = m.header.stamp.secs();
-        if m.triangles.is_empty() {
+        let time = m.time;
+        let Some(triangles) = &m.triangles else {
             let Some(s) = self.streams.get_mut(id) else {
                 return fail(
                     Refusal::NoTopology,
@@ -246,13 +357,16 @@ impl BodyStreams {
                         .into(),
                 );
             };
+            if n == 0 {
+                return fail(Refusal::Empty, "no vertices".into());
+            }
             if n != s.vertices {
                 return fail(
                     Refusal::VertexCount,
                     format!(
-                        "{n} vertices, the body's topology has {} (send new triangles to \
-                         change it)",
-                        s.vertices
+                        "{n} vertices, the body's topology has {} ({})",
+                        s.vertices,
+                        src.new_topology()
                     ),
                 );
             }
@@ -273,6 +387,10 @@ impl BodyStreams {
                 time: if late { now + dt } else { time },
                 late,
             });
+        };
+        if n == 0 || triangles.is_empty() {
+            let what = if n == 0 { "vertices" } else { "triangles" };
+            return fail(Refusal::Empty, format!("a topology with no {what}"));
         }
         if !(3..=MAX_BODY_VERTICES).contains(&n) {
             return fail(
@@ -280,32 +398,34 @@ impl BodyStreams {
                 format!("{n} vertices: a body has 3 to {MAX_BODY_VERTICES} (MAX_BODY_VERTICES)"),
             );
         }
-        if !m.triangles.len().is_multiple_of(3) {
+        if !triangles.len().is_multiple_of(3) {
             return fail(
                 Refusal::Triangles,
                 format!(
                     "triangles has {} indices, not 3 per triangle",
-                    m.triangles.len()
+                    triangles.len()
                 ),
             );
         }
-        if let Some(k) = m.triangles.iter().position(|&v| v as usize >= n) {
+        if let Some(k) = triangles.iter().position(|&v| v as usize >= n) {
             return fail(
                 Refusal::Triangles,
                 format!(
-                    "triangles[{k}] (triangle {}) is vertex {}, out of range (0 to {})",
-                    k / 3,
-                    m.triangles[k],
+                    "{} is vertex {}, out of range (0 to {})",
+                    src.index(k),
+                    triangles[k],
                     n - 1
                 ),
             );
         }
-        if let Some(t) = m
-            .triangles
+        if let Some(t) = triangles
             .chunks_exact(3)
             .position(|t| t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
         {
-            return fail(Refusal::Triangles, format!("triangle {t} repeats a vertex"));
+            return fail(
+                Refusal::Triangles,
+                format!("{} repeats a vertex", src.triangle(t)),
+            );
         }
         for (what, v) in [("thickness", m.thickness), ("friction", m.friction)] {
             if v.is_infinite() {
@@ -317,12 +437,12 @@ impl BodyStreams {
             Stream {
                 vertices: n,
                 last: time,
+                triangles: triangles.clone(),
             },
         );
         Ok(BodyUpdate::Start {
             id: id.clone(),
-            triangles: m
-                .triangles
+            triangles: triangles
                 .chunks_exact(3)
                 .map(|t| [t[0], t[1], t[2]])
                 .collect(),
@@ -344,15 +464,15 @@ impl BodyStreams {
         self.motions.get(id).map(|m| &m.0)
     }
 
-    /// Applies a `body` message to the simulation: a topology makes (or
-    /// replaces) the obstacle `id`, a body moved by its frames; a frame
-    /// becomes the body's position at its stamp. Returns what to log (empty
-    /// for a frame: they come at the avatar's frame rate).
+    /// Applies a body message (`body` or `body_mesh`) to the simulation: a
+    /// topology makes (or replaces) the obstacle `id`, a body moved by its
+    /// frames; a frame becomes the body's position at its stamp. Returns what
+    /// to log (empty for a frame: they come at the avatar's frame rate).
     pub fn apply(
         &mut self,
         sim: &mut Simulation,
         reg: &mut ObstacleRegistry,
-        m: &msgs::Body,
+        m: &BodyInput,
         frame_id: &str,
     ) -> Result<String, String> {
         let (now, dt) = (sim.time, sim.params().dt);
@@ -365,6 +485,7 @@ impl BodyStreams {
                 friction,
                 ..
             } => {
+                let count = triangles.len();
                 let motion = Arc::new(StreamedMotion::new(
                     positions.iter().map(|p| V::from(*p)).collect(),
                 ));
@@ -405,7 +526,7 @@ impl BodyStreams {
                     "{} body {id:?}: {} vertices, {} triangles",
                     if replaced { "replaced" } else { "added" },
                     positions.len(),
-                    m.triangles.len() / 3
+                    count
                 ))
             }
             BodyUpdate::Frame {
@@ -417,7 +538,7 @@ impl BodyStreams {
                 let Some((motion, t0)) = self.motions.get(&id).filter(|_| reg.contains(&id)) else {
                     self.remove(&id);
                     return Err(format!(
-                        "body {id:?}: its obstacle was removed (send the triangles again)"
+                        "body {id:?}: its obstacle was removed (a new topology starts it again)"
                     ));
                 };
                 motion.push(
@@ -442,8 +563,8 @@ impl BodyStreams {
 mod tests {
     use super::*;
 
-    fn msg(id: &str, t: f64, tris: Vec<u32>, pos: Vec<f32>) -> msgs::Body {
-        msgs::Body {
+    fn msg(id: &str, t: f64, tris: Vec<u32>, pos: Vec<f32>) -> BodyInput {
+        BodyInput::from_body(&msgs::Body {
             header: msgs::Header {
                 stamp: msgs::Time::from_secs(t),
                 frame_id: "world".into(),
@@ -453,7 +574,7 @@ mod tests {
             positions: pos,
             thickness: f64::NAN,
             friction: f64::NAN,
-        }
+        })
     }
 
     fn quad(z: f32) -> Vec<f32> {
@@ -541,17 +662,163 @@ mod tests {
             0.01,
         );
         assert_eq!(e.unwrap_err().0, Refusal::VertexCount);
+        let e = b.accept(&msg("b", 0.0, vec![0, 1, 2], vec![]), "world", 0.0, 0.01);
+        assert_eq!(e.unwrap_err().0, Refusal::Empty);
         let (taken, late, refused) = b.counts();
         assert_eq!((taken, late), (4, 1));
         assert_eq!(
             refused,
             vec![
+                ("empty", 1),
                 ("frame", 1),
                 ("no_topology", 1),
                 ("non_finite", 1),
                 ("out_of_order", 1),
                 ("triangles", 3),
                 ("vertex_count", 2)
+            ]
+        );
+    }
+
+    fn mesh(id: &str, t: f64, faces: &[[u32; 3]], v: &[[f64; 3]]) -> msgs::MeshGeometryStamped {
+        msgs::MeshGeometryStamped {
+            header: msgs::Header {
+                stamp: msgs::Time::from_secs(t),
+                frame_id: "world".into(),
+            },
+            uuid: id.into(),
+            mesh_geometry: msgs::MeshGeometry {
+                vertices: v.iter().map(|&[x, y, z]| msgs::Point { x, y, z }).collect(),
+                vertex_normals: vec![],
+                faces: faces
+                    .iter()
+                    .map(|&vertex_indices| msgs::MeshTriangleIndices { vertex_indices })
+                    .collect(),
+            },
+        }
+    }
+
+    fn square(z: f64) -> Vec<[f64; 3]> {
+        vec![[0., 0., z], [1., 0., z], [1., 1., z], [0., 1., z]]
+    }
+
+    #[test]
+    fn a_mesh_stream_starts_with_new_faces_and_refuses_as_a_body_stream() {
+        let mut b = BodyStreams::default();
+        let faces = [[0, 1, 2], [0, 2, 3]];
+        let take = |b: &mut BodyStreams, m: &msgs::MeshGeometryStamped, now: f64| {
+            let input = b.mesh_input(m, 0.004, 0.5);
+            b.accept(&input, "world", now, 0.01)
+        };
+        // empty: no vertices, or vertices without faces
+        let (k, why) = take(&mut b, &mesh("m", 0.1, &[], &[]), 0.0).unwrap_err();
+        assert_eq!(k, Refusal::Empty);
+        assert!(why.contains("no vertices"), "{why}");
+        let (k, why) = take(&mut b, &mesh("m", 0.1, &[], &square(0.0)), 0.0).unwrap_err();
+        assert_eq!(k, Refusal::Empty);
+        assert!(why.contains("no triangles"), "{why}");
+        // the first mesh with faces is the topology, with the node's thickness and friction
+        match take(&mut b, &mesh("m", 0.1, &faces, &square(0.0)), 0.0) {
+            Ok(BodyUpdate::Start {
+                id,
+                triangles,
+                positions,
+                time,
+                thickness,
+                friction,
+            }) => {
+                assert_eq!(id, "m");
+                assert_eq!(triangles, faces.to_vec());
+                assert_eq!(positions, square(0.0));
+                assert!((time - 0.1).abs() < 1e-12);
+                assert_eq!((thickness, friction), (0.004, 0.5));
+            }
+            r => panic!("{r:?}"),
+        }
+        // the same faces: a frame, float64 positions as they came
+        let mut moved = square(0.25);
+        moved[1][0] = 1.0 + 1e-12;
+        let m = mesh("m", 0.2, &faces, &moved);
+        assert_eq!(b.mesh_input(&m, 0.004, 0.5).triangles, None);
+        match take(&mut b, &m, 0.0) {
+            Ok(BodyUpdate::Frame {
+                positions, late, ..
+            }) => assert!(positions == moved && !late),
+            r => panic!("{r:?}"),
+        }
+        // out of order, another vertex count with the same faces, non-finite, another frame
+        let e = take(&mut b, &mesh("m", 0.15, &faces, &square(0.3)), 0.0);
+        assert_eq!(e.unwrap_err().0, Refusal::OutOfOrder);
+        let mut five = square(0.3);
+        five.push([2.0, 2.0, 0.3]);
+        let (k, why) = take(&mut b, &mesh("m", 0.3, &faces, &five), 0.0).unwrap_err();
+        assert_eq!(k, Refusal::VertexCount);
+        assert!(
+            why.contains("5 vertices") && why.contains("has 4") && why.contains("other faces"),
+            "{why}"
+        );
+        let mut inf = square(0.3);
+        inf[2][1] = f64::INFINITY;
+        let (k, why) = take(&mut b, &mesh("m", 0.3, &faces, &inf), 0.0).unwrap_err();
+        assert_eq!(k, Refusal::NonFinite);
+        assert!(why.contains("mesh_geometry.vertices[2].y is inf"), "{why}");
+        let mut other = mesh("m", 0.3, &faces, &square(0.3));
+        other.header.frame_id = "map".into();
+        assert_eq!(take(&mut b, &other, 0.0).unwrap_err().0, Refusal::Frame);
+        // other faces are a new topology, checked as one: out of range, a repeated vertex
+        let (k, why) = take(
+            &mut b,
+            &mesh("m", 0.3, &[[0, 1, 2], [0, 2, 9]], &square(0.3)),
+            0.0,
+        )
+        .unwrap_err();
+        assert_eq!(k, Refusal::Triangles);
+        assert!(
+            why.contains("mesh_geometry.faces[1].vertex_indices[2] is vertex 9"),
+            "{why}"
+        );
+        let (k, why) = take(&mut b, &mesh("m", 0.3, &[[0, 1, 1]], &square(0.3)), 0.0).unwrap_err();
+        assert_eq!(k, Refusal::Triangles);
+        assert!(
+            why.contains("mesh_geometry.faces[0] repeats a vertex"),
+            "{why}"
+        );
+        let e = take(&mut b, &mesh("m", 0.3, &[], &square(0.3)), 0.0);
+        assert_eq!(e.unwrap_err().0, Refusal::Empty);
+        // the refusals left the body as it was: the next frame is taken, a late one retimed
+        assert!(take(&mut b, &mesh("m", 0.3, &faces, &square(0.3)), 0.0).is_ok());
+        match take(&mut b, &mesh("m", 0.35, &faces, &square(0.4)), 0.5) {
+            Ok(BodyUpdate::Frame { time, late, .. }) => {
+                assert!(late && (time - 0.51).abs() < 1e-12)
+            }
+            r => panic!("{r:?}"),
+        }
+        // other faces with five vertices replace the topology; then five is a frame
+        let five_faces = [[0, 1, 2], [0, 2, 3], [2, 1, 4]];
+        assert!(matches!(
+            take(&mut b, &mesh("m", 0.6, &five_faces, &five), 0.5),
+            Ok(BodyUpdate::Start { .. })
+        ));
+        assert!(matches!(
+            take(&mut b, &mesh("m", 0.7, &five_faces, &five), 0.5),
+            Ok(BodyUpdate::Frame { late: false, .. })
+        ));
+        // and four vertices with the old faces start it again (a new topology)
+        assert!(matches!(
+            take(&mut b, &mesh("m", 0.8, &faces, &square(0.5)), 0.5),
+            Ok(BodyUpdate::Start { .. })
+        ));
+        let (taken, late, refused) = b.counts();
+        assert_eq!((taken, late), (7, 1));
+        assert_eq!(
+            refused,
+            vec![
+                ("empty", 3),
+                ("frame", 1),
+                ("non_finite", 1),
+                ("out_of_order", 1),
+                ("triangles", 2),
+                ("vertex_count", 1)
             ]
         );
     }

@@ -20,6 +20,7 @@
 //! | `obstacles` | garment_sim_msgs/msg/Obstacle | in: add, move, remove |
 //! | `pins` | garment_sim_msgs/msg/Pin | in: pin, move, release |
 //! | `body` | garment_sim_msgs/msg/Body | in: a deforming body's topology, then its frames |
+//! | `body_mesh` | mesh_msgs/msg/MeshGeometryStamped | in: a deforming body, the whole mesh every frame |
 //! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameters `scene`, `self_collision`) |
 //! | `~/set_paused` | std_srvs/srv/SetBool | |
 //! | `~/step` | garment_sim_msgs/srv/Step | N steps while paused |
@@ -89,6 +90,7 @@ pub struct Names {
     pub obstacles: String,
     pub pins: String,
     pub body: String,
+    pub body_mesh: String,
     pub reset: String,
     pub set_paused: String,
     pub step: String,
@@ -112,6 +114,7 @@ impl Names {
             obstacles: r("obstacles"),
             pins: r("pins"),
             body: r("body"),
+            body_mesh: r("body_mesh"),
             reset: r("~/reset"),
             set_paused: r("~/set_paused"),
             step: r("~/step"),
@@ -267,7 +270,8 @@ fn help() -> String {
          Parameters (name, type, default):\n{}\
          Publishes: cloth/points, cloth/mesh, obstacles/markers, diagnostics, scene_description, /clock, /rosout;\n\
          with a body (a trial's, or a scene obstacle with id body): body/wrench, body/points\n\
-         Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin), body (garment_sim_msgs/Body)\n\
+         Subscribes: obstacles (garment_sim_msgs/Obstacle), pins (garment_sim_msgs/Pin), body (garment_sim_msgs/Body),\n\
+         \x20           body_mesh (mesh_msgs/MeshGeometryStamped)\n\
          Services: ~/reset (std_srvs/Trigger), ~/set_paused (std_srvs/SetBool), ~/step (garment_sim_msgs/Step)\n\
          Environment: ROS_DOMAIN_ID. See docs/ros.md and launch-notes.md.",
         params::help_lines()
@@ -307,6 +311,7 @@ struct Endpoints {
     obstacles: ros2_client::Subscription<msgs::Obstacle>,
     pins: ros2_client::Subscription<msgs::Pin>,
     body: ros2_client::Subscription<msgs::Body>,
+    body_mesh: ros2_client::Subscription<msgs::MeshGeometryStamped>,
     reset: ros2_client::Server<msgs::TriggerRequest, msgs::TriggerResponse>,
     set_paused: ros2_client::Server<msgs::SetBoolRequest, msgs::SetBoolResponse>,
     step: ros2_client::Server<msgs::StepRequest, msgs::StepResponse>,
@@ -366,6 +371,7 @@ impl Endpoints {
             obstacles: subscription!(msgs::Obstacle, &names.obstacles),
             pins: subscription!(msgs::Pin, &names.pins),
             body: subscription!(msgs::Body, &names.body),
+            body_mesh: subscription!(msgs::MeshGeometryStamped, &names.body_mesh),
             reset: server!(
                 msgs::TriggerRequest,
                 msgs::TriggerResponse,
@@ -634,7 +640,7 @@ impl Node {
         }
     }
 
-    /// Applies the obstacle and pin messages that arrived since the last
+    /// Applies the obstacle, body and pin messages that arrived since the last
     /// pass, at most `max_messages_per_step` per topic (the rest are dropped
     /// and counted); refused ones are logged and counted.
     fn take_messages(&mut self) {
@@ -659,8 +665,20 @@ impl Node {
         let topic = self.names.body.clone();
         self.apply_taken(taken, &topic, |node, m| {
             let l = &mut node.loaded;
+            let input = super::body::BodyInput::from_body(m);
             l.bodies
-                .apply(&mut l.sim, &mut l.registry, m, &node.settings.frame_id)
+                .apply(&mut l.sim, &mut l.registry, &input, &node.settings.frame_id)
+        });
+        let meshes = &self.io.body_mesh;
+        let taken = drain(|| meshes.take().map(|m| m.map(|(m, _)| m)), cap);
+        let topic = self.names.body_mesh.clone();
+        self.apply_taken(taken, &topic, |node, m| {
+            let (l, s) = (&mut node.loaded, &node.settings);
+            let input = l
+                .bodies
+                .mesh_input(m, s.body_mesh_thickness, s.body_mesh_friction);
+            l.bodies
+                .apply(&mut l.sim, &mut l.registry, &input, &s.frame_id)
         });
         let pins = &self.io.pins;
         let taken = drain(|| pins.take().map(|m| m.map(|(m, _)| m)), cap);

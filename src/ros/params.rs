@@ -28,6 +28,9 @@ pub struct Settings {
     pub foxglove: String,
     pub max_messages_per_step: i64,
     pub max_mesh_triangles: i64,
+    /// Contact thickness (m) and friction of the bodies streamed on `body_mesh`.
+    pub body_mesh_thickness: f64,
+    pub body_mesh_friction: f64,
     /// `None`: the scene's or trial's own `self_collision`.
     pub self_collision: Option<bool>,
 }
@@ -49,6 +52,8 @@ impl Default for Settings {
             foxglove: String::new(),
             max_messages_per_step: 100,
             max_mesh_triangles: 200_000,
+            body_mesh_thickness: crate::collision::DEFAULT_OBSTACLE_THICKNESS,
+            body_mesh_friction: crate::collision::DEFAULT_FRICTION,
             self_collision: None,
         }
     }
@@ -393,6 +398,29 @@ pub const PARAMETERS: &[Parameter] = &[
                 return Err("must be ≥ 1".into());
             }
             s.max_mesh_triangles = k.min(crate::collision::MAX_MESH_TRIANGLES as i64);
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "body_mesh_thickness",
+        kind: Kind::Double,
+        runtime: false,
+        description: "contact thickness of the bodies streamed on `body_mesh` \
+                      (mesh_msgs/MeshGeometryStamped carries none), m; > 0",
+        get: |s| Value::Double(s.body_mesh_thickness),
+        put: |s, v| {
+            s.body_mesh_thickness = nonneg(v, true, "must be > 0 m")?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "body_mesh_friction",
+        kind: Kind::Double,
+        runtime: false,
+        description: "Coulomb friction coefficient of the bodies streamed on `body_mesh`; ≥ 0",
+        get: |s| Value::Double(s.body_mesh_friction),
+        put: |s, v| {
+            s.body_mesh_friction = nonneg(v, false, "must be ≥ 0")?;
             Ok(())
         },
     },

@@ -45,6 +45,16 @@ impl Aabb {
         (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
     }
 
+    /// The widest gap between the two boxes along an axis (negative or 0
+    /// when they overlap): a lower bound of the distance between any point
+    /// of one and any point of the other.
+    #[inline]
+    pub fn gap(&self, o: &Aabb) -> f64 {
+        (0..3)
+            .map(|k| (o.lo[k] - self.hi[k]).max(self.lo[k] - o.hi[k]))
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
     /// Squared distance from `p` to the box (0 inside).
     pub fn distance2(&self, p: &Vector3<f64>) -> f64 {
         let mut d = 0.0;

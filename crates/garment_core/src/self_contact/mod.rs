@@ -164,10 +164,12 @@ struct Active {
 pub struct SelfContact {
     tris: Vec<[usize; 3]>,
     edges: Vec<[usize; 2]>,
-    tri_edges: Vec<[u32; 3]>,
-    /// The triangle each vertex and edge is tested from.
-    vert_owner: Vec<u32>,
-    edge_owner: Vec<u32>,
+    /// The vertices and edges each triangle is the one to test them from
+    /// (the first triangle that holds them), in the triangle's order (CSR).
+    own_ptr: Vec<u32>,
+    own_verts: Vec<u32>,
+    own_edge_ptr: Vec<u32>,
+    own_edges: Vec<u32>,
     /// Vertices a seam stitch joins to each vertex (CSR).
     sewn_ptr: Vec<u32>,
     sewn: Vec<u32>,
@@ -184,6 +186,8 @@ pub struct SelfContact {
     weight: Vec<f64>,
     vbox: Vec<Aabb>,
     ebox: Vec<Aabb>,
+    /// The triangles' boxes (the tree's leaves).
+    tbox: Vec<Aabb>,
     pairs: Vec<Pair>,
     /// The candidate list (in the tree's order), the vertices' path boxes when it was
     /// built, its margin δ (m), whether it exists, and how often it was
@@ -265,6 +269,18 @@ impl SelfContact {
             sewn.extend(l);
             sewn_ptr.push(sewn.len() as u32);
         }
+        let (mut own_ptr, mut own_verts) = (vec![0u32], Vec::new());
+        let (mut own_edge_ptr, mut own_edges) = (vec![0u32], Vec::new());
+        for (k, (t, te)) in tris.iter().zip(&tri_edges).enumerate() {
+            own_verts.extend(
+                t.iter()
+                    .filter(|&&v| vert_owner[v] == k as u32)
+                    .map(|&v| v as u32),
+            );
+            own_ptr.push(own_verts.len() as u32);
+            own_edges.extend(te.iter().filter(|&&e| edge_owner[e as usize] == k as u32));
+            own_edge_ptr.push(own_edges.len() as u32);
+        }
         let max_thickness = thickness.iter().copied().fold(0.0, f64::max);
         let mean_edge = if edges.is_empty() {
             0.0
@@ -278,9 +294,10 @@ impl SelfContact {
         Ok(SelfContact {
             tris: tris.to_vec(),
             edges,
-            tri_edges,
-            vert_owner,
-            edge_owner,
+            own_ptr,
+            own_verts,
+            own_edge_ptr,
+            own_edges,
             sewn_ptr,
             sewn,
             thickness,
@@ -293,6 +310,7 @@ impl SelfContact {
             weight: vec![0.0; n],
             vbox: vec![Aabb::empty(); n],
             ebox: Vec::new(),
+            tbox: Vec::new(),
             pairs: Vec::new(),
             listed: Vec::new(),
             listed_at: Vec::new(),
@@ -399,12 +417,14 @@ impl SelfContact {
     /// The tree's boxes from the vertices'.
     fn refit_tree(&mut self) {
         let vbox = &self.vbox;
-        let tris = &self.tris;
-        self.bvh.refit(|t| {
-            vbox[tris[t][0]]
-                .merge(&vbox[tris[t][1]])
-                .merge(&vbox[tris[t][2]])
-        });
+        self.tbox.clear();
+        self.tbox.extend(
+            self.tris
+                .iter()
+                .map(|t| vbox[t[0]].merge(&vbox[t[1]]).merge(&vbox[t[2]])),
+        );
+        let tbox = &self.tbox;
+        self.bvh.refit(|t| tbox[t]);
     }
 
     /// Whether the candidate list holds for paths `x0 → x1`: every vertex's
@@ -488,27 +508,30 @@ impl SelfContact {
         let mut pairs = std::mem::take(&mut self.pairs);
         let mut stack = std::mem::take(&mut self.stack);
         pairs.clear();
+        // per triangle pair: the vertices and edges each owns (so that a
+        // pair is found once), the cheap box test before the seams' lookup
+        let owned =
+            |k: usize| &self.own_verts[self.own_ptr[k] as usize..self.own_ptr[k + 1] as usize];
+        let owned_edges = |k: usize| {
+            &self.own_edges[self.own_edge_ptr[k] as usize..self.own_edge_ptr[k + 1] as usize]
+        };
         self.bvh.self_pairs(&mut stack, |a, b| {
             for (s, t) in [(a, b), (b, a)] {
                 let tt = self.tris[t];
-                let mut tb = self.vbox[tt[0]].merge(&self.vbox[tt[1]]);
-                tb = tb.merge(&self.vbox[tt[2]]);
-                for &p in &self.tris[s] {
-                    if self.vert_owner[p] as usize == s
-                        && !self.tri_related(p, &tt)
-                        && self.vbox[p].overlaps(&tb)
-                    {
+                let tb = &self.tbox[t];
+                for &p in owned(s) {
+                    let p = p as usize;
+                    if self.vbox[p].overlaps(tb) && !self.tri_related(p, &tt) {
                         pairs.push(Pair::Vf(p as u32, t as u32));
                     }
                 }
             }
-            for &ea in &self.tri_edges[a] {
-                if self.edge_owner[ea as usize] as usize != a {
-                    continue;
-                }
+            let eb_all = owned_edges(b);
+            for &ea in owned_edges(a) {
                 let [p, q] = self.edges[ea as usize];
-                for &eb in &self.tri_edges[b] {
-                    if self.edge_owner[eb as usize] as usize != b {
+                let ba = &self.ebox[ea as usize];
+                for &eb in eb_all {
+                    if !ba.overlaps(&self.ebox[eb as usize]) {
                         continue;
                     }
                     let [r, s] = self.edges[eb as usize];
@@ -519,9 +542,7 @@ impl SelfContact {
                     {
                         continue;
                     }
-                    if self.ebox[ea as usize].overlaps(&self.ebox[eb as usize]) {
-                        pairs.push(Pair::Ee(ea, eb));
-                    }
+                    pairs.push(Pair::Ee(ea, eb));
                 }
             }
         });
@@ -623,6 +644,25 @@ impl SelfContact {
     fn first_hit(&self, p: Pair, i: [usize; 4], h: f64, eta: f64) -> Option<Closest> {
         let a: [V; 4] = std::array::from_fn(|k| self.x0[i[k]]);
         let b: [V; 4] = std::array::from_fn(|k| self.x0[i[k]] + self.vb[i[k]] * h);
+        // the two primitives' swept boxes farther apart than `eta` along an
+        // axis: no point of one comes within `eta` of the other (the cheap
+        // exclusion of the pairs of a flat cloth's neighbouring triangles;
+        // the margin keeps it clear of the distances' round-off)
+        let split = match p {
+            Pair::Vf(..) => 1,
+            Pair::Ee(..) => 2,
+        };
+        let sweep = |ks: std::ops::Range<usize>| {
+            let mut bb = Aabb::empty();
+            for k in ks {
+                bb.add(&a[k]);
+                bb.add(&b[k]);
+            }
+            bb
+        };
+        if sweep(0..split).gap(&sweep(split..4)) > eta * (1.0 + 1e-9) {
+            return None;
+        }
         // the coplanarity volume with the moving vertex / first edge's
         // start as origin
         let order = match p {
