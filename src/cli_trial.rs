@@ -206,16 +206,16 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     let mut sew = crate::progress_printer("sewing".into());
     let mut dress = crate::progress_printer("dressing".into());
     let wall = std::time::Instant::now();
-    let mut end = f64::NAN;
+    let mut t0 = f64::NAN;
     let mut run = garment_sim::dressing::run_trial(
         t,
         ov,
         &mut |_, _, x, of| sew(x, of),
-        &mut |sim, _| {
-            if end.is_nan() {
-                end = sim.time;
+        &mut |sim, d, _| {
+            if t0.is_nan() {
+                t0 = sim.time - sim.params().dt;
             }
-            dress(sim.time - end, 1.0)
+            dress(sim.time - t0, d.t_end - t0)
         },
         &|| stop.load(Ordering::Relaxed),
     )?;

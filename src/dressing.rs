@@ -284,7 +284,11 @@ impl Arm {
             .context("the body has no vertices")?;
         let edges = mesh_edges(t);
         let g = geodesic(v, &edges, tip);
-        let top = g.iter().copied().filter(|d| d.is_finite()).fold(0.0, f64::max);
+        let top = g
+            .iter()
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
         let mut rings = Vec::new();
         let mut k = 1;
         while k as f64 * 0.01 < top.min(1.5) {
@@ -539,8 +543,7 @@ impl Dressing {
         }
         let start = arm.axis[0];
         let out = (arm.axis[0] - arm.axis[1]).normalize();
-        let base = UnitQuaternion::rotation_between(&n, &out)
-            .unwrap_or_else(|| {
+        let base = UnitQuaternion::rotation_between(&n, &out).unwrap_or_else(|| {
             UnitQuaternion::from_axis_angle(
                 &nalgebra::Unit::new_normalize(up_across(&out)),
                 std::f64::consts::PI,
@@ -580,7 +583,11 @@ impl Dressing {
         let x = &sim.cloth.x;
         let top = *cuff
             .iter()
-            .max_by(|&&a, &&b| (x[a] - start).dot(&up0).total_cmp(&(x[b] - start).dot(&up0)))
+            .max_by(|&&a, &&b| {
+                (x[a] - start)
+                    .dot(&up0)
+                    .total_cmp(&(x[b] - start).dot(&up0))
+            })
             .expect("a cuff");
         let mut gripped: Vec<usize> = cuff
             .iter()
@@ -742,12 +749,12 @@ impl Dressing {
         }
     }
 
-    /// Runs the dressing to its end; `on_step(sim, row)` after every step,
+    /// Runs the dressing to its end; `on_step(sim, self, row)` after every step,
     /// `stop()` ends it early. The rows, one per step.
     pub fn run(
         &self,
         sim: &mut Simulation,
-        on_step: &mut dyn FnMut(&Simulation, &DressingRow),
+        on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
         stop: &dyn Fn() -> bool,
     ) -> Result<Vec<DressingRow>> {
         let mut rows = Vec::new();
@@ -755,7 +762,7 @@ impl Dressing {
             sim.step()
                 .with_context(|| format!("dressing, t = {:.4} s", sim.time))?;
             let r = self.row(sim);
-            on_step(sim, &r);
+            on_step(sim, self, &r);
             rows.push(r);
         }
         Ok(rows)
@@ -818,7 +825,7 @@ pub fn run_trial(
     trial: &crate::trial::Trial,
     ov: &crate::trial::TrialOverrides,
     sewing_progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
-    on_step: &mut dyn FnMut(&Simulation, &DressingRow),
+    on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
     stop: &dyn Fn() -> bool,
 ) -> Result<DressingRun> {
     let d = trial
@@ -842,7 +849,8 @@ pub fn run_trial(
     let wall = Instant::now();
     let rows = dressing.run(&mut sim, on_step, stop)?;
     let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());
-    report.final_distance_to_shoulder_m = (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();
+    report.final_distance_to_shoulder_m =
+        (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();
     Ok(DressingRun {
         sim,
         garment: g,

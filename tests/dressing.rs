@@ -1,0 +1,238 @@
+//! Dressing (issue 22): the shipped dressing trial, where a gripper pulls the
+//! T-shirt's left sleeve over the body's left arm, and the progress measure.
+
+mod support;
+use garment_sim::dressing::{self, project_on_polyline};
+use garment_sim::trial::{Trial, TrialOverrides};
+use nalgebra::Vector3;
+use std::path::PathBuf;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A ring of `n` points of radius `r` about `c`, in the plane normal to `n_`.
+fn ring(c: Vector3<f64>, n_: Vector3<f64>, r: f64, n: usize) -> Vec<Vector3<f64>> {
+    let n_ = n_.normalize();
+    let e1 = n_.cross(&Vector3::new(0.3, 0.5, 0.7)).normalize();
+    let e2 = n_.cross(&e1);
+    (0..n)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / n as f64;
+            c + (e1 * a.cos() + e2 * a.sin()) * r
+        })
+        .collect()
+}
+
+#[test]
+fn progress_of_a_ring_on_a_straight_and_a_bent_axis() {
+    // straight axis along z from the origin; progress counted from z = 0.1
+    let axis = vec![Vector3::zeros(), Vector3::new(0.0, 0.0, 1.0)];
+    for (h, off) in [(0.3, 0.0), (0.75, 0.02), (0.05, 0.01)] {
+        let c = Vector3::new(off, 0.0, h);
+        let (p, d) = dressing::progress(&axis, 0.1, &ring(c, Vector3::z(), 0.06, 16));
+        assert!((p - (h - 0.1)).abs() < 1e-12, "{p} vs {}", h - 0.1);
+        assert!((d - off).abs() < 1e-12, "{d} vs {off}");
+    }
+    // beyond the end: clamped to the end, at its distance from it
+    let (p, d) = dressing::progress(
+        &axis,
+        0.0,
+        &ring(Vector3::new(0.0, 0.0, 1.3), Vector3::z(), 0.05, 12),
+    );
+    assert!(
+        (p - 1.0).abs() < 1e-12 && (d - 0.3).abs() < 1e-12,
+        "{p} {d}"
+    );
+    // bent axis: up 1 m then along x; a ring 0.4 m along the second leg, 2 cm above it
+    let bent = vec![
+        Vector3::zeros(),
+        Vector3::new(0.0, 0.0, 1.0),
+        Vector3::new(1.0, 0.0, 1.0),
+    ];
+    let (s, d) = project_on_polyline(&bent, &Vector3::new(0.4, 0.0, 1.02));
+    assert!(
+        (s - 1.4).abs() < 1e-12 && (d - 0.02).abs() < 1e-12,
+        "{s} {d}"
+    );
+    let (p, _) = dressing::progress(
+        &bent,
+        0.5,
+        &ring(Vector3::new(0.4, 0.0, 1.0), Vector3::x(), 0.05, 20),
+    );
+    assert!((p - 0.9).abs() < 1e-12, "{p}");
+}
+
+/// The body's triangles, world positions.
+struct Mesh {
+    v: Vec<Vector3<f64>>,
+    t: Vec<[usize; 3]>,
+    lo: Vector3<f64>,
+    hi: Vector3<f64>,
+}
+
+impl Mesh {
+    /// Is `p` inside? Ray parity along a fixed direction close to +z
+    /// (Möller–Trumbore against every triangle whose xy box holds `p`; no
+    /// code shared with the solver's contacts).
+    fn inside(&self, p: &Vector3<f64>) -> bool {
+        if (0..3).any(|k| p[k] < self.lo[k] || p[k] > self.hi[k]) {
+            return false;
+        }
+        let d = Vector3::new(0.0123, 0.0234, 1.0).normalize();
+        let mut hits = 0;
+        for tri in &self.t {
+            let [a, b, c] = tri.map(|k| self.v[k]);
+            let (x0, x1) = (a.x.min(b.x).min(c.x), a.x.max(b.x).max(c.x));
+            let (y0, y1) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
+            // the ray rises at most 0.03 per m of height: a margin of 5 cm
+            if p.x < x0 - 0.05 || p.x > x1 + 0.05 || p.y < y0 - 0.05 || p.y > y1 + 0.05 {
+                continue;
+            }
+            if a.z.max(b.z).max(c.z) < p.z {
+                continue;
+            }
+            let (e1, e2) = (b - a, c - a);
+            let h = d.cross(&e2);
+            let det = e1.dot(&h);
+            if det.abs() < 1e-14 {
+                continue;
+            }
+            let s = p - a;
+            let u = s.dot(&h) / det;
+            let q = s.cross(&e1);
+            let w = d.dot(&q) / det;
+            let dist = e2.dot(&q) / det;
+            if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0 {
+                hits += 1;
+            }
+        }
+        hits % 2 == 1
+    }
+}
+
+/// The shipped dressing trial at 3 cm: runs to the end, no cloth vertex
+/// inside the body at any step (ray parity), the force curve and its plot
+/// written, one row per step, no force on the arm while the garment hangs
+/// past the fingertips.
+#[test]
+fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
+    let path = root().join("config/trials/tshirt_dressing.yaml");
+    let t = Trial::load(&path).unwrap();
+    let ov = TrialOverrides {
+        spacing: Some(0.03),
+        threads: Some(1),
+        ..Default::default()
+    };
+    let (bv, bt) = t.body.local_triangles();
+    let v: Vec<Vector3<f64>> = bv
+        .iter()
+        .map(|p| (t.body.pose * nalgebra::Point3::from(Vector3::from(*p))).coords)
+        .collect();
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for p in &v {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    let mesh = Mesh {
+        v,
+        t: bt.iter().map(|t| t.map(|k| k as usize)).collect(),
+        lo,
+        hi,
+    };
+    let mut steps = 0usize;
+    let mut worst: Option<(f64, usize, [f64; 3])> = None;
+    let run = dressing::run_trial(
+        &t,
+        &ov,
+        &mut |_, _, _, _| {},
+        &mut |sim, _, row| {
+            steps += 1;
+            for (i, p) in sim.cloth.x.iter().enumerate() {
+                if mesh.inside(p) && worst.is_none() {
+                    worst = Some((row.time_s, i, [p.x, p.y, p.z]));
+                }
+            }
+        },
+        &|| false,
+    )
+    .unwrap();
+    assert_eq!(
+        worst, None,
+        "a cloth vertex inside the body (time, vertex, where)"
+    );
+    let r = &run.report;
+    let rows = &run.rows;
+    assert_eq!(rows.len(), steps);
+    assert_eq!(r.steps, steps);
+    let dt = run.sim.params().dt;
+    // the run lasts the hang, the path at its speed and the hold
+    let d = t.file.dressing.as_ref().unwrap();
+    let expect = d.hang + r.path_length_m / d.speed + d.hold;
+    assert!(
+        (rows.last().unwrap().time_s - rows[0].time_s + dt - expect).abs() < 2.0 * dt,
+        "ran {} s, expected {expect} s",
+        rows.last().unwrap().time_s - rows[0].time_s + dt
+    );
+    // the arm found on the body: wrist and shoulder where anny's are
+    // (assets/bodies/anny/README.md: shoulder joints at z = 1.341 m, wrists
+    // at 1.062 m; acromion at x = 0.182 m)
+    let (w, s) = (r.wrist, r.shoulder);
+    assert!((w[2] - 1.062).abs() < 0.03 && w[0] > 0.35, "wrist {w:?}");
+    assert!(
+        (s[2] - 1.32).abs() < 0.04 && (s[0] - 0.2).abs() < 0.04,
+        "shoulder {s:?}"
+    );
+    // the sleeve's opening went over the hand: past the wrist, on the arm
+    assert!(
+        r.final_progress > 0.5,
+        "final progress {}",
+        r.final_progress
+    );
+    assert!(
+        r.final_off_axis_m < 0.05,
+        "cuff centroid {} m off the axis",
+        r.final_off_axis_m
+    );
+    // every row finite; the force on the arm zero while the gripper holds
+    // still past the fingertips (the garment was placed clear of the body)
+    for row in rows {
+        let vals = [
+            row.progress_m,
+            row.arm_force_n,
+            row.arm_normal_force_n,
+            row.body_force_n,
+            row.gripper_force_n,
+        ];
+        assert!(vals.iter().all(|x| x.is_finite()), "{row:?}");
+        if row.time_s <= run.dressing.t_move {
+            assert_eq!(row.arm_force_n, 0.0, "{row:?}");
+        }
+    }
+    assert!(r.peak_arm_force_n > 0.0);
+    let first = r.first_arm_contact_s.expect("the sleeve touched the arm");
+    assert!(first > run.dressing.t_move, "touched at {first} s");
+
+    // the command line writes the curve and its plot
+    let out = support::Scratch::new("dressing");
+    let o = support::garment_sim()
+        .args(["trial"])
+        .arg(&path)
+        .arg("--out")
+        .arg(&*out)
+        .args(["--spacing", "0.03", "--threads", "1"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("dressing.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(lines[0].starts_with("time_s,") && lines[0].contains("arm_force_n"));
+    assert_eq!(lines.len() - 1, steps, "one row per step");
+    let png = std::fs::read(out.join("dressing.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let fit: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("fit.json")).unwrap()).unwrap();
+    let peak = fit["dressing"]["peak_arm_force_n"].as_f64().unwrap();
+    assert!(peak > 0.0 && peak.is_finite(), "{peak}");
+}
