@@ -58,10 +58,8 @@ pub struct DressingFile {
     /// Where the cuff starts: this far past the fingertips along the hand, m.
     #[serde(default = "DressingFile::d_beyond")]
     pub beyond: f64,
-    /// The gripper holds the cuff's vertices within half this of its top, m.
-    #[serde(default = "DressingFile::d_grip")]
-    pub grip_width: f64,
-    /// Height of the gripper above the arm's skin, m.
+    /// Least clearance of the held cuff from the arm's section, m (the
+    /// hoop is made rounder than that where the cuff is long enough).
     #[serde(default = "DressingFile::d_clearance")]
     pub clearance: f64,
 }
@@ -79,11 +77,8 @@ impl DressingFile {
     fn d_beyond() -> f64 {
         0.08
     }
-    fn d_grip() -> f64 {
-        0.05
-    }
     fn d_clearance() -> f64 {
-        0.025
+        0.01
     }
 
     fn check(&self) -> Result<()> {
@@ -105,14 +100,6 @@ impl DressingFile {
             0.5,
             "m",
             "a start near the hand",
-        )?;
-        check_range(
-            "dressing.grip_width",
-            self.grip_width,
-            0.0,
-            0.3,
-            "m",
-            "a gripper's width",
         )?;
         check_range(
             "dressing.clearance",
@@ -406,6 +393,9 @@ pub struct Dressing {
     pub t_end: f64,
     /// The gripper's reference path (the gripped vertices' mean), m.
     pub gripper_path: Vec<(f64, V3)>,
+    /// The gripper's path ends at this axis point (the shoulder, or as far
+    /// as the cuff passes round the arm).
+    pub path_end: usize,
     pub body: Handle<Obstacle>,
     /// Body vertices (world) and the arm's of them, for the force split.
     body_vertices: Vec<V3>,
@@ -453,6 +443,10 @@ pub struct DressingReport {
     pub gripped_vertices: usize,
     /// The gripper's path along the axis, m, and its speed, m/s.
     pub path_length_m: f64,
+    /// Where the path ends (the hoop's centre), as progress from the wrist,
+    /// m and fraction of wrist → shoulder.
+    pub path_end_progress_m: f64,
+    pub path_end_progress: f64,
     pub speed_m_s: f64,
     pub duration_s: f64,
     pub steps: usize,
@@ -472,14 +466,16 @@ pub struct DressingReport {
     pub first_arm_contact_s: Option<f64>,
 }
 
-/// The garment's cuff on the chosen arm: the vertices of the pattern edges
-/// that no seam joins whose centroid lies within 8 cm of the arm's axis
-/// (wrist to shoulder), as sewn on the body.
+/// The garment's cuff on the chosen arm, in order around it: the vertices
+/// of the pattern edges that no seam joins whose centroid lies within 8 cm
+/// of the arm's axis (wrist to shoulder), as sewn on the body; the edges
+/// chained end to nearest end (a vertex where two panels meet comes twice,
+/// once from each).
 pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
     let sewn: std::collections::HashSet<(usize, usize)> =
         g.seams.iter().flat_map(|s| [s.a, s.b]).collect();
     let upper = &arm.axis[arm.wrist_at..];
-    let mut cuff = Vec::new();
+    let mut edges: Vec<Vec<usize>> = Vec::new();
     for (p, panel) in g.panels.iter().enumerate() {
         for (e, verts) in panel.edge_vertices.iter().enumerate() {
             if sewn.contains(&(p, e)) || verts.is_empty() {
@@ -487,19 +483,136 @@ pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
             }
             let c = verts.iter().map(|(i, _)| x[*i]).sum::<V3>() / verts.len() as f64;
             if project_on_polyline(upper, &c).1 < 0.08 {
-                cuff.extend(verts.iter().map(|(i, _)| *i));
+                edges.push(verts.iter().map(|(i, _)| *i).collect());
             }
         }
     }
-    cuff.sort_unstable();
-    cuff.dedup();
-    if cuff.len() < 3 {
+    if edges.iter().map(Vec::len).sum::<usize>() < 3 {
         bail!(
             "no sleeve opening found on the arm: no unsewn pattern edge lies within 8 cm of \
              the arm's axis once the garment is sewn on the body"
         );
     }
+    let mut cuff = edges.remove(0);
+    while !edges.is_empty() {
+        let end = x[*cuff.last().expect("non-empty")];
+        let (k, flip) = (0..edges.len())
+            .flat_map(|k| [(k, false), (k, true)])
+            .min_by(|a, b| {
+                let d = |&(k, f): &(usize, bool)| {
+                    let e = &edges[k];
+                    (x[if f { e[e.len() - 1] } else { e[0] }] - end).norm()
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .expect("edges left");
+        let mut e = edges.remove(k);
+        if flip {
+            e.reverse();
+        }
+        cuff.extend(e);
+    }
     Ok(cuff)
+}
+
+/// A hoop: the closed curve the gripper holds the cuff along, across the
+/// axis, as a dense polygon counter-clockwise about `normal`.
+#[derive(Debug, Clone)]
+struct Hoop {
+    centre: V3,
+    curve: Vec<V3>,
+}
+
+impl Hoop {
+    /// A circle of perimeter `l` about `centre`, across `normal`.
+    fn circle(centre: V3, normal: V3, e1: V3, l: f64) -> Hoop {
+        let r = l / std::f64::consts::TAU;
+        let e2 = normal.cross(&e1);
+        let curve = (0..720)
+            .map(|j| {
+                let a = std::f64::consts::TAU * j as f64 / 720.0;
+                centre + (e1 * a.cos() + e2 * a.sin()) * r
+            })
+            .collect();
+        Hoop { centre, curve }
+    }
+
+    /// The points at the given fractions of the perimeter, from the point
+    /// in direction `from` of the centre, turning about the normal with
+    /// sign `turn`.
+    fn points(&self, fractions: &[f64], from: &V3, turn: f64) -> Vec<V3> {
+        let n = self.curve.len();
+        let k0 = (0..n)
+            .max_by(|&a, &b| {
+                let c = |k: usize| (self.curve[k] - self.centre).normalize().dot(from);
+                c(a).total_cmp(&c(b))
+            })
+            .expect("a curve");
+        let at = |j: usize| {
+            let k = if turn >= 0.0 {
+                (k0 + j) % n
+            } else {
+                (k0 + n - j % n) % n
+            };
+            self.curve[k]
+        };
+        let mut cum = vec![0.0; n + 1];
+        for j in 1..=n {
+            cum[j] = cum[j - 1] + (at(j) - at(j - 1)).norm();
+        }
+        let total = cum[n];
+        fractions
+            .iter()
+            .map(|f| {
+                let target = f.rem_euclid(1.0) * total;
+                let j = cum.partition_point(|c| *c < target).clamp(1, n);
+                let w = (target - cum[j - 1]) / (cum[j] - cum[j - 1]).max(1e-300);
+                at(j - 1) + (at(j) - at(j - 1)) * w
+            })
+            .collect()
+    }
+}
+
+/// The convex hull of `pts` grown by `r` (its Minkowski sum with a disc),
+/// counter-clockwise, arcs every 3° or finer; and its perimeter (the hull's
+/// plus 2π r).
+pub fn grown_hull(pts: &[[f64; 2]], r: f64) -> (Vec<[f64; 2]>, f64) {
+    let mut hull = crate::cloth::convex_hull(pts);
+    let area: f64 = (0..hull.len())
+        .map(|i| {
+            let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum();
+    if area < 0.0 {
+        hull.reverse();
+    }
+    let n = hull.len();
+    if n < 3 {
+        return (Vec::new(), 0.0);
+    }
+    let normal = |i: usize| {
+        let (a, b) = (hull[i], hull[(i + 1) % n]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l = (dx * dx + dy * dy).sqrt();
+        (-dx / l).atan2(dy / l) // angle of the outward normal (dy, -dx)
+    };
+    let mut out = Vec::new();
+    let mut perimeter = 0.0;
+    for i in 0..n {
+        let (a0, mut a1) = (normal((i + n - 1) % n), normal(i));
+        while a1 < a0 {
+            a1 += std::f64::consts::TAU;
+        }
+        let steps = ((a1 - a0) / 3f64.to_radians()).ceil().max(1.0) as usize;
+        for k in 0..=steps {
+            let a = a0 + (a1 - a0) * k as f64 / steps as f64;
+            out.push([hull[i][0] + r * a.cos(), hull[i][1] + r * a.sin()]);
+        }
+        let b = hull[(i + 1) % n];
+        perimeter += ((b[0] - hull[i][0]).powi(2) + (b[1] - hull[i][1]).powi(2)).sqrt();
+    }
+    (out, perimeter + std::f64::consts::TAU * r)
 }
 
 fn body_world(body: &Obstacle) -> (Vec<V3>, Vec<[u32; 3]>) {
@@ -578,122 +691,175 @@ impl Dressing {
         }
         sim.cloth.x = placed;
         sim.cloth.v.iter_mut().for_each(|v| *v = V3::zeros());
-        // the gripper: the cuff's vertices near its top
-        let up0 = up_across(&(-out));
-        let x = &sim.cloth.x;
-        let top = *cuff
-            .iter()
-            .max_by(|&&a, &&b| {
-                (x[a] - start)
-                    .dot(&up0)
-                    .total_cmp(&(x[b] - start).dot(&up0))
-            })
-            .expect("a cuff");
-        let mut gripped: Vec<usize> = cuff
-            .iter()
-            .copied()
-            .filter(|&i| (x[i] - x[top]).norm() <= d.grip_width / 2.0 + 1e-9)
-            .collect();
-        if gripped.len() < 2 {
-            // at least the top and its nearest neighbour on the cuff
-            let next = cuff
-                .iter()
-                .copied()
-                .filter(|&i| i != top)
-                .min_by(|&a, &b| (x[a] - x[top]).norm().total_cmp(&(x[b] - x[top]).norm()))
-                .expect("a cuff of 3 or more");
-            gripped = vec![top.min(next), top.max(next)];
+        let x = sim.cloth.x.clone();
+        // the cuff's length around, as sewn: the hoop's perimeter
+        let nc = cuff.len();
+        let mut s_of = vec![0.0; nc];
+        for k in 1..nc {
+            s_of[k] = s_of[k - 1] + (x0[cuff[k]] - x0[cuff[k - 1]]).norm();
         }
-        let g0 = gripped.iter().map(|&i| x[i]).sum::<V3>() / gripped.len() as f64;
-        // the gripped vertices' mean off the line above the axis at the
-        // start, brought onto it over the first 5 cm
-        let side = {
-            let r = g0 - start;
-            r - up0 * r.dot(&up0) - out * r.dot(&out)
-        };
+        let perimeter = s_of[nc - 1] + (x0[cuff[0]] - x0[cuff[nc - 1]]).norm();
+        let fractions: Vec<f64> = s_of.iter().map(|s| s / perimeter).collect();
+        // frames carried along the axis without turning about it
         let m = arm.axis.len();
-        let base_of = |k: usize| arm.axis[k] + side * (1.0 - arm.s[k] / 0.05).max(0.0);
-        // the gripper's height above the axis at each axis point: the lowest
-        // (in 1 mm steps) at which every gripped vertex is `clearance` from
-        // the skin (at the start, the cuff's own); then raised where needed
-        // so that it never drops faster than 1 m per m of the path
-        let clear_at = |k: usize, h: f64| {
-            let at = base_of(k) + up_across(&arm.tangent(k)) * h;
-            gripped
-                .iter()
-                .map(|&i| ob.proximity(&(at + x[i] - g0)).distance)
-                .fold(f64::INFINITY, f64::min)
-                >= d.clearance
-        };
-        let mut need = vec![(g0 - start).dot(&up0); m];
-        for (k, n) in need.iter_mut().enumerate().skip(1) {
-            let mut h = 0.0;
-            while !clear_at(k, h) {
-                h += 0.001;
-                if h > 0.5 {
-                    bail!("no height within 50 cm above the arm clears the skin");
-                }
-            }
-            *n = h;
+        let mut e1 = vec![up_across(&(-out)); m];
+        for k in 1..m {
+            let t = arm.tangent(k);
+            let p = e1[k - 1] - t * e1[k - 1].dot(&t);
+            e1[k] = if p.norm() > 1e-9 {
+                p.normalize()
+            } else {
+                up_across(&t)
+            };
         }
-        let height: Vec<f64> = (0..m)
-            .map(|k| {
-                (0..m)
-                    .map(|j| need[j] - (arm.s[k] - arm.s[j]).abs())
-                    .fold(0.0, f64::max)
-            })
+        // which way the placed cuff turns about the axis, and where it begins
+        let t0v = -out;
+        let turn = {
+            let w: f64 = (0..nc)
+                .map(|k| {
+                    (x[cuff[k]] - start)
+                        .cross(&(x[cuff[(k + 1) % nc]] - start))
+                        .dot(&t0v)
+                })
+                .sum();
+            if w >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        let first = {
+            let r = x[cuff[0]] - start;
+            let r = r - t0v * r.dot(&t0v);
+            (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0])))
+        };
+        // the hoop at each axis point: round where nothing of the body is
+        // near (past the fingertips), else an ellipse around the arm's
+        // section (the body's edges crossing the plane across the axis),
+        // its axes along the section's principal directions, as round as the
+        // section (plus the clearance) allows, of the cuff's perimeter
+        let lim_hand = arm.rings[arm.wrist_ring].level;
+        let lim_arm = arm.rings[arm.shoulder_ring].level + 0.03;
+        let bedges = mesh_edges(&bt);
+        let mut hoops = Vec::with_capacity(m);
+        for k in 0..m {
+            let t = if k == 0 { t0v } else { arm.tangent(k) };
+            let a3 = arm.axis[k];
+            let (u1, u2) = (e1[k], t.cross(&e1[k]));
+            let lim = if k < arm.wrist_at { lim_hand } else { lim_arm };
+            let pts: Vec<[f64; 2]> = bedges
+                .iter()
+                .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
+                .filter_map(|&(i, j)| {
+                    let (di, dj) = ((bv[i] - a3).dot(&t), (bv[j] - a3).dot(&t));
+                    if di * dj > 0.0 || di == dj {
+                        return None;
+                    }
+                    let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
+                    (p.norm() <= 0.15).then(|| [p.dot(&u1), p.dot(&u2)])
+                })
+                .chain(
+                    // and the vertices within a centimetre of the plane
+                    (0..bv.len())
+                        .filter(|&i| arm.geodesic[i] <= lim)
+                        .map(|i| bv[i] - a3)
+                        .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= 0.15)
+                        .map(|p| [p.dot(&u1), p.dot(&u2)]),
+                )
+                .collect();
+            let hoop = if pts.len() < 3 {
+                Hoop::circle(a3, t, u1, perimeter)
+            } else {
+                // the section's convex hull grown as far as the cuff's
+                // length allows (the same gap all round), at least by the
+                // clearance
+                let (_, p0) = grown_hull(&pts, 0.0);
+                let grow = (perimeter - p0) / std::f64::consts::TAU;
+                if grow < d.clearance && k > arm.wrist_at + 5 {
+                    // past the wrist: the cuff goes as far up as it passes
+                    break;
+                }
+                if grow < d.clearance {
+                    bail!(
+                        "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
+                         from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
+                         is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
+                         dressing.clearance",
+                        100.0 * perimeter,
+                        100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
+                        a3.x,
+                        a3.y,
+                        a3.z,
+                        100.0 * p0,
+                        100.0 * (p0 + std::f64::consts::TAU * d.clearance)
+                    );
+                }
+                let (curve, _) = grown_hull(&pts, grow);
+                let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
+                let centre = curve.iter().sum::<V3>() / curve.len() as f64;
+                Hoop { centre, curve }
+            };
+            hoops.push(hoop);
+        }
+        let m = hoops.len();
+        let t_start = sim.time;
+        let t_move = t_start + d.hang;
+        let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
+        let from = |k: usize| {
+            let (u1, u2) = (
+                e1[k],
+                if k == 0 { t0v } else { arm.tangent(k) }.cross(&e1[k]),
+            );
+            u1 * first.0 + u2 * first.1
+        };
+        let rings: Vec<Vec<V3>> = (0..m)
+            .map(|k| hoops[k].points(&fractions, &from(k), turn))
             .collect();
-        let lift = |k: usize| base_of(k) + up_across(&arm.tangent(k)) * height[k];
-        let t0 = sim.time;
-        let t_move = t0 + d.hang;
-        let offsets: Vec<(f64, V3)> = (0..m)
-            .map(|k| {
-                let t = if k == 0 {
-                    t_move
-                } else {
-                    t_move + arm.s[k] / d.speed
-                };
-                (t, lift(k) - g0)
-            })
+        // the hoop must not touch the skin anywhere on its way
+        let legs: Vec<Vec<V3>> = std::iter::once(cuff.iter().map(|&i| x[i]).collect())
+            .chain(rings.iter().cloned())
             .collect();
-        let t_arrive = offsets.last().expect("an axis").0;
-        // the gripper must not touch the skin anywhere on its way
-        let legs: Vec<(f64, V3)> = std::iter::once((t0, V3::zeros()))
-            .chain(offsets.iter().copied())
-            .collect();
-        for (q, w) in legs.windows(2).enumerate() {
+        let mut m = m;
+        'legs: for (q, w) in legs.windows(2).enumerate() {
             for f in [0.0, 0.5, 1.0] {
-                let off = w[0].1 + (w[1].1 - w[0].1) * f;
-                for &i in &gripped {
-                    let p = x[i] + off;
+                for j in 0..nc {
+                    let p = w[0][j] + (w[1][j] - w[0][j]) * f;
                     let pr = ob.proximity(&p);
+                    if pr.distance < contact && q > arm.wrist_at + 5 {
+                        // past the wrist: the cuff goes as far up as it passes
+                        m = q;
+                        break 'legs;
+                    }
                     if pr.distance < contact {
                         bail!(
-                            "the gripper would touch the body at ({:.3}, {:.3}, {:.3}) m \
-                             ({:.1} mm from the skin, {:.0} % of the way): raise \
-                             dressing.clearance or narrow dressing.grip_width",
+                            "the gripper would hold the cuff {:.1} mm from the skin at \
+                             ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
+                             dressing.clearance or start farther (dressing.beyond)",
+                            1e3 * pr.distance,
                             p.x,
                             p.y,
                             p.z,
-                            1e3 * pr.distance,
                             100.0 * (q as f64 + f) / m as f64
                         );
                     }
                 }
             }
         }
-        let pins = gripped
-            .iter()
-            .map(|&i| {
-                let mut w = vec![(t0, x[i])];
-                w.extend(offsets.iter().map(|(t, o)| (*t, x[i] + o)));
-                Pin::new(i, PinPath::Waypoints(w))
+        let pins = (0..nc)
+            .map(|j| {
+                let mut w = vec![(t_start, x[cuff[j]])];
+                w.extend((0..m).map(|k| (times[k], rings[k][j])));
+                Pin::new(cuff[j], PinPath::Waypoints(w))
             })
             .collect();
         sim.set_pins(pins)?;
-        let gripper_path = std::iter::once((t0, g0))
-            .chain(offsets.iter().map(|(t, o)| (*t, g0 + o)))
+        let gripper_path = std::iter::once((t_start, x[cuff[0]]))
+            .chain((0..m).map(|k| (times[k], hoops[k].centre)))
             .collect();
+        let t_arrive = times[m - 1];
+        let mut gripped = cuff.clone();
+        gripped.sort_unstable();
+        gripped.dedup();
         Ok(Dressing {
             arm,
             cuff,
@@ -702,6 +868,7 @@ impl Dressing {
             t_arrive,
             t_end: t_arrive + d.hold,
             gripper_path,
+            path_end: m - 1,
             body,
             body_vertices: bv,
         })
@@ -786,7 +953,10 @@ impl Dressing {
             arm_vertices: self.arm.vertices.iter().filter(|b| **b).count(),
             cuff_vertices: self.cuff.len(),
             gripped_vertices: self.gripped.len(),
-            path_length_m: *self.arm.s.last().expect("an axis"),
+            path_length_m: self.arm.s[self.path_end],
+            path_end_progress_m: self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at],
+            path_end_progress: (self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at])
+                / self.arm.length(),
             speed_m_s: d.speed,
             duration_s: rows.last().map_or(0.0, |r| r.time_s) - self.gripper_path[0].0,
             steps: rows.len(),

@@ -184,14 +184,22 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         (s[2] - 1.32).abs() < 0.04 && (s[0] - 0.2).abs() < 0.04,
         "shoulder {s:?}"
     );
-    // the sleeve's opening went over the hand: past the wrist, on the arm
+    // the gripper's path leaves the hand behind and ends on the upper arm,
+    // at least 3/4 of the way from the wrist to the shoulder; the sleeve's
+    // opening ends there, centred on the arm's axis
     assert!(
-        r.final_progress > 0.5,
-        "final progress {}",
-        r.final_progress
+        r.path_end_progress >= 0.75,
+        "path ends at {}",
+        r.path_end_progress
     );
     assert!(
-        r.final_off_axis_m < 0.05,
+        (r.final_progress - r.path_end_progress).abs() < 0.03,
+        "cuff at {} of the arm, gripper's path ends at {}",
+        r.final_progress,
+        r.path_end_progress
+    );
+    assert!(
+        r.final_off_axis_m < 0.02,
         "cuff centroid {} m off the axis",
         r.final_off_axis_m
     );
