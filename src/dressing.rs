@@ -734,19 +734,24 @@ impl Dressing {
             (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0])))
         };
         // the hoop at each axis point: round where nothing of the body is
-        // near (past the fingertips), else an ellipse around the arm's
-        // section (the body's edges crossing the plane across the axis),
-        // its axes along the section's principal directions, as round as the
-        // section (plus the clearance) allows, of the cuff's perimeter
+        // near (past the fingertips), else around the arm's section: where
+        // the plane across the axis cuts the edges of the hand's (before the
+        // wrist) or the arm's vertices (after), within 15 cm (hand) or 10 cm
+        // (arm) of the axis, and those vertices within 1 cm of the plane;
+        // the torso is left to the check of the whole path below
         let lim_hand = arm.rings[arm.wrist_ring].level;
-        let lim_arm = arm.rings[arm.shoulder_ring].level + 0.03;
+        let lim_arm = arm.rings[arm.shoulder_ring].level;
         let bedges = mesh_edges(&bt);
         let mut hoops = Vec::with_capacity(m);
         for k in 0..m {
             let t = if k == 0 { t0v } else { arm.tangent(k) };
             let a3 = arm.axis[k];
             let (u1, u2) = (e1[k], t.cross(&e1[k]));
-            let lim = if k < arm.wrist_at { lim_hand } else { lim_arm };
+            let (lim, reach) = if k < arm.wrist_at {
+                (lim_hand, 0.15)
+            } else {
+                (lim_arm, 0.10)
+            };
             let pts: Vec<[f64; 2]> = bedges
                 .iter()
                 .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
@@ -756,14 +761,14 @@ impl Dressing {
                         return None;
                     }
                     let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
-                    (p.norm() <= 0.15).then(|| [p.dot(&u1), p.dot(&u2)])
+                    (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
                 })
                 .chain(
                     // and the vertices within a centimetre of the plane
                     (0..bv.len())
                         .filter(|&i| arm.geodesic[i] <= lim)
                         .map(|i| bv[i] - a3)
-                        .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= 0.15)
+                        .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
                         .map(|p| [p.dot(&u1), p.dot(&u2)]),
                 )
                 .collect();

@@ -248,13 +248,19 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         (s[2] - 1.32).abs() < 0.04 && (s[0] - 0.2).abs() < 0.04,
         "shoulder {s:?}"
     );
-    // the gripper's path leaves the hand behind and ends on the upper arm,
-    // at least 3/4 of the way from the wrist to the shoulder; the sleeve's
-    // opening ends there, centred on the arm's axis
+    // the gripper's path leaves the hand behind and ends near the shoulder,
+    // at least 90 % of the way from the wrist (91.5 % measured) and within
+    // 4 cm of the shoulder point; the sleeve's opening ends there, centred
+    // on the arm's axis
     assert!(
-        r.path_end_progress >= 0.75,
+        r.path_end_progress >= 0.9,
         "path ends at {}",
         r.path_end_progress
+    );
+    assert!(
+        r.final_distance_to_shoulder_m < 0.04,
+        "cuff centroid {} m from the shoulder point",
+        r.final_distance_to_shoulder_m
     );
     assert!(
         (r.final_progress - r.path_end_progress).abs() < 0.03,
@@ -282,11 +288,11 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
             assert_eq!(row.arm_force_n, 0.0, "{row:?}");
         }
     }
-    // the peak force on the arm: 170 N measured at 1 cm (docs/bodies.md;
+    // the peak force on the arm: 380 N measured at 1 cm (docs/bodies.md;
     // at 2 cm the fingers pass between the cloth's vertices and it is
     // 11 kN)
     assert!(
-        r.peak_arm_force_n > 0.0 && r.peak_arm_force_n < 500.0,
+        r.peak_arm_force_n > 0.0 && r.peak_arm_force_n < 1000.0,
         "peak force on the arm {} N",
         r.peak_arm_force_n
     );
