@@ -10,11 +10,12 @@
 //!    `beyond` m past the fingertips, its plane across the axis, the rest
 //!    of the garment beyond it (away from the body); of the turns about the
 //!    axis, the one that leaves the garment farthest from the body.
-//! 3. **Dressing.** Gravity on. The gripper holds the cuff's vertices within
-//!    `grip_width` of its top (pins); for `hang` s it holds still while the
-//!    garment swings down, then moves along the arm at `speed` m/s (along
-//!    the axis) to the shoulder, `clearance` m above the skin, and holds
-//!    there for `hold` s.
+//! 3. **Dressing.** Gravity on. The gripper holds every cuff vertex (pins):
+//!    for `hang` s it opens the cuff into a ring of its own length and holds
+//!    still while the garment swings down, then moves along the arm at
+//!    `speed` m/s (along the axis), the ring round the arm's section with at
+//!    least `clearance` m to spare, to the shoulder or as far as the cuff
+//!    passes, and holds there for `hold` s.
 //!
 //! The arm comes from the body mesh alone ([`Arm::of`]).
 
@@ -107,7 +108,7 @@ impl DressingFile {
             0.005,
             0.2,
             "m",
-            "a height above the skin",
+            "a gap between the cuff and the arm",
         )?;
         Ok(())
     }
@@ -383,15 +384,17 @@ fn up_across(t: &V3) -> V3 {
 #[derive(Debug, Clone)]
 pub struct Dressing {
     pub arm: Arm,
-    /// The sleeve's opening (cuff) vertices.
+    /// The sleeve's opening (cuff) vertices, in order around it.
     pub cuff: Vec<usize>,
-    /// The ones the gripper holds.
+    /// The vertices the gripper holds (the cuff's, each once).
     pub gripped: Vec<usize>,
-    /// Simulated time at which the gripper starts to move and stops, s.
+    /// Simulated times at which the gripper starts to move, arrives at the
+    /// end of its path, and the run ends, s.
     pub t_move: f64,
     pub t_arrive: f64,
     pub t_end: f64,
-    /// The gripper's reference path (the gripped vertices' mean), m.
+    /// The gripper's path: the ring's centre at each waypoint (at the
+    /// start, the first cuff vertex), m.
     pub gripper_path: Vec<(f64, V3)>,
     /// The gripper's path ends at this axis point (the shoulder, or as far
     /// as the cuff passes round the arm).
@@ -405,7 +408,7 @@ pub struct Dressing {
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct DressingRow {
     pub time_s: f64,
-    /// The gripped vertices' mean, m.
+    /// The held vertices' mean (the ring's centre), m.
     pub gripper: [f64; 3],
     /// The cuff centroid's travel along the arm from the wrist, m (negative:
     /// not yet at the wrist), and as a fraction of wrist → shoulder.
