@@ -270,6 +270,12 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         r.peak_gripper_force_n,
         fit.body_penetrations
     );
+    if let (Some(f), Some(ts)) = (r.force_limit_n, r.safety_stop_s) {
+        println!(
+            "safety stop: the garment pulled on the gripper with more than {f} N at t = {ts:.3} s; \
+             the gripper stopped there"
+        );
+    }
     for w in &fit.warnings {
         eprintln!("warning: {w}");
     }

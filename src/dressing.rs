@@ -16,6 +16,8 @@
 //!    `speed` m/s (along the axis), the ring round the arm's section with at
 //!    least `clearance` m to spare, to the shoulder or as far as the cuff
 //!    passes, and holds there for `hold` s.
+//!    With a `force_limit`, the gripper stops where it is once the garment
+//!    pulls on it with more than that (a robot's safety stop).
 //!
 //! The arm comes from the body mesh alone ([`Arm::of`]).
 
@@ -59,6 +61,11 @@ pub struct DressingFile {
     /// Where the cuff starts: this far past the fingertips along the hand, m.
     #[serde(default = "DressingFile::d_beyond")]
     pub beyond: f64,
+    /// The gripper's safety stop: once the garment pulls on it with more
+    /// than this, N, it stops where it is and holds for `hold` s (none: it
+    /// follows its path whatever the force).
+    #[serde(default)]
+    pub force_limit: Option<f64>,
     /// Least clearance of the held cuff from the arm's section, m (the
     /// hoop is made rounder than that where the cuff is long enough).
     #[serde(default = "DressingFile::d_clearance")]
@@ -94,6 +101,9 @@ impl DressingFile {
         )?;
         check_range("dressing.hang", self.hang, 0.0, 10.0, "s", "a pause")?;
         check_range("dressing.hold", self.hold, 0.0, 10.0, "s", "a pause")?;
+        if let Some(f) = self.force_limit {
+            check_range("dressing.force_limit", f, 0.1, 1e5, "N", "a gripper's pull")?;
+        }
         check_range(
             "dressing.beyond",
             self.beyond,
@@ -451,6 +461,10 @@ pub struct DressingReport {
     pub path_end_progress_m: f64,
     pub path_end_progress: f64,
     pub speed_m_s: f64,
+    /// The gripper's force limit, N, and when it stopped the gripper, s
+    /// (`null`: no limit / never).
+    pub force_limit_n: Option<f64>,
+    pub safety_stop_s: Option<f64>,
     pub duration_s: f64,
     pub steps: usize,
     pub ms_per_step: f64,
@@ -926,21 +940,56 @@ impl Dressing {
 
     /// Runs the dressing to its end; `on_step(sim, self, row)` after every step,
     /// `stop()` ends it early. The rows, one per step.
+    /// With a `force_limit`, the gripper stops where it is at the first
+    /// step the limit is passed ([`Dressing::safety_stop`]) and the run
+    /// ends `hold` s later.
     pub fn run(
         &self,
         sim: &mut Simulation,
+        d: &DressingFile,
         on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
         stop: &dyn Fn() -> bool,
     ) -> Result<Vec<DressingRow>> {
         let mut rows = Vec::new();
-        while sim.time < self.t_end - 1e-9 && !stop() {
+        let mut t_end = self.t_end;
+        let mut stopped = false;
+        while sim.time < t_end - 1e-9 && !stop() {
             sim.step()
                 .with_context(|| format!("dressing, t = {:.4} s", sim.time))?;
             let r = self.row(sim);
             on_step(sim, self, &r);
             rows.push(r);
+            if !stopped && self.over_limit(d, &r) {
+                // every pin holds where its path is now
+                let now = sim.time;
+                let held: Vec<Pin> = sim
+                    .pins()
+                    .as_slice()
+                    .iter()
+                    .map(|p| Pin::new(p.vertex, PinPath::Fixed(p.path.at(now).0)))
+                    .collect();
+                sim.set_pins(held)?;
+                t_end = now + d.hold;
+                stopped = true;
+            }
         }
         Ok(rows)
+    }
+
+    /// Whether the garment pulls on the moving gripper (after `hang`,
+    /// before it arrives) with more than the force limit.
+    fn over_limit(&self, d: &DressingFile, r: &DressingRow) -> bool {
+        d.force_limit.is_some_and(|f| {
+            r.time_s > self.t_move && r.time_s < self.t_arrive && r.gripper_force_n > f
+        })
+    }
+
+    /// When the gripper's safety stop acted: the first row over the limit
+    /// (see [`Dressing::run`]).
+    pub fn safety_stop(&self, d: &DressingFile, rows: &[DressingRow]) -> Option<f64> {
+        rows.iter()
+            .find(|r| self.over_limit(d, r))
+            .map(|r| r.time_s)
     }
 
     /// The report of a run's rows.
@@ -966,6 +1015,8 @@ impl Dressing {
             path_end_progress: (self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at])
                 / self.arm.length(),
             speed_m_s: d.speed,
+            force_limit_n: d.force_limit,
+            safety_stop_s: self.safety_stop(d, rows),
             duration_s: rows.last().map_or(0.0, |r| r.time_s) - self.gripper_path[0].0,
             steps: rows.len(),
             ms_per_step: 1e3 * wall_s / rows.len().max(1) as f64,
@@ -1025,7 +1076,7 @@ pub fn run_trial(
     )?;
     let dressing = Dressing::set_up(&mut sim, &g, body, d)?;
     let wall = Instant::now();
-    let rows = dressing.run(&mut sim, on_step, stop)?;
+    let rows = dressing.run(&mut sim, d, on_step, stop)?;
     let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());
     report.final_distance_to_shoulder_m =
         (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();

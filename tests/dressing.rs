@@ -296,6 +296,8 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         "peak force on the arm {} N",
         r.peak_arm_force_n
     );
+    // no force limit: no safety stop
+    assert_eq!((r.force_limit_n, r.safety_stop_s), (None, None));
     let first = r.first_arm_contact_s.expect("the sleeve touched the arm");
     assert!(first > run.dressing.t_move, "touched at {first} s");
 
@@ -342,5 +344,63 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
     assert!(
         peak > 0.0 && (csv_peak - peak).abs() <= 1e-6 * peak,
         "{csv_peak} vs {peak}"
+    );
+}
+
+/// The gripper's safety stop (`dressing.force_limit`), on the shipped trial
+/// at 2 cm with a 50 N limit: the garment catches on the hand and the pull
+/// on the gripper passes the limit before the wrist; the gripper stops at
+/// that step, stays where it stopped, and the run ends `hold` s later. The
+/// force on the arm stays under twice the limit (79 N measured; 11 kN at
+/// 2 cm without the stop).
+#[test]
+fn the_gripper_stops_when_the_garment_pulls_on_it_past_its_force_limit() {
+    let path = root().join("config/trials/tshirt_dressing.yaml");
+    let mut t = Trial::load(&path).unwrap();
+    let limit = 50.0;
+    t.file.dressing.as_mut().unwrap().force_limit = Some(limit);
+    let ov = TrialOverrides {
+        spacing: Some(0.02),
+        threads: Some(1),
+        ..Default::default()
+    };
+    let run =
+        dressing::run_trial(&t, &ov, &mut |_, _, _, _| {}, &mut |_, _, _| {}, &|| false).unwrap();
+    let (r, rows, dr) = (&run.report, &run.rows, &run.dressing);
+    let d = t.file.dressing.as_ref().unwrap();
+    assert_eq!(r.force_limit_n, Some(limit));
+    let ts = r.safety_stop_s.expect("the safety stop acted");
+    assert!(ts > dr.t_move && ts < dr.t_arrive, "stopped at {ts} s");
+    let k = rows.iter().position(|row| row.time_s == ts).unwrap();
+    // the first pull over the limit once the gripper moves is the stop
+    assert!(rows[k].gripper_force_n > limit);
+    for row in &rows[..k] {
+        assert!(
+            row.time_s <= dr.t_move || row.gripper_force_n <= limit,
+            "{row:?}"
+        );
+    }
+    // the gripper holds still from there, `hold` s
+    let dt = run.sim.params().dt;
+    let last = rows.last().unwrap();
+    assert!(
+        (last.time_s - ts - d.hold).abs() < 1.5 * dt,
+        "ended at {} s, stopped at {ts} s",
+        last.time_s
+    );
+    let g0 = Vector3::from(rows[k].gripper);
+    for row in &rows[k..] {
+        let moved = (Vector3::from(row.gripper) - g0).norm();
+        assert!(moved < 1e-3, "gripper moved {moved} m after the stop");
+    }
+    assert!(
+        r.final_progress < r.path_end_progress - 0.5,
+        "cuff at {} of the arm",
+        r.final_progress
+    );
+    assert!(
+        r.peak_arm_force_n < 2.0 * limit,
+        "peak force on the arm {} N",
+        r.peak_arm_force_n
     );
 }
