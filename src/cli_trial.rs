@@ -40,6 +40,9 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         threads: a.threads,
         self_collision: a.self_collision,
     };
+    if t.file.dressing.is_some() {
+        return dress(&t, &ov, &a);
+    }
     let (mut sim, g) = t.build(&ov)?;
     eprintln!(
         "garment {}: {} panels, {} seams ({} stitches), {} vertices, {:.0} g of {}; body {} \
@@ -215,6 +218,91 @@ pub fn trial(a: TrialArgs) -> Result<()> {
                 gf.garment_cm.unwrap_or(0.0)
             );
         }
+    }
+    for w in &fit.warnings {
+        eprintln!("warning: {w}");
+    }
+    println!("wrote {}", a.out.display());
+    Ok(())
+}
+
+/// A trial with a `dressing` section: sewn on the body, then a gripper pulls
+/// a sleeve over the arm (docs/bodies.md).
+fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
+    std::fs::create_dir_all(&a.out)?;
+    let stop = garment_sim::run::stop_flag()?;
+    let mut sew = crate::progress_printer("sewing".into());
+    let mut dress = crate::progress_printer("dressing".into());
+    let wall = std::time::Instant::now();
+    let mut t0 = f64::NAN;
+    let mut run = garment_sim::dressing::run_trial(
+        t,
+        ov,
+        &mut |_, _, x, of| sew(x, of),
+        &mut |sim, d, _| {
+            if t0.is_nan() {
+                t0 = sim.time - sim.params().dt;
+            }
+            dress(sim.time - t0, d.t_end - t0)
+        },
+        &|| stop.load(Ordering::Relaxed),
+    )?;
+    dress(1.0, 1.0);
+    let wall_s = wall.elapsed().as_secs_f64();
+    let (sim, g, rows) = (&run.sim, &run.garment, &run.rows);
+    let mut stats = run.sewing.clone();
+    let n = stats.steps + rows.len() as u64;
+    stats.dressing_s = Some(sim.time - stats.sewing_s);
+    stats.simulated_s = sim.time;
+    stats.steps = n;
+    stats.wall_s = wall_s;
+    stats.ms_per_step = 1e3 * wall_s / n.max(1) as f64;
+    stats.final_rms_speed_m_s = sim.rms_speed();
+    let (mut fit, vf, on_body) = trial::fit(sim, g, t, stats);
+    fit.dressing = Some(run.report.clone());
+    garment_sim::dressing::write_csv(rows, &a.out.join("dressing.csv"))?;
+    garment_sim::dressing::write_png(rows, &t.garment.name, &a.out.join("dressing.png"))?;
+    if let Some(p) = &on_body {
+        trial::write_body_ply(p, &a.out.join("body_pressure.ply"))?;
+    }
+    trial::write_obj(sim, g, &a.out.join("garment.obj"))?;
+    trial::write_ply(sim, &vf, &a.out.join("garment.ply"))?;
+    let json = serde_json::to_string_pretty(&fit)?;
+    garment_sim::io::write_atomic(&a.out.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
+    let r = &mut run.report;
+    println!(
+        "{}: {} arm, wrist to shoulder {:.3} m; cuff of {} vertices, {} held by the gripper; \
+         {} dressing steps in {:.1} s wall ({:.1} ms/step)",
+        t.garment.name,
+        match r.arm {
+            garment_sim::dressing::Side::Left => "left",
+            garment_sim::dressing::Side::Right => "right",
+        },
+        r.arm_length_m,
+        r.cuff_vertices,
+        r.gripped_vertices,
+        r.steps,
+        wall_s,
+        r.ms_per_step
+    );
+    println!(
+        "progress {:.3} m ({:.1} % of wrist to shoulder), cuff centroid {:.1} cm from the \
+         shoulder point; peak force on the arm {:.3} N at t = {:.2} s, on the body {:.3} N, \
+         on the gripper {:.3} N; {} vertices inside the body",
+        r.final_progress_m,
+        100.0 * r.final_progress,
+        100.0 * r.final_distance_to_shoulder_m,
+        r.peak_arm_force_n,
+        r.peak_arm_force_time_s,
+        r.peak_body_force_n,
+        r.peak_gripper_force_n,
+        fit.body_penetrations
+    );
+    if let (Some(f), Some(ts)) = (r.force_limit_n, r.safety_stop_s) {
+        println!(
+            "safety stop: the garment pulled on the gripper with more than {f} N at t = {ts:.3} s; \
+             the gripper stopped there"
+        );
     }
     for w in &fit.warnings {
         eprintln!("warning: {w}");

@@ -25,6 +25,7 @@ pub use garment_core::{
 pub mod bag;
 pub mod body_forces;
 pub mod capture;
+pub mod dressing;
 pub mod io;
 pub mod lab;
 pub mod live;

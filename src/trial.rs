@@ -176,6 +176,10 @@ pub struct TrialFile {
     /// off when absent, on in the shipped skirt trial).
     #[serde(default)]
     pub self_collision: bool,
+    /// A gripper pulls a sleeve over an arm after sewing, in place of the
+    /// drape (docs/bodies.md, [`crate::dressing`]).
+    #[serde(default)]
+    pub dressing: Option<crate::dressing::DressingFile>,
 }
 
 /// A trial as read, with its files resolved.
@@ -586,6 +590,10 @@ pub struct RunStats {
     /// `motion`), s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub motion_s: Option<f64>,
+    /// Simulated time of the dressing after sewing (a trial with
+    /// `dressing`), s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dressing_s: Option<f64>,
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
@@ -788,6 +796,7 @@ pub fn run_on(
         settle_time_s: settle,
         simulated_s: sim.time,
         motion_s,
+        dressing_s: None,
         steps,
         wall_s: wall,
         ms_per_step: all.ms_per_step,
@@ -872,6 +881,9 @@ pub struct Fit {
     pub body_wrench: Option<BodyWrenchFit>,
     /// The pressure on the body's vertices at the end (`body_pressure.ply`).
     pub body_pressure: Option<BodyPressureFit>,
+    /// A dressing trial's progress and forces (`dressing.csv` over time).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dressing: Option<crate::dressing::DressingReport>,
     /// What a designer should not miss: a panel stretched beyond
     /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
     /// garment that did not settle.
@@ -1235,7 +1247,7 @@ pub fn fit(
             1e3 * deepest
         ));
     }
-    if run.settle_time_s.is_none() {
+    if run.settle_time_s.is_none() && run.dressing_s.is_none() {
         warnings.push(format!(
             "the garment did not settle (rms speed {:.3} m/s at the end): the fit is of a \
              moving garment",
@@ -1246,6 +1258,7 @@ pub fn fit(
     let fit = Fit {
         body_wrench: BodyWrenchFit::of(&run.wrench, weight),
         body_pressure: on_body.as_ref().map(BodyPressureFit::of),
+        dressing: None,
         garment: trial.garment.name.clone(),
         fabric: sim
             .fabrics()

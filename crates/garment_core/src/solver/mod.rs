@@ -1151,6 +1151,27 @@ impl Simulation {
         out
     }
 
+    /// The force each pin exerted on its vertex in the last step, N (zero
+    /// for a vertex not pinned): the constraint's reaction `(A Δv − b)/h`,
+    /// as for a contact in [`Simulation::contact_forces`]. What holds the
+    /// cloth (a gripper) feels its opposite.
+    pub fn pin_forces(&self) -> Vec<Vector3<f64>> {
+        let n = self.cloth.len();
+        let mut out = vec![Vector3::zeros(); n];
+        if self.steps == 0 {
+            return out;
+        }
+        let mut adv = vec![Vector3::zeros(); n];
+        self.ws.a.mul(&self.dv, &mut adv);
+        let h = self.params.dt;
+        for i in 0..n {
+            if self.pinned[i].is_some() {
+                out[i] = (adv[i] - self.ws.b[i]) / h;
+            }
+        }
+        out
+    }
+
     /// The outward normal of each vertex's obstacle contact in the last step
     /// (zero for a vertex not in contact).
     pub fn contact_normals(&self) -> Vec<Vector3<f64>> {

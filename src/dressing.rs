@@ -1,0 +1,1175 @@
+//! Dressing (`dressing:` in a trial file, docs/bodies.md): a gripper pulls
+//! a sleeve of the garment over an arm of the body, from past the
+//! fingertips to the shoulder; the run reports how far the sleeve's opening
+//! has travelled along the arm and the force on the arm at every step.
+//!
+//! Phases:
+//! 1. **Sewing** on the body, as every trial sews ([`crate::trial`]).
+//! 2. **Placement.** The sewn garment is moved as a rigid body so that the
+//!    chosen sleeve's opening (its cuff) is centred on the arm's axis
+//!    `beyond` m past the fingertips, its plane across the axis, the rest
+//!    of the garment beyond it (away from the body); of the turns about the
+//!    axis, the one that leaves the garment farthest from the body.
+//! 3. **Dressing.** Gravity on. The gripper holds every cuff vertex (pins):
+//!    for `hang` s it opens the cuff into a ring of its own length and holds
+//!    still while the garment swings down, then moves along the arm at
+//!    `speed` m/s (along the axis), the ring round the arm's section with at
+//!    least `clearance` m to spare, to the shoulder or as far as the cuff
+//!    passes, and holds there for `hold` s.
+//!    With a `force_limit`, the gripper stops where it is once the garment
+//!    pulls on it with more than that (a robot's safety stop).
+//!
+//! The arm comes from the body mesh alone ([`Arm::of`]).
+
+use crate::body_forces;
+use crate::collision::Obstacle;
+use crate::garment::Garment;
+use crate::set::Handle;
+use crate::solver::{Pin, PinPath, Simulation};
+use anyhow::{bail, Context, Result};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use std::collections::BinaryHeap;
+use std::path::Path;
+use std::time::Instant;
+
+type V3 = Vector3<f64>;
+
+/// Which arm (the wearer's: the left hand is toward +x in the body frame of
+/// the shipped bodies).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Left,
+    Right,
+}
+
+/// The `dressing:` section of a trial file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DressingFile {
+    pub arm: Side,
+    /// Gripper speed along the arm's axis, m/s.
+    #[serde(default = "DressingFile::d_speed")]
+    pub speed: f64,
+    /// Time the gripper holds still at the start (the garment swings down), s.
+    #[serde(default = "DressingFile::d_hang")]
+    pub hang: f64,
+    /// Time it holds at the shoulder at the end, s.
+    #[serde(default = "DressingFile::d_hold")]
+    pub hold: f64,
+    /// Where the cuff starts: this far past the fingertips along the hand, m.
+    #[serde(default = "DressingFile::d_beyond")]
+    pub beyond: f64,
+    /// The gripper's safety stop: once the garment pulls on it with more
+    /// than this, N, it stops where it is and holds for `hold` s (none: it
+    /// follows its path whatever the force).
+    #[serde(default)]
+    pub force_limit: Option<f64>,
+    /// Least clearance of the held cuff from the arm's section, m (the
+    /// hoop is made rounder than that where the cuff is long enough).
+    #[serde(default = "DressingFile::d_clearance")]
+    pub clearance: f64,
+}
+
+impl DressingFile {
+    fn d_speed() -> f64 {
+        0.15
+    }
+    fn d_hang() -> f64 {
+        0.5
+    }
+    fn d_hold() -> f64 {
+        0.5
+    }
+    fn d_beyond() -> f64 {
+        0.08
+    }
+    fn d_clearance() -> f64 {
+        0.01
+    }
+
+    fn check(&self) -> Result<()> {
+        use crate::limits::check_range;
+        check_range(
+            "dressing.speed",
+            self.speed,
+            0.01,
+            2.0,
+            "m/s",
+            "a hand's pace",
+        )?;
+        check_range("dressing.hang", self.hang, 0.0, 10.0, "s", "a pause")?;
+        check_range("dressing.hold", self.hold, 0.0, 10.0, "s", "a pause")?;
+        if let Some(f) = self.force_limit {
+            check_range("dressing.force_limit", f, 0.1, 1e5, "N", "a gripper's pull")?;
+        }
+        check_range(
+            "dressing.beyond",
+            self.beyond,
+            0.0,
+            0.5,
+            "m",
+            "a start near the hand",
+        )?;
+        check_range(
+            "dressing.clearance",
+            self.clearance,
+            0.005,
+            0.2,
+            "m",
+            "a gap between the cuff and the arm",
+        )?;
+        Ok(())
+    }
+}
+
+/// A level set of the geodesic distance from the fingertip: a ring around
+/// the arm.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Ring {
+    /// Geodesic distance from the fingertip, m.
+    pub level: f64,
+    /// Mean of the points where the level crosses the mesh's edges.
+    pub centre: [f64; 3],
+    /// Their mean distance from it, m.
+    pub radius: f64,
+}
+
+/// An arm found on a body mesh.
+///
+/// The rule: the **fingertip** is the body's vertex farthest toward the
+/// arm's side (largest x for the left arm, smallest for the right). Rings
+/// are the level sets, every 1 cm, of the geodesic distance from it (the
+/// shortest path along the mesh's edges); each ring's centre is the mean of
+/// the points where the level crosses an edge, its radius their mean
+/// distance from that centre. The **wrist** is the narrowest ring between
+/// 10 and 30 cm from the fingertip (an adult's hand is 17–20 cm long). The
+/// **shoulder** is the last ring before the rings start to widen into the
+/// torso: the ring 3 cm before the first ring (past the wrist) whose radius
+/// exceeds that of the ring 3 cm before it by more than 9 mm (along the
+/// arm they widen by at most a few mm in 3 cm). The **axis** runs from a
+/// start point on the wrist–fingertip line `beyond` m past the farthest
+/// hand vertex, along that line (1 cm apart) to the wrist, then through the
+/// rings' centres to the shoulder. The arm's **vertices** are the body's
+/// vertices nearer the fingertip (geodesically) than the shoulder ring.
+#[derive(Debug, Clone)]
+pub struct Arm {
+    pub fingertip: V3,
+    pub rings: Vec<Ring>,
+    /// Indices into `rings`.
+    pub wrist_ring: usize,
+    pub shoulder_ring: usize,
+    /// The axis, from the start point past the fingertips to the shoulder.
+    pub axis: Vec<V3>,
+    /// Arc length of the axis at each of its points, m.
+    pub s: Vec<f64>,
+    /// Index of the wrist on the axis.
+    pub wrist_at: usize,
+    /// Body vertices of the arm.
+    pub vertices: Vec<bool>,
+    /// Geodesic distance of every body vertex from the fingertip, m.
+    pub geodesic: Vec<f64>,
+}
+
+#[derive(PartialEq)]
+struct Near(f64, usize);
+impl Eq for Near {}
+impl PartialOrd for Near {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Near {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        o.0.total_cmp(&self.0).then(o.1.cmp(&self.1))
+    }
+}
+
+/// Shortest distances along the mesh's edges from vertex `from`.
+pub fn geodesic(v: &[V3], edges: &[(usize, usize)], from: usize) -> Vec<f64> {
+    let mut adj: Vec<Vec<(usize, f64)>> = vec![Vec::new(); v.len()];
+    for &(a, b) in edges {
+        let d = (v[a] - v[b]).norm();
+        adj[a].push((b, d));
+        adj[b].push((a, d));
+    }
+    let mut g = vec![f64::INFINITY; v.len()];
+    g[from] = 0.0;
+    let mut heap = BinaryHeap::new();
+    heap.push(Near(0.0, from));
+    while let Some(Near(d, a)) = heap.pop() {
+        if d > g[a] {
+            continue;
+        }
+        for &(b, w) in &adj[a] {
+            if d + w < g[b] {
+                g[b] = d + w;
+                heap.push(Near(d + w, b));
+            }
+        }
+    }
+    g
+}
+
+fn mesh_edges(t: &[[u32; 3]]) -> Vec<(usize, usize)> {
+    let mut e: Vec<(usize, usize)> = t
+        .iter()
+        .flat_map(|tri| {
+            (0..3).map(move |k| {
+                let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
+                (a.min(b), a.max(b))
+            })
+        })
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e
+}
+
+/// Nearest point of a polyline to `p`: its arc length from the first point
+/// and its distance from `p`.
+pub fn project_on_polyline(axis: &[V3], p: &V3) -> (f64, f64) {
+    if axis.len() == 1 {
+        return (0.0, (p - axis[0]).norm());
+    }
+    let mut best = (0.0, f64::INFINITY);
+    let mut s0 = 0.0;
+    for w in axis.windows(2) {
+        let d = w[1] - w[0];
+        let l = d.norm();
+        let u = if l > 0.0 {
+            ((p - w[0]).dot(&d) / (l * l)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let dist = (w[0] + d * u - p).norm();
+        if dist < best.1 {
+            best = (s0 + u * l, dist);
+        }
+        s0 += l;
+    }
+    best
+}
+
+/// How far a ring of cloth vertices (the sleeve's opening) has travelled
+/// along the axis: its centroid's nearest point on the axis, as the arc
+/// length from the axis point at arc length `from` (the wrist), m, and the
+/// centroid's distance from the axis, m.
+pub fn progress(axis: &[V3], from: f64, ring: &[V3]) -> (f64, f64) {
+    let c = ring.iter().sum::<V3>() / ring.len().max(1) as f64;
+    let (s, d) = project_on_polyline(axis, &c);
+    (s - from, d)
+}
+
+fn arc_lengths(p: &[V3]) -> Vec<f64> {
+    let mut s = vec![0.0];
+    for w in p.windows(2) {
+        s.push(s.last().expect("one") + (w[1] - w[0]).norm());
+    }
+    s
+}
+
+impl Arm {
+    /// Finds the arm on a closed body mesh (world positions); see [`Arm`].
+    pub fn of(v: &[V3], t: &[[u32; 3]], side: Side, beyond: f64) -> Result<Arm> {
+        let sign = match side {
+            Side::Left => 1.0,
+            Side::Right => -1.0,
+        };
+        let tip = (0..v.len())
+            .max_by(|&a, &b| (sign * v[a].x).total_cmp(&(sign * v[b].x)))
+            .context("the body has no vertices")?;
+        let edges = mesh_edges(t);
+        let g = geodesic(v, &edges, tip);
+        let top = g
+            .iter()
+            .copied()
+            .filter(|d| d.is_finite())
+            .fold(0.0, f64::max);
+        let mut rings = Vec::new();
+        let mut k = 1;
+        while k as f64 * 0.01 < top.min(1.5) {
+            let level = k as f64 * 0.01;
+            let pts: Vec<V3> = edges
+                .iter()
+                .filter(|&&(a, b)| (g[a] - level) * (g[b] - level) < 0.0)
+                .map(|&(a, b)| {
+                    let f = (level - g[a]) / (g[b] - g[a]);
+                    v[a] + (v[b] - v[a]) * f
+                })
+                .collect();
+            if pts.len() >= 3 {
+                let c = pts.iter().sum::<V3>() / pts.len() as f64;
+                let r = pts.iter().map(|p| (p - c).norm()).sum::<f64>() / pts.len() as f64;
+                rings.push(Ring {
+                    level,
+                    centre: c.into(),
+                    radius: r,
+                });
+            }
+            k += 1;
+        }
+        let wrist_ring = (0..rings.len())
+            .filter(|&i| (0.10 - 1e-9..=0.30 + 1e-9).contains(&rings[i].level))
+            .min_by(|&a, &b| rings[a].radius.total_cmp(&rings[b].radius))
+            .context("no ring 10–30 cm from the fingertip: is this an arm?")?;
+        let back = |i: usize| {
+            (0..i)
+                .rev()
+                .find(|&j| rings[i].level - rings[j].level >= 0.03 - 1e-9)
+        };
+        let shoulder_ring = (wrist_ring + 1..rings.len())
+            .find_map(|i| {
+                let j = back(i)?;
+                (j >= wrist_ring && rings[i].radius - rings[j].radius > 0.009).then_some(j)
+            })
+            .context("the rings past the wrist never widen into a torso: no shoulder found")?;
+        if shoulder_ring <= wrist_ring + 5 {
+            bail!("the arm found is under 5 cm long (wrist to shoulder)");
+        }
+        let wrist = V3::from(rings[wrist_ring].centre);
+        let fingertip = v[tip];
+        let u = (fingertip - wrist).normalize();
+        let hand_end = (0..v.len())
+            .filter(|&i| g[i] < rings[wrist_ring].level)
+            .map(|i| (v[i] - wrist).dot(&u))
+            .fold(0.0, f64::max);
+        let start_len = hand_end + beyond;
+        let n = (start_len / 0.01).ceil() as usize;
+        let mut axis: Vec<V3> = (0..n)
+            .map(|k| wrist + u * (start_len * (n - k) as f64 / n as f64))
+            .collect();
+        let wrist_at = axis.len();
+        axis.extend(
+            rings[wrist_ring..=shoulder_ring]
+                .iter()
+                .map(|r| V3::from(r.centre)),
+        );
+        let s = arc_lengths(&axis);
+        let level = rings[shoulder_ring].level;
+        Ok(Arm {
+            fingertip,
+            vertices: g.iter().map(|d| *d <= level).collect(),
+            rings,
+            wrist_ring,
+            shoulder_ring,
+            axis,
+            s,
+            wrist_at,
+            geodesic: g,
+        })
+    }
+
+    pub fn wrist(&self) -> V3 {
+        self.axis[self.wrist_at]
+    }
+    pub fn shoulder(&self) -> V3 {
+        *self.axis.last().expect("an axis")
+    }
+    /// Wrist to shoulder along the axis, m.
+    pub fn length(&self) -> f64 {
+        self.s.last().expect("an axis") - self.s[self.wrist_at]
+    }
+    /// The unit tangent of the axis at its point k.
+    fn tangent(&self, k: usize) -> V3 {
+        let a = self.axis[k.saturating_sub(1)];
+        let b = self.axis[(k + 1).min(self.axis.len() - 1)];
+        (b - a).normalize()
+    }
+}
+
+/// The direction across `t` nearest to +z (the gripper rides on top).
+fn up_across(t: &V3) -> V3 {
+    let z = V3::z();
+    let u = z - t * z.dot(t);
+    if u.norm() > 1e-6 {
+        u.normalize()
+    } else {
+        t.cross(&V3::x()).normalize()
+    }
+}
+
+/// The dressing once set up: the arm, the cuff, the gripper.
+#[derive(Debug, Clone)]
+pub struct Dressing {
+    pub arm: Arm,
+    /// The sleeve's opening (cuff) vertices, in order around it.
+    pub cuff: Vec<usize>,
+    /// The vertices the gripper holds (the cuff's, each once).
+    pub gripped: Vec<usize>,
+    /// Simulated times at which the gripper starts to move, arrives at the
+    /// end of its path, and the run ends, s.
+    pub t_move: f64,
+    pub t_arrive: f64,
+    pub t_end: f64,
+    /// The gripper's path: the ring's centre at each waypoint (at the
+    /// start, the first cuff vertex), m.
+    pub gripper_path: Vec<(f64, V3)>,
+    /// The gripper's path ends at this axis point (the shoulder, or as far
+    /// as the cuff passes round the arm).
+    pub path_end: usize,
+    pub body: Handle<Obstacle>,
+    /// Body vertices (world) and the arm's of them, for the force split.
+    body_vertices: Vec<V3>,
+}
+
+/// One step of the dressing (a row of `dressing.csv`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct DressingRow {
+    pub time_s: f64,
+    /// The held vertices' mean (the ring's centre), m.
+    pub gripper: [f64; 3],
+    /// The cuff centroid's travel along the arm from the wrist, m (negative:
+    /// not yet at the wrist), and as a fraction of wrist → shoulder.
+    pub progress_m: f64,
+    pub progress: f64,
+    /// The cuff centroid's distance from the arm's axis, m.
+    pub off_axis_m: f64,
+    /// Force of the garment on the arm (Σ of its contacts' forces), N.
+    pub arm_force: [f64; 3],
+    pub arm_force_n: f64,
+    /// Σ of those contacts' normal forces, N.
+    pub arm_normal_force_n: f64,
+    pub arm_contacts: usize,
+    /// Force of the garment on the whole body, N.
+    pub body_force_n: f64,
+    pub body_contacts: usize,
+    /// Force of the garment on the gripper (the opposite of the pins'
+    /// reactions on the cloth), N.
+    pub gripper_force: [f64; 3],
+    pub gripper_force_n: f64,
+}
+
+/// What `fit.json` says of a dressing.
+#[derive(Debug, Clone, Serialize)]
+pub struct DressingReport {
+    pub arm: Side,
+    pub fingertip: [f64; 3],
+    pub wrist: [f64; 3],
+    pub shoulder: [f64; 3],
+    /// Wrist to shoulder along the axis, m.
+    pub arm_length_m: f64,
+    /// The arm's body vertices.
+    pub arm_vertices: usize,
+    pub cuff_vertices: usize,
+    pub gripped_vertices: usize,
+    /// The gripper's path along the axis, m, and its speed, m/s.
+    pub path_length_m: f64,
+    /// Where the path ends (the hoop's centre), as progress from the wrist,
+    /// m and fraction of wrist → shoulder.
+    pub path_end_progress_m: f64,
+    pub path_end_progress: f64,
+    pub speed_m_s: f64,
+    /// The gripper's force limit, N, and when it stopped the gripper, s
+    /// (`null`: no limit / never).
+    pub force_limit_n: Option<f64>,
+    pub safety_stop_s: Option<f64>,
+    pub duration_s: f64,
+    pub steps: usize,
+    pub ms_per_step: f64,
+    /// At the end.
+    pub final_progress_m: f64,
+    pub final_progress: f64,
+    pub final_off_axis_m: f64,
+    /// Distance of the cuff's centroid from the shoulder point at the end, m.
+    pub final_distance_to_shoulder_m: f64,
+    /// Largest force on the arm, N, and when, s.
+    pub peak_arm_force_n: f64,
+    pub peak_arm_force_time_s: f64,
+    pub peak_body_force_n: f64,
+    pub peak_gripper_force_n: f64,
+    /// First time the garment touched the arm, s (`null`: never).
+    pub first_arm_contact_s: Option<f64>,
+}
+
+/// The garment's cuff on the chosen arm, in order around it: the vertices
+/// of the pattern edges that no seam joins whose centroid lies within 8 cm
+/// of the arm's axis (wrist to shoulder), as sewn on the body; the edges
+/// chained end to nearest end (a vertex where two panels meet comes twice,
+/// once from each).
+pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
+    let sewn: std::collections::HashSet<(usize, usize)> =
+        g.seams.iter().flat_map(|s| [s.a, s.b]).collect();
+    let upper = &arm.axis[arm.wrist_at..];
+    let mut edges: Vec<Vec<usize>> = Vec::new();
+    for (p, panel) in g.panels.iter().enumerate() {
+        for (e, verts) in panel.edge_vertices.iter().enumerate() {
+            if sewn.contains(&(p, e)) || verts.is_empty() {
+                continue;
+            }
+            let c = verts.iter().map(|(i, _)| x[*i]).sum::<V3>() / verts.len() as f64;
+            if project_on_polyline(upper, &c).1 < 0.08 {
+                edges.push(verts.iter().map(|(i, _)| *i).collect());
+            }
+        }
+    }
+    if edges.iter().map(Vec::len).sum::<usize>() < 3 {
+        bail!(
+            "no sleeve opening found on the arm: no unsewn pattern edge lies within 8 cm of \
+             the arm's axis once the garment is sewn on the body"
+        );
+    }
+    let mut cuff = edges.remove(0);
+    while !edges.is_empty() {
+        let end = x[*cuff.last().expect("non-empty")];
+        let (k, flip) = (0..edges.len())
+            .flat_map(|k| [(k, false), (k, true)])
+            .min_by(|a, b| {
+                let d = |&(k, f): &(usize, bool)| {
+                    let e = &edges[k];
+                    (x[if f { e[e.len() - 1] } else { e[0] }] - end).norm()
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .expect("edges left");
+        let mut e = edges.remove(k);
+        if flip {
+            e.reverse();
+        }
+        cuff.extend(e);
+    }
+    Ok(cuff)
+}
+
+/// A hoop: the closed curve the gripper holds the cuff along, across the
+/// axis, as a dense polygon counter-clockwise about `normal`.
+#[derive(Debug, Clone)]
+struct Hoop {
+    centre: V3,
+    curve: Vec<V3>,
+}
+
+impl Hoop {
+    /// A circle of perimeter `l` about `centre`, across `normal`.
+    fn circle(centre: V3, normal: V3, e1: V3, l: f64) -> Hoop {
+        let r = l / std::f64::consts::TAU;
+        let e2 = normal.cross(&e1);
+        let curve = (0..720)
+            .map(|j| {
+                let a = std::f64::consts::TAU * j as f64 / 720.0;
+                centre + (e1 * a.cos() + e2 * a.sin()) * r
+            })
+            .collect();
+        Hoop { centre, curve }
+    }
+
+    /// The points at the given fractions of the perimeter, from the point
+    /// in direction `from` of the centre, turning about the normal with
+    /// sign `turn`.
+    fn points(&self, fractions: &[f64], from: &V3, turn: f64) -> Vec<V3> {
+        let n = self.curve.len();
+        let k0 = (0..n)
+            .max_by(|&a, &b| {
+                let c = |k: usize| (self.curve[k] - self.centre).normalize().dot(from);
+                c(a).total_cmp(&c(b))
+            })
+            .expect("a curve");
+        let at = |j: usize| {
+            let k = if turn >= 0.0 {
+                (k0 + j) % n
+            } else {
+                (k0 + n - j % n) % n
+            };
+            self.curve[k]
+        };
+        let mut cum = vec![0.0; n + 1];
+        for j in 1..=n {
+            cum[j] = cum[j - 1] + (at(j) - at(j - 1)).norm();
+        }
+        let total = cum[n];
+        fractions
+            .iter()
+            .map(|f| {
+                let target = f.rem_euclid(1.0) * total;
+                let j = cum.partition_point(|c| *c < target).clamp(1, n);
+                let w = (target - cum[j - 1]) / (cum[j] - cum[j - 1]).max(1e-300);
+                at(j - 1) + (at(j) - at(j - 1)) * w
+            })
+            .collect()
+    }
+}
+
+/// The convex hull of `pts` grown by `r` (its Minkowski sum with a disc),
+/// counter-clockwise, arcs every 3° or finer; and its perimeter (the hull's
+/// plus 2π r).
+pub fn grown_hull(pts: &[[f64; 2]], r: f64) -> (Vec<[f64; 2]>, f64) {
+    let mut hull = crate::cloth::convex_hull(pts);
+    let area: f64 = (0..hull.len())
+        .map(|i| {
+            let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum();
+    if area < 0.0 {
+        hull.reverse();
+    }
+    let n = hull.len();
+    if n < 3 {
+        return (Vec::new(), 0.0);
+    }
+    let normal = |i: usize| {
+        let (a, b) = (hull[i], hull[(i + 1) % n]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let l = (dx * dx + dy * dy).sqrt();
+        (-dx / l).atan2(dy / l) // angle of the outward normal (dy, -dx)
+    };
+    let mut out = Vec::new();
+    let mut perimeter = 0.0;
+    for i in 0..n {
+        let (a0, mut a1) = (normal((i + n - 1) % n), normal(i));
+        while a1 < a0 {
+            a1 += std::f64::consts::TAU;
+        }
+        let steps = ((a1 - a0) / 3f64.to_radians()).ceil().max(1.0) as usize;
+        for k in 0..=steps {
+            let a = a0 + (a1 - a0) * k as f64 / steps as f64;
+            out.push([hull[i][0] + r * a.cos(), hull[i][1] + r * a.sin()]);
+        }
+        let b = hull[(i + 1) % n];
+        perimeter += ((b[0] - hull[i][0]).powi(2) + (b[1] - hull[i][1]).powi(2)).sqrt();
+    }
+    (out, perimeter + std::f64::consts::TAU * r)
+}
+
+fn body_world(body: &Obstacle) -> (Vec<V3>, Vec<[u32; 3]>) {
+    let (v, t) = body.local_triangles();
+    (
+        v.iter()
+            .map(|p| (body.pose * nalgebra::Point3::from(V3::from(*p))).coords)
+            .collect(),
+        t,
+    )
+}
+
+impl Dressing {
+    /// Places the sewn garment past the fingertips and sets the gripper's
+    /// pins (see the module's phases 2 and 3).
+    pub fn set_up(
+        sim: &mut Simulation,
+        g: &Garment,
+        body: Handle<Obstacle>,
+        d: &DressingFile,
+    ) -> Result<Dressing> {
+        d.check()?;
+        let ob = sim.obstacles().get(body).context("no body")?.clone();
+        let (bv, bt) = body_world(&ob);
+        let arm = Arm::of(&bv, &bt, d.arm, d.beyond)?;
+        let cuff = find_cuff(g, &sim.cloth.x, &arm)?;
+        let x0 = sim.cloth.x.clone();
+        let c = cuff.iter().map(|&i| x0[i]).sum::<V3>() / cuff.len() as f64;
+        let gc = x0.iter().sum::<V3>() / x0.len() as f64;
+        // the cuff's plane: its normal is the covariance's weakest direction
+        let mut cov = Matrix3::zeros();
+        for &i in &cuff {
+            let r = x0[i] - c;
+            cov += r * r.transpose();
+        }
+        let eig = cov.symmetric_eigen();
+        let k = eig.eigenvalues.imin();
+        let mut n: V3 = eig.eigenvectors.column(k).into();
+        if n.dot(&(gc - c)) < 0.0 {
+            n = -n;
+        }
+        let start = arm.axis[0];
+        let out = (arm.axis[0] - arm.axis[1]).normalize();
+        let base = UnitQuaternion::rotation_between(&n, &out).unwrap_or_else(|| {
+            UnitQuaternion::from_axis_angle(
+                &nalgebra::Unit::new_normalize(up_across(&out)),
+                std::f64::consts::PI,
+            )
+        });
+        let contact = ob.thickness + sim.params().cloth_thickness;
+        let mut best: Option<(f64, Vec<V3>)> = None;
+        for r in 0..24 {
+            let roll = UnitQuaternion::from_axis_angle(
+                &nalgebra::Unit::new_normalize(out),
+                r as f64 * std::f64::consts::TAU / 24.0,
+            );
+            let q = roll * base;
+            let placed: Vec<V3> = x0.iter().map(|p| start + q * (p - c)).collect();
+            let near = placed
+                .iter()
+                .map(|p| ob.proximity(p).distance)
+                .fold(f64::INFINITY, f64::min);
+            if best.as_ref().is_none_or(|b| near > b.0) {
+                best = Some((near, placed));
+            }
+        }
+        let (near, placed) = best.expect("24 turns tried");
+        if near < contact {
+            bail!(
+                "the garment, placed past the fingertips, comes within {:.1} mm of the body \
+                 (under the contact distance {:.1} mm) at every turn about the arm's axis: \
+                 start it farther (dressing.beyond)",
+                1e3 * near,
+                1e3 * contact
+            );
+        }
+        sim.cloth.x = placed;
+        sim.cloth.v.iter_mut().for_each(|v| *v = V3::zeros());
+        let x = sim.cloth.x.clone();
+        // the cuff's length around, as sewn: the hoop's perimeter
+        let nc = cuff.len();
+        let mut s_of = vec![0.0; nc];
+        for k in 1..nc {
+            s_of[k] = s_of[k - 1] + (x0[cuff[k]] - x0[cuff[k - 1]]).norm();
+        }
+        let perimeter = s_of[nc - 1] + (x0[cuff[0]] - x0[cuff[nc - 1]]).norm();
+        let fractions: Vec<f64> = s_of.iter().map(|s| s / perimeter).collect();
+        // frames carried along the axis without turning about it
+        let m = arm.axis.len();
+        let mut e1 = vec![up_across(&(-out)); m];
+        for k in 1..m {
+            let t = arm.tangent(k);
+            let p = e1[k - 1] - t * e1[k - 1].dot(&t);
+            e1[k] = if p.norm() > 1e-9 {
+                p.normalize()
+            } else {
+                up_across(&t)
+            };
+        }
+        // which way the placed cuff turns about the axis, and where it begins
+        let t0v = -out;
+        let turn = {
+            let w: f64 = (0..nc)
+                .map(|k| {
+                    (x[cuff[k]] - start)
+                        .cross(&(x[cuff[(k + 1) % nc]] - start))
+                        .dot(&t0v)
+                })
+                .sum();
+            if w >= 0.0 {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        let first = {
+            let r = x[cuff[0]] - start;
+            let r = r - t0v * r.dot(&t0v);
+            (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0])))
+        };
+        // the hoop at each axis point: round where nothing of the body is
+        // near (past the fingertips), else around the arm's section: where
+        // the plane across the axis cuts the edges of the hand's (before the
+        // wrist) or the arm's vertices (after), within 15 cm (hand) or 10 cm
+        // (arm) of the axis, and those vertices within 1 cm of the plane;
+        // the torso is left to the check of the whole path below
+        let lim_hand = arm.rings[arm.wrist_ring].level;
+        let lim_arm = arm.rings[arm.shoulder_ring].level;
+        let bedges = mesh_edges(&bt);
+        let mut hoops = Vec::with_capacity(m);
+        for k in 0..m {
+            let t = if k == 0 { t0v } else { arm.tangent(k) };
+            let a3 = arm.axis[k];
+            let (u1, u2) = (e1[k], t.cross(&e1[k]));
+            let (lim, reach) = if k < arm.wrist_at {
+                (lim_hand, 0.15)
+            } else {
+                (lim_arm, 0.10)
+            };
+            let pts: Vec<[f64; 2]> = bedges
+                .iter()
+                .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
+                .filter_map(|&(i, j)| {
+                    let (di, dj) = ((bv[i] - a3).dot(&t), (bv[j] - a3).dot(&t));
+                    if di * dj > 0.0 || di == dj {
+                        return None;
+                    }
+                    let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
+                    (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
+                })
+                .chain(
+                    // and the vertices within a centimetre of the plane
+                    (0..bv.len())
+                        .filter(|&i| arm.geodesic[i] <= lim)
+                        .map(|i| bv[i] - a3)
+                        .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
+                        .map(|p| [p.dot(&u1), p.dot(&u2)]),
+                )
+                .collect();
+            let hoop = if pts.len() < 3 {
+                Hoop::circle(a3, t, u1, perimeter)
+            } else {
+                // the section's convex hull grown as far as the cuff's
+                // length allows (the same gap all round), at least by the
+                // clearance
+                let (_, p0) = grown_hull(&pts, 0.0);
+                let grow = (perimeter - p0) / std::f64::consts::TAU;
+                if grow < d.clearance && k > arm.wrist_at + 5 {
+                    // past the wrist: the cuff goes as far up as it passes
+                    break;
+                }
+                if grow < d.clearance {
+                    bail!(
+                        "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
+                         from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
+                         is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
+                         dressing.clearance",
+                        100.0 * perimeter,
+                        100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
+                        a3.x,
+                        a3.y,
+                        a3.z,
+                        100.0 * p0,
+                        100.0 * (p0 + std::f64::consts::TAU * d.clearance)
+                    );
+                }
+                let (curve, _) = grown_hull(&pts, grow);
+                let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
+                let centre = curve.iter().sum::<V3>() / curve.len() as f64;
+                Hoop { centre, curve }
+            };
+            hoops.push(hoop);
+        }
+        let m = hoops.len();
+        let t_start = sim.time;
+        let t_move = t_start + d.hang;
+        let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
+        let from = |k: usize| {
+            let (u1, u2) = (
+                e1[k],
+                if k == 0 { t0v } else { arm.tangent(k) }.cross(&e1[k]),
+            );
+            u1 * first.0 + u2 * first.1
+        };
+        let rings: Vec<Vec<V3>> = (0..m)
+            .map(|k| hoops[k].points(&fractions, &from(k), turn))
+            .collect();
+        // the hoop must not touch the skin anywhere on its way
+        let legs: Vec<Vec<V3>> = std::iter::once(cuff.iter().map(|&i| x[i]).collect())
+            .chain(rings.iter().cloned())
+            .collect();
+        let mut m = m;
+        'legs: for (q, w) in legs.windows(2).enumerate() {
+            for f in [0.0, 0.5, 1.0] {
+                for j in 0..nc {
+                    let p = w[0][j] + (w[1][j] - w[0][j]) * f;
+                    let pr = ob.proximity(&p);
+                    if pr.distance < contact && q > arm.wrist_at + 5 {
+                        // past the wrist: the cuff goes as far up as it passes
+                        m = q;
+                        break 'legs;
+                    }
+                    if pr.distance < contact {
+                        bail!(
+                            "the gripper would hold the cuff {:.1} mm from the skin at \
+                             ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
+                             dressing.clearance or start farther (dressing.beyond)",
+                            1e3 * pr.distance,
+                            p.x,
+                            p.y,
+                            p.z,
+                            100.0 * (q as f64 + f) / m as f64
+                        );
+                    }
+                }
+            }
+        }
+        let pins = (0..nc)
+            .map(|j| {
+                let mut w = vec![(t_start, x[cuff[j]])];
+                w.extend((0..m).map(|k| (times[k], rings[k][j])));
+                Pin::new(cuff[j], PinPath::Waypoints(w))
+            })
+            .collect();
+        sim.set_pins(pins)?;
+        let gripper_path = std::iter::once((t_start, x[cuff[0]]))
+            .chain((0..m).map(|k| (times[k], hoops[k].centre)))
+            .collect();
+        let t_arrive = times[m - 1];
+        let mut gripped = cuff.clone();
+        gripped.sort_unstable();
+        gripped.dedup();
+        Ok(Dressing {
+            arm,
+            cuff,
+            gripped,
+            t_move,
+            t_arrive,
+            t_end: t_arrive + d.hold,
+            gripper_path,
+            path_end: m - 1,
+            body,
+            body_vertices: bv,
+        })
+    }
+
+    /// The row of the step just taken.
+    pub fn row(&self, sim: &Simulation) -> DressingRow {
+        let x = &sim.cloth.x;
+        let ring: Vec<V3> = self.cuff.iter().map(|&i| x[i]).collect();
+        let (p, off) = progress(&self.arm.axis, self.arm.s[self.arm.wrist_at], &ring);
+        let contacts = body_forces::contacts_with(sim, self.body).unwrap_or_default();
+        let (mut fa, mut na, mut ca, mut fb) = (V3::zeros(), 0.0, 0, V3::zeros());
+        for c in &contacts {
+            fb += c.force;
+            let nearest = (0..self.body_vertices.len())
+                .min_by(|&a, &b| {
+                    (self.body_vertices[a] - c.point)
+                        .norm_squared()
+                        .total_cmp(&(self.body_vertices[b] - c.point).norm_squared())
+                })
+                .expect("a body");
+            if self.arm.vertices[nearest] {
+                fa += c.force;
+                na += c.normal_force();
+                ca += 1;
+            }
+        }
+        let pf = sim.pin_forces();
+        let on_gripper: V3 = -self.gripped.iter().map(|&i| pf[i]).sum::<V3>();
+        let gr = self.gripped.iter().map(|&i| x[i]).sum::<V3>() / self.gripped.len() as f64;
+        DressingRow {
+            time_s: sim.time,
+            gripper: gr.into(),
+            progress_m: p,
+            progress: p / self.arm.length(),
+            off_axis_m: off,
+            arm_force: fa.into(),
+            arm_force_n: fa.norm(),
+            arm_normal_force_n: na,
+            arm_contacts: ca,
+            body_force_n: fb.norm(),
+            body_contacts: contacts.len(),
+            gripper_force: on_gripper.into(),
+            gripper_force_n: on_gripper.norm(),
+        }
+    }
+
+    /// Runs the dressing to its end; `on_step(sim, self, row)` after every step,
+    /// `stop()` ends it early. The rows, one per step.
+    /// With a `force_limit`, the gripper stops where it is at the first
+    /// step the limit is passed ([`Dressing::safety_stop`]) and the run
+    /// ends `hold` s later.
+    pub fn run(
+        &self,
+        sim: &mut Simulation,
+        d: &DressingFile,
+        on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
+        stop: &dyn Fn() -> bool,
+    ) -> Result<Vec<DressingRow>> {
+        let mut rows = Vec::new();
+        let mut t_end = self.t_end;
+        let mut stopped = false;
+        while sim.time < t_end - 1e-9 && !stop() {
+            sim.step()
+                .with_context(|| format!("dressing, t = {:.4} s", sim.time))?;
+            let r = self.row(sim);
+            on_step(sim, self, &r);
+            rows.push(r);
+            if !stopped && self.over_limit(d, &r) {
+                // every pin holds where its path is now
+                let now = sim.time;
+                let held: Vec<Pin> = sim
+                    .pins()
+                    .as_slice()
+                    .iter()
+                    .map(|p| Pin::new(p.vertex, PinPath::Fixed(p.path.at(now).0)))
+                    .collect();
+                sim.set_pins(held)?;
+                t_end = now + d.hold;
+                stopped = true;
+            }
+        }
+        Ok(rows)
+    }
+
+    /// Whether the garment pulls on the moving gripper (after `hang`,
+    /// before it arrives) with more than the force limit.
+    fn over_limit(&self, d: &DressingFile, r: &DressingRow) -> bool {
+        d.force_limit.is_some_and(|f| {
+            r.time_s > self.t_move && r.time_s < self.t_arrive && r.gripper_force_n > f
+        })
+    }
+
+    /// When the gripper's safety stop acted: the first row over the limit
+    /// (see [`Dressing::run`]).
+    pub fn safety_stop(&self, d: &DressingFile, rows: &[DressingRow]) -> Option<f64> {
+        rows.iter()
+            .find(|r| self.over_limit(d, r))
+            .map(|r| r.time_s)
+    }
+
+    /// The report of a run's rows.
+    pub fn report(&self, d: &DressingFile, rows: &[DressingRow], wall_s: f64) -> DressingReport {
+        let last = rows.last().copied();
+        let peak = |f: fn(&DressingRow) -> f64| {
+            rows.iter()
+                .map(|r| (r.time_s, f(r)))
+                .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+        };
+        let (ta, fa) = peak(|r| r.arm_force_n);
+        DressingReport {
+            arm: d.arm,
+            fingertip: self.arm.fingertip.into(),
+            wrist: self.arm.wrist().into(),
+            shoulder: self.arm.shoulder().into(),
+            arm_length_m: self.arm.length(),
+            arm_vertices: self.arm.vertices.iter().filter(|b| **b).count(),
+            cuff_vertices: self.cuff.len(),
+            gripped_vertices: self.gripped.len(),
+            path_length_m: self.arm.s[self.path_end],
+            path_end_progress_m: self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at],
+            path_end_progress: (self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at])
+                / self.arm.length(),
+            speed_m_s: d.speed,
+            force_limit_n: d.force_limit,
+            safety_stop_s: self.safety_stop(d, rows),
+            duration_s: rows.last().map_or(0.0, |r| r.time_s) - self.gripper_path[0].0,
+            steps: rows.len(),
+            ms_per_step: 1e3 * wall_s / rows.len().max(1) as f64,
+            final_progress_m: last.map_or(f64::NAN, |r| r.progress_m),
+            final_progress: last.map_or(f64::NAN, |r| r.progress),
+            final_off_axis_m: last.map_or(f64::NAN, |r| r.off_axis_m),
+            final_distance_to_shoulder_m: f64::NAN,
+            peak_arm_force_n: fa,
+            peak_arm_force_time_s: ta,
+            peak_body_force_n: peak(|r| r.body_force_n).1,
+            peak_gripper_force_n: peak(|r| r.gripper_force_n).1,
+            first_arm_contact_s: rows.iter().find(|r| r.arm_contacts > 0).map(|r| r.time_s),
+        }
+    }
+
+    /// The cuff's centroid now.
+    pub fn cuff_centroid(&self, sim: &Simulation) -> V3 {
+        self.cuff.iter().map(|&i| sim.cloth.x[i]).sum::<V3>() / self.cuff.len() as f64
+    }
+}
+
+/// A whole dressing trial: sewn on the body, placed, dressed. `on_step`
+/// after every dressing step.
+pub struct DressingRun {
+    pub sim: Simulation,
+    pub garment: Garment,
+    pub dressing: Dressing,
+    pub sewing: crate::trial::RunStats,
+    pub rows: Vec<DressingRow>,
+    pub report: DressingReport,
+}
+
+/// Runs a trial with a `dressing` section.
+pub fn run_trial(
+    trial: &crate::trial::Trial,
+    ov: &crate::trial::TrialOverrides,
+    sewing_progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
+    on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
+    stop: &dyn Fn() -> bool,
+) -> Result<DressingRun> {
+    let d = trial
+        .file
+        .dressing
+        .as_ref()
+        .context("the trial has no dressing section")?;
+    d.check()?;
+    let (mut sim, g) = trial.build(ov)?;
+    let body = crate::trial::body_handle(&sim).context("the trial has no body")?;
+    let sewing = crate::trial::run_on(
+        &mut sim,
+        Some(body),
+        &trial.file.sewing,
+        &trial.file.settle,
+        Some(0.0),
+        sewing_progress,
+        stop,
+    )?;
+    let dressing = Dressing::set_up(&mut sim, &g, body, d)?;
+    let wall = Instant::now();
+    let rows = dressing.run(&mut sim, d, on_step, stop)?;
+    let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());
+    report.final_distance_to_shoulder_m =
+        (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();
+    Ok(DressingRun {
+        sim,
+        garment: g,
+        dressing,
+        sewing,
+        rows,
+        report,
+    })
+}
+
+/// Writes `dressing.csv`: one row per step.
+pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
+    crate::io::write_atomic(path, |w| {
+        writeln!(
+            w,
+            "time_s,gripper_x_m,gripper_y_m,gripper_z_m,progress_m,progress,off_axis_m,\
+             arm_force_x_n,arm_force_y_n,arm_force_z_n,arm_force_n,arm_normal_force_n,\
+             arm_contacts,body_force_n,body_contacts,gripper_force_x_n,gripper_force_y_n,\
+             gripper_force_z_n,gripper_force_n"
+        )?;
+        for r in rows {
+            let (g, a, f) = (r.gripper, r.arm_force, r.gripper_force);
+            writeln!(
+                w,
+                "{:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},\
+                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e}",
+                r.time_s,
+                g[0],
+                g[1],
+                g[2],
+                r.progress_m,
+                r.progress,
+                r.off_axis_m,
+                a[0],
+                a[1],
+                a[2],
+                r.arm_force_n,
+                r.arm_normal_force_n,
+                r.arm_contacts,
+                r.body_force_n,
+                r.body_contacts,
+                f[0],
+                f[1],
+                f[2],
+                r.gripper_force_n
+            )?;
+        }
+        Ok(())
+    })
+}
+
+/// Writes `dressing.png`: the progress (top) and the forces (bottom)
+/// against time.
+pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
+    use crate::plot::LinePlot;
+    let t: Vec<f64> = rows.iter().map(|r| r.time_s).collect();
+    let col = |f: fn(&DressingRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
+    let prog = col(|r| r.progress);
+    let mut top = LinePlot::columns(
+        &format!("{title}: the sleeve's opening along the arm"),
+        "time (s)",
+        "progress (wrist 0, shoulder 1)",
+        &t,
+        &[("cuff centroid", &prog)],
+    );
+    top.size = (900, 400);
+    let (arm, body, grip) = (
+        col(|r| r.arm_force_n),
+        col(|r| r.body_force_n),
+        col(|r| r.gripper_force_n),
+    );
+    let mut bottom = LinePlot::columns(
+        &format!("{title}: forces"),
+        "time (s)",
+        "force (N)",
+        &t,
+        &[
+            ("on the arm", &arm),
+            ("on the body", &body),
+            ("on the gripper", &grip),
+        ],
+    );
+    bottom.size = (900, 400);
+    let (a, b) = (top.render(), bottom.render());
+    let mut img = crate::plot::Image::new(900, 800, crate::plot::WHITE);
+    for y in 0..400 {
+        for x in 0..900 {
+            img.set(x as i64, y as i64, a.get(x, y));
+            img.set(x as i64, 400 + y as i64, b.get(x, y));
+        }
+    }
+    img.save_png(path)
+}
