@@ -134,19 +134,7 @@ impl Mesh {
         let d = Vector3::from(RAY).normalize();
         let mut hits = 0;
         for &k in &self.cells[j * self.nx + i] {
-            let [a, b, c] = self.t[k].map(|q| self.v[q]);
-            let (e1, e2) = (b - a, c - a);
-            let h = d.cross(&e2);
-            let det = e1.dot(&h);
-            if det.abs() < 1e-14 {
-                continue;
-            }
-            let s = p - a;
-            let u = s.dot(&h) / det;
-            let q = s.cross(&e1);
-            let w = d.dot(&q) / det;
-            let dist = e2.dot(&q) / det;
-            if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0 {
+            if support::ray_crosses(p, &d, self.t[k].map(|q| self.v[q])) {
                 hits += 1;
             }
         }

@@ -1032,27 +1032,10 @@ fn the_garmentcode_importer_agrees_with_pygarment() {
 /// direction (independent of the contact code's pseudo-normals).
 fn inside_mesh(p: Vector3<f64>, v: &[[f64; 3]], t: &[[u32; 3]]) -> bool {
     let d = Vector3::new(0.5773, 0.5774, 0.5775).normalize();
-    let mut hits = 0;
-    for tri in t {
-        let a = Vector3::from(v[tri[0] as usize]);
-        let b = Vector3::from(v[tri[1] as usize]);
-        let c = Vector3::from(v[tri[2] as usize]);
-        // Möller–Trumbore
-        let (e1, e2) = (b - a, c - a);
-        let h = d.cross(&e2);
-        let det = e1.dot(&h);
-        if det.abs() < 1e-14 {
-            continue;
-        }
-        let s = p - a;
-        let u = s.dot(&h) / det;
-        let q = s.cross(&e1);
-        let w = d.dot(&q) / det;
-        let dist = e2.dot(&q) / det;
-        if u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0 {
-            hits += 1;
-        }
-    }
+    let hits = t
+        .iter()
+        .filter(|tri| support::ray_crosses(&p, &d, tri.map(|k| Vector3::from(v[k as usize]))))
+        .count();
     hits % 2 == 1
 }
 

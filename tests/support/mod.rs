@@ -154,3 +154,26 @@ pub fn shipped_fabrics() -> Vec<PathBuf> {
     assert!(v.len() >= 5, "{v:?}");
     v
 }
+
+/// Whether the ray from `p` along `d` crosses the triangle `t` in front of
+/// `p` (Möller–Trumbore): for inside tests by ray parity that share no code
+/// with the solver's contacts.
+pub fn ray_crosses(
+    p: &nalgebra::Vector3<f64>,
+    d: &nalgebra::Vector3<f64>,
+    t: [nalgebra::Vector3<f64>; 3],
+) -> bool {
+    let [a, b, c] = t;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(&e2);
+    let det = e1.dot(&h);
+    if det.abs() < 1e-14 {
+        return false;
+    }
+    let s = p - a;
+    let u = s.dot(&h) / det;
+    let q = s.cross(&e1);
+    let w = d.dot(&q) / det;
+    let dist = e2.dot(&q) / det;
+    u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0
+}

@@ -1135,6 +1135,21 @@ impl Simulation {
     /// supplied) plus the kinetic friction force of a sliding contact. The
     /// force on the obstacles is its opposite.
     pub fn contact_forces(&self) -> Vec<Vector3<f64>> {
+        let touching = |i: usize| self.ws.contact_of[i].is_some() && self.pinned[i].is_none();
+        let mut out = self.reactions(touching);
+        if self.steps > 0 {
+            for (i, f) in out.iter_mut().enumerate() {
+                if touching(i) {
+                    *f += self.friction_force[i];
+                }
+            }
+        }
+        out
+    }
+
+    /// The constraint reaction `(A Δv − b)/h` of the last step at the
+    /// vertices `which` selects, N (zero elsewhere and before any step).
+    fn reactions(&self, which: impl Fn(usize) -> bool) -> Vec<Vector3<f64>> {
         let n = self.cloth.len();
         let mut out = vec![Vector3::zeros(); n];
         if self.steps == 0 {
@@ -1143,9 +1158,9 @@ impl Simulation {
         let mut adv = vec![Vector3::zeros(); n];
         self.ws.a.mul(&self.dv, &mut adv);
         let h = self.params.dt;
-        for i in 0..n {
-            if self.ws.contact_of[i].is_some() && self.pinned[i].is_none() {
-                out[i] = (adv[i] - self.ws.b[i]) / h + self.friction_force[i];
+        for (i, o) in out.iter_mut().enumerate() {
+            if which(i) {
+                *o = (adv[i] - self.ws.b[i]) / h;
             }
         }
         out
@@ -1156,20 +1171,7 @@ impl Simulation {
     /// as for a contact in [`Simulation::contact_forces`]. What holds the
     /// cloth (a gripper) feels its opposite.
     pub fn pin_forces(&self) -> Vec<Vector3<f64>> {
-        let n = self.cloth.len();
-        let mut out = vec![Vector3::zeros(); n];
-        if self.steps == 0 {
-            return out;
-        }
-        let mut adv = vec![Vector3::zeros(); n];
-        self.ws.a.mul(&self.dv, &mut adv);
-        let h = self.params.dt;
-        for i in 0..n {
-            if self.pinned[i].is_some() {
-                out[i] = (adv[i] - self.ws.b[i]) / h;
-            }
-        }
-        out
+        self.reactions(|i| self.pinned[i].is_some())
     }
 
     /// The outward normal of each vertex's obstacle contact in the last step
