@@ -172,23 +172,68 @@ fn barycentric(
     (w, (proj.point.coords - p).norm())
 }
 
+/// Vertices (world) and triangles of a mesh.
+pub type WorldMesh = (Vec<Vector3<f64>>, Vec<[u32; 3]>);
+
+/// Obstacle `ob`'s triangle mesh where it is now, world coordinates: a
+/// deforming body's present positions, a rigid mesh placed by its pose
+/// (`None` for other shapes).
+pub fn world_mesh(ob: &Obstacle) -> Option<WorldMesh> {
+    match (ob.deforming(), &ob.spec, &ob.mesh) {
+        (Some(d), _, _) => Some((d.positions().to_vec(), d.triangles().to_vec())),
+        (None, ShapeSpec::Triangles { .. }, Some((v, t))) => Some((
+            v.iter()
+                .map(|p| (ob.pose * Point3::from(Vector3::from(*p))).coords)
+                .collect(),
+            t.clone(),
+        )),
+        _ => None,
+    }
+}
+
+/// The triangle of obstacle `ob`'s mesh (`vertices`, `triangles`: where it
+/// is now) that holds the surface point `p`, with `p`'s barycentric
+/// coordinates in it: the triangle the obstacle's own closest-point query
+/// finds (its triangles are the mesh's, in order), checked; else the nearest
+/// by a search of them all.
+pub fn holding_triangle(
+    ob: &Obstacle,
+    vertices: &[Vector3<f64>],
+    triangles: &[[u32; 3]],
+    p: &Vector3<f64>,
+) -> (usize, [f64; 3]) {
+    let corners = |k: usize| triangles[k].map(|i| vertices[i as usize]);
+    let found = match ob.deforming() {
+        Some(d) => Some(d.closest(p).triangle),
+        None => ob.shape.as_trimesh().and_then(|m| {
+            let (_, (k, _)) = m.project_point_and_get_location(&ob.pose, &Point3::from(*p), false);
+            let k = k as usize;
+            (k < triangles.len()).then_some(k)
+        }),
+    };
+    let (k, (w, _)) = found
+        .map(|k| {
+            let [a, b, c] = corners(k);
+            (k, barycentric(p, &a, &b, &c))
+        })
+        .filter(|(_, (_, d))| *d < 1e-9)
+        .unwrap_or_else(|| {
+            (0..triangles.len())
+                .map(|k| {
+                    let [a, b, c] = corners(k);
+                    (k, barycentric(p, &a, &b, &c))
+                })
+                .min_by(|x, y| x.1 .1.total_cmp(&y.1 .1))
+                .expect("a mesh obstacle has triangles")
+        });
+    (k, w)
+}
+
 /// The garment's pressure on the vertices of obstacle `body`'s triangle
 /// mesh (`None` if there is no such obstacle or it is not a triangle mesh).
 pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPressure> {
     let ob = sim.obstacles().get(body)?;
-    // a deforming body where it is now; a rigid mesh where its pose puts it
-    let deforming = ob.deforming();
-    let (vertices, triangles): (Vec<Vector3<f64>>, Vec<[u32; 3]>) =
-        match (deforming, &ob.spec, &ob.mesh) {
-            (Some(d), _, _) => (d.positions().to_vec(), d.triangles().to_vec()),
-            (None, ShapeSpec::Triangles { .. }, Some((v, t))) => (
-                v.iter()
-                    .map(|p| (ob.pose * Point3::from(Vector3::from(*p))).coords)
-                    .collect(),
-                t.clone(),
-            ),
-            _ => return None,
-        };
+    let (vertices, triangles) = world_mesh(ob)?;
     let mut area = vec![0.0; vertices.len()];
     for t in &triangles {
         let [a, b, c] = t.map(|k| vertices[k as usize]);
@@ -199,8 +244,6 @@ pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPre
     }
     let contacts = contacts_with(sim, body)?;
     let mut force = vec![0.0; vertices.len()];
-    let mesh = deforming.is_none().then(|| ob.shape.as_trimesh()).flatten();
-    let corners = |k: usize| triangles[k].map(|i| vertices[i as usize]);
     let mut normal_force = 0.0;
     for c in &contacts {
         let normal = c.normal_force();
@@ -208,32 +251,7 @@ pub fn body_pressure(sim: &Simulation, body: Handle<Obstacle>) -> Option<BodyPre
             continue;
         }
         normal_force += normal;
-        // the triangle parry's query finds (its triangles are the mesh's,
-        // in order), checked; else the nearest by a search of them all
-        let found = deforming.map(|d| d.closest(&c.point).triangle).or_else(|| {
-            mesh.and_then(|m| {
-                let (_, (k, _)) =
-                    m.project_point_and_get_location(&ob.pose, &Point3::from(c.point), false);
-                let k = k as usize;
-                (k < triangles.len()).then_some(k)
-            })
-        });
-        let pick = found
-            .map(|k| {
-                let [a, b, cc] = corners(k);
-                (k, barycentric(&c.point, &a, &b, &cc))
-            })
-            .filter(|(_, (_, d))| *d < 1e-9)
-            .unwrap_or_else(|| {
-                (0..triangles.len())
-                    .map(|k| {
-                        let [a, b, cc] = corners(k);
-                        (k, barycentric(&c.point, &a, &b, &cc))
-                    })
-                    .min_by(|x, y| x.1 .1.total_cmp(&y.1 .1))
-                    .expect("a mesh obstacle has triangles")
-            });
-        let (k, (w, _)) = pick;
+        let (k, w) = holding_triangle(ob, &vertices, &triangles, &c.point);
         for (j, i) in triangles[k].iter().enumerate() {
             force[*i as usize] += w[j] * normal;
         }

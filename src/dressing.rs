@@ -410,8 +410,9 @@ pub struct Dressing {
     /// as the cuff passes round the arm).
     pub path_end: usize,
     pub body: Handle<Obstacle>,
-    /// Body vertices (world) and the arm's of them, for the force split.
+    /// The body's mesh (world), for the force split.
     body_vertices: Vec<V3>,
+    body_triangles: Vec<[u32; 3]>,
 }
 
 /// One step of the dressing (a row of `dressing.csv`).
@@ -632,16 +633,6 @@ pub fn grown_hull(pts: &[[f64; 2]], r: f64) -> (Vec<[f64; 2]>, f64) {
     (out, perimeter + std::f64::consts::TAU * r)
 }
 
-fn body_world(body: &Obstacle) -> (Vec<V3>, Vec<[u32; 3]>) {
-    let (v, t) = body.local_triangles();
-    (
-        v.iter()
-            .map(|p| (body.pose * nalgebra::Point3::from(V3::from(*p))).coords)
-            .collect(),
-        t,
-    )
-}
-
 impl Dressing {
     /// Places the sewn garment past the fingertips and sets the gripper's
     /// pins (see the module's phases 2 and 3).
@@ -653,7 +644,7 @@ impl Dressing {
     ) -> Result<Dressing> {
         d.check()?;
         let ob = sim.obstacles().get(body).context("no body")?.clone();
-        let (bv, bt) = body_world(&ob);
+        let (bv, bt) = body_forces::world_mesh(&ob).context("the body is not a triangle mesh")?;
         let arm = Arm::of(&bv, &bt, d.arm, d.beyond)?;
         let cuff = find_cuff(g, &sim.cloth.x, &arm)?;
         let x0 = sim.cloth.x.clone();
@@ -893,6 +884,7 @@ impl Dressing {
             path_end: m - 1,
             body,
             body_vertices: bv,
+            body_triangles: bt,
         })
     }
 
@@ -902,17 +894,21 @@ impl Dressing {
         let ring: Vec<V3> = self.cuff.iter().map(|&i| x[i]).collect();
         let (p, off) = progress(&self.arm.axis, self.arm.s[self.arm.wrist_at], &ring);
         let contacts = body_forces::contacts_with(sim, self.body).unwrap_or_default();
+        let ob = sim.obstacles().get(self.body);
         let (mut fa, mut na, mut ca, mut fb) = (V3::zeros(), 0.0, 0, V3::zeros());
         for c in &contacts {
             fb += c.force;
-            let nearest = (0..self.body_vertices.len())
-                .min_by(|&a, &b| {
-                    (self.body_vertices[a] - c.point)
-                        .norm_squared()
-                        .total_cmp(&(self.body_vertices[b] - c.point).norm_squared())
-                })
-                .expect("a body");
-            if self.arm.vertices[nearest] {
+            // the corner of largest weight of the body triangle holding the contact
+            let Some(ob) = ob else { break };
+            let (k, w) = body_forces::holding_triangle(
+                ob,
+                &self.body_vertices,
+                &self.body_triangles,
+                &c.point,
+            );
+            let corner = (0..3).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
+            let v = self.body_triangles[k][corner] as usize;
+            if self.arm.vertices[v] {
                 fa += c.force;
                 na += c.normal_force();
                 ca += 1;

@@ -902,6 +902,22 @@ fn a_tube_on_a_turning_body_follows_it() {
     );
 }
 
+/// Runs a trial's phases to their end, with no progress.
+fn run_quietly(
+    sim: &mut Simulation,
+    t: &garment_sim::trial::Trial,
+) -> garment_sim::trial::RunStats {
+    garment_sim::trial::run(
+        sim,
+        &t.file.sewing,
+        &t.file.settle,
+        None,
+        &mut |_, _, _, _| {},
+        &|| false,
+    )
+    .unwrap()
+}
+
 /// Writes a tetrahedron moved by `d` as an OBJ file; `extra` lines appended.
 fn tetra_obj(path: &Path, d: V, extra: &str) {
     let v = [
@@ -1078,15 +1094,7 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
         std::fs::write(&p, format!("{head}{body}")).unwrap();
         let t = Trial::load(&p).unwrap();
         let (mut sim, g) = t.build(&TrialOverrides::default()).unwrap();
-        let st = trial::run(
-            &mut sim,
-            &t.file.sewing,
-            &t.file.settle,
-            None,
-            &mut |_, _, _, _| {},
-            &|| false,
-        )
-        .unwrap();
+        let st = run_quietly(&mut sim, &t);
         let deepest = sim.obstacles()[0].deepest_inside(&sim.cloth.x);
         let z = sim.cloth.x.iter().map(|p| p.z).sum::<f64>() / sim.cloth.len() as f64;
         // the fit report measures against the body where it is now
@@ -1189,15 +1197,7 @@ fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
                 ..Default::default()
             })
             .unwrap();
-        let st = trial::run(
-            &mut sim,
-            &t.file.sewing,
-            &t.file.settle,
-            None,
-            &mut |_, _, _, _| {},
-            &|| false,
-        )
-        .unwrap();
+        let st = run_quietly(&mut sim, t);
         let (fit, _, _) = trial::fit(&sim, &g, t, st.clone());
         (sim, fit, st)
     };
