@@ -736,18 +736,31 @@ fn a_bending_arm_does_not_go_through_the_sheet() {
 }
 
 /// A tube of cloth (circumference 0.9 m, closed by a seam) settled on a
-/// body shaped as an elliptic cone frustum (a skirt on hips, the hips half
-/// as deep as wide), the body then turning about the vertical, its rate
-/// ramped to 0.5 rad/s over half a second (frames 60 a second, the
-/// deforming path): after the transient, the cloth's mean angular velocity
-/// about the axis (the mass-weighted mean of its vertices' unwrapped turn
-/// over 2 s, divided by 2 s) is the body's within 5 %.
+/// body shaped as a cone frustum, the body then turning about the vertical,
+/// its rate ramped up over half a second (frames 60 a second, the deforming
+/// path), the fabric's own air damping (7 /s on the absolute velocity):
+/// after the transient, the cloth's mean angular velocity about the axis
+/// (the mass-weighted mean of its vertices' unwrapped turn over 2 s, divided
+/// by 2 s) is the body's within 0.5 % (the issue asks 5 %), and so is its
+/// rate over every quarter second of those 2 s; most contacts stick. Two
+/// bodies: elliptic (a skirt on hips, half as deep as wide) at 0.5 rad/s, and
+/// round at 1 rad/s, where nothing but friction can carry the tube round:
+/// static friction holds the hem and carries it at the rate of the points
+/// where the cloth vertices ride, the contact distance above the skin.
 #[test]
 fn a_tube_on_a_turning_body_follows_it() {
+    for (depth, omega) in [(0.5, 0.5), (1.0, 1.0)] {
+        tube_on_a_turning_frustum(depth, omega);
+    }
+}
+
+/// The tube of [`a_tube_on_a_turning_body_follows_it`] on the frustum whose
+/// depth is `depth` times its width, turning at `omega` rad/s.
+fn tube_on_a_turning_frustum(depth: f64, omega: f64) {
     let f = fixture();
     let dt = 1.0 / 120.0;
-    // the body: a closed elliptic frustum, half-axes 0.22 × 0.11 m at
-    // z = 0.1 to 0.1 × 0.05 m at 0.7
+    // the body: a closed frustum, half-axes 0.22 × 0.22 depth m at z = 0.1
+    // to 0.1 × 0.1 depth m at 0.7
     let seg = 64;
     let rad = |z: f64| 0.22 - 0.12 * (z - 0.1) / 0.6;
     let zs: Vec<f64> = (0..=12).map(|k| 0.1 + 0.05 * k as f64).collect();
@@ -755,7 +768,7 @@ fn a_tube_on_a_turning_body_follows_it() {
     for &z in &zs {
         for j in 0..seg {
             let phi = 2.0 * PI * j as f64 / seg as f64;
-            bv.push(V::new(rad(z) * phi.cos(), 0.5 * rad(z) * phi.sin(), z));
+            bv.push(V::new(rad(z) * phi.cos(), depth * rad(z) * phi.sin(), z));
         }
     }
     bv.push(V::new(0.0, 0.0, 0.1));
@@ -780,7 +793,6 @@ fn a_tube_on_a_turning_body_follows_it() {
         bt.push([c1, ring(zs.len() - 1, j), ring(zs.len() - 1, j + 1)]);
     }
     assert!(volume(&bv, &bt) > 0.0);
-    let omega = 0.5;
     let start = 0.8;
     // the turn's rate ramps up over the first half second (a body starting
     // to turn), then holds at omega
@@ -854,26 +866,36 @@ fn a_tube_on_a_turning_body_follows_it() {
     let mut turned = vec![0.0; sim.cloth.len()];
     let mut last: Vec<f64> = sim.cloth.x.iter().map(angle).collect();
     let window = (start + 1.0, start + 3.0);
+    let m: f64 = sim.cloth.mass.iter().sum();
+    // the rate over each quarter second of the window, and the contacts
+    // static friction held over the window
+    let quarter = (0.25 / dt).round() as usize;
+    let mut part = vec![0.0; sim.cloth.len()];
+    let mut rates = Vec::new();
+    let (mut stuck, mut contacts, mut steps) = (0, 0, 0);
     while sim.time < window.1 - 1e-9 {
-        if (sim.time - start).abs() < 1e-9 {
-            // settled: the fixture's air drag (mass-proportional damping
-            // of 7 /s, on the absolute velocity) lightened to 0.5 /s, a
-            // skirt's, which the hem's friction can carry the tube against
-            for f in sim.fabrics_mut() {
-                f.damping.alpha = -0.5;
-            }
-        }
-        sim.step().unwrap();
+        let stats = sim.step().unwrap();
+        let inside = sim.time > window.0 + 1e-9;
         for (k, p) in sim.cloth.x.iter().enumerate() {
             let a = angle(p);
             let d = (a - last[k] + PI).rem_euclid(2.0 * PI) - PI;
-            if sim.time > window.0 + 1e-9 {
+            if inside {
                 turned[k] += d;
+                part[k] += d;
             }
             last[k] = a;
         }
+        if inside {
+            stuck += stats.stuck;
+            contacts += stats.contacts;
+            steps += 1;
+            if steps % quarter == 0 {
+                let t: f64 = part.iter().zip(&sim.cloth.mass).map(|(t, w)| t * w).sum();
+                rates.push(t / m / (quarter as f64 * dt));
+                part.iter_mut().for_each(|t| *t = 0.0);
+            }
+        }
     }
-    let m: f64 = sim.cloth.mass.iter().sum();
     let turn: f64 = turned
         .iter()
         .zip(&sim.cloth.mass)
@@ -888,18 +910,28 @@ fn a_tube_on_a_turning_body_follows_it() {
         .map(|p| p.z)
         .fold(f64::INFINITY, f64::min);
     println!(
-        "turning body at {omega} rad/s: the tube's mean angular velocity {mean:.4} rad/s over the \
-         {:.0} s from {:.1} s ({:+.2} %), its hem at {rest_z:.3} m",
+        "body {depth} times as deep as wide turning at {omega} rad/s: the tube's mean angular velocity {mean:.4} rad/s over the \
+         {:.0} s from {:.1} s ({:+.2} %), per quarter second {:.4?} rad/s; contacts stuck {stuck} \
+         of {contacts}; its hem at {rest_z:.3} m",
         window.1 - window.0,
         window.0,
-        100.0 * (mean / omega - 1.0)
+        100.0 * (mean / omega - 1.0),
+        rates
     );
     // the tube rests on the body (its hem where the body is wider than it)
     assert!(rest_z > 0.15 && rest_z < z0, "hem at {rest_z} m");
     assert!(
-        (mean / omega - 1.0).abs() < 0.05,
+        (mean / omega - 1.0).abs() < 0.005,
         "the tube turns at {mean} rad/s, the body at {omega}"
     );
+    assert_eq!(rates.len(), 8);
+    for r in &rates {
+        assert!(
+            (r / omega - 1.0).abs() < 0.005,
+            "the tube turns at {r} rad/s over a quarter second: {rates:?}"
+        );
+    }
+    assert!(2 * stuck > contacts, "{stuck} of {contacts} contacts stuck");
 }
 
 /// Runs a trial's phases to their end, with no progress.
@@ -1462,40 +1494,47 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
 /// (assets/bodies/anny/turn.glb: ramped to 1 rad/s over 0.5 s, then held,
 /// 4 s). After the transient, over the last 2 s, the skirt's mean angular
 /// velocity about the vertical axis is the body's, measured from the body's
-/// own vertices, within 5 %; no skirt vertex ends inside the body. The
-/// fabric's mass-proportional damping (7 /s, on the absolute velocity) is a
-/// drag against the world frame far beyond a skirt's in air; at a skirt's
-/// 0.5 /s the skirt follows, at the fabric's own 7 /s it lags (the drag
-/// torque outgrows what the waist carries: docs/bodies.md).
+/// own vertices, within 1 % (the issue asks 5 %), and so is its rate over
+/// each half second that starts in them; no skirt vertex ends inside the body. So
+/// with the fabric's own mass-proportional damping (7 /s, a drag on the
+/// absolute velocity that the waist's friction must carry round) and with a
+/// drag of 0.5 /s.
 #[test]
 fn a_skirt_on_the_turning_body_follows_it() {
     let window = (2.0, 4.0);
-    let (skirt, body, bins, deepest) = skirt_on_the_turn(Some(-0.5), window);
-    for (t0, c, u) in &bins {
-        println!("  motion {t0:.2} s + 0.5 s: skirt {c:.4} rad/s, body {u:.4} rad/s");
+    for alpha in [None, Some(-0.5)] {
+        let (skirt, body, bins, deepest) = skirt_on_the_turn(alpha, window);
+        let drag = alpha.map_or("the fabric's own 7 /s".to_string(), |a| {
+            format!("{} /s", -a)
+        });
+        for (t0, c, u) in &bins {
+            println!("  motion {t0:.2} s + 0.5 s: skirt {c:.4} rad/s, body {u:.4} rad/s");
+        }
+        println!(
+            "skirt on the turning body, drag {drag}: over {:.1}-{:.1} s of the motion the body \
+             turns at {body:.4} rad/s, the skirt at {skirt:.4} rad/s ({:+.2} %); deepest vertex \
+             inside the body {deepest:?}",
+            window.0,
+            window.1,
+            100.0 * (skirt / body - 1.0)
+        );
+        assert!((body - 1.0).abs() < 1e-3, "the body turns at {body} rad/s");
+        assert!(
+            (skirt / body - 1.0).abs() < 0.01,
+            "drag {drag}: the skirt turns at {skirt} rad/s, the body at {body}"
+        );
+        // the half seconds that start in the window
+        let late: Vec<_> = bins.iter().filter(|b| b.0 > window.0 - 0.05).collect();
+        assert!(late.len() >= 3, "{bins:?}");
+        for (t0, c, u) in late {
+            assert!(
+                (c / u - 1.0).abs() < 0.01,
+                "drag {drag}: over {t0} s + 0.5 s the skirt turns at {c} rad/s, the body at {u}"
+            );
+        }
+        assert!(
+            deepest.is_none(),
+            "a skirt vertex inside the body: {deepest:?}"
+        );
     }
-    println!(
-        "skirt on the turning body, drag 0.5 /s: over {:.1}-{:.1} s of the motion the body turns \
-         at {body:.4} rad/s, the skirt at {skirt:.4} rad/s ({:+.2} %); deepest vertex inside the \
-         body {deepest:?}",
-        window.0,
-        window.1,
-        100.0 * (skirt / body - 1.0)
-    );
-    let (heavy, heavy_body, _, _) = skirt_on_the_turn(None, window);
-    println!(
-        "with the fabric's own 7 /s: the skirt at {heavy:.4} rad/s ({:+.2} %)",
-        100.0 * (heavy / heavy_body - 1.0)
-    );
-    assert!((body - 1.0).abs() < 1e-3, "the body turns at {body} rad/s");
-    assert!(
-        (skirt / body - 1.0).abs() < 0.05,
-        "the skirt turns at {skirt} rad/s, the body at {body}"
-    );
-    assert!(
-        deepest.is_none(),
-        "a skirt vertex inside the body: {deepest:?}"
-    );
-    // the world-frame drag slows it: the heavier, the slower
-    assert!(heavy < skirt, "{heavy} {skirt}");
 }

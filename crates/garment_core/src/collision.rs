@@ -101,7 +101,11 @@ pub struct Proximity {
     pub normal: Vector3<f64>,
     /// Closest point on the surface.
     pub point: Vector3<f64>,
-    /// Velocity of the obstacle's material at that point.
+    /// Velocity of the point at the queried position carried by the
+    /// obstacle (its rigid motion there; a deforming mesh: its closest
+    /// triangle's surface velocity plus the normal's rate times the height):
+    /// a cloth vertex held in contact rides the contact distance above the
+    /// skin and moves with it so.
     pub velocity: Vector3<f64>,
 }
 
@@ -309,8 +313,8 @@ impl Obstacle {
         Ok(())
     }
 
-    /// Signed distance, outward normal and surface velocity at the point
-    /// closest to `p`.
+    /// Signed distance, outward normal and closest point of the surface to
+    /// `p`, and the velocity the obstacle carries `p` with.
     pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {
         if let Some(b) = &self.deforming {
             let c = b.closest(p);
@@ -348,7 +352,7 @@ impl Obstacle {
             };
             (0.0, n)
         };
-        let velocity = self.velocity_at(&c);
+        let velocity = self.velocity_at(p);
         Proximity {
             distance,
             normal,
@@ -665,8 +669,12 @@ mod tests {
         assert!((s.pose.translation.vector.x - 0.5).abs() < 1e-12);
         s.angular_velocity = Vector3::new(0.0, 0.0, 2.0);
         let p = s.proximity(&Vector3::new(0.5, 1.0, 0.0));
-        // point (0.5, 0.1, 0): v = (1,0,0) + (0,0,2)×(0,0.1,0) = (0.8, 0, 0)
-        assert!((p.velocity - Vector3::new(0.8, 0.0, 0.0)).norm() < 1e-12);
+        assert!((p.point - Vector3::new(0.5, 0.1, 0.0)).norm() < 1e-12);
+        // the sphere carries the point (0.5, 1, 0), 0.9 m above its surface:
+        // v = (1,0,0) + (0,0,2)×(0,1,0) = (−1, 0, 0); its skin below moves at
+        // (1,0,0) + (0,0,2)×(0,0.1,0) = (0.8, 0, 0)
+        assert!((p.velocity - Vector3::new(-1.0, 0.0, 0.0)).norm() < 1e-12);
+        assert!((s.velocity_at(&p.point) - Vector3::new(0.8, 0.0, 0.0)).norm() < 1e-12);
     }
 }
 

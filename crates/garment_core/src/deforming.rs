@@ -7,8 +7,13 @@
 //! the obstacle takes the positions at the start and at the end of the step
 //! (x(t) and x(t + h)); a vertex's velocity over the step is
 //! (x(t + h) − x(t)) / h, and the velocity of the surface at a point is the
-//! barycentric mix of its triangle's. A contact with it reads that velocity
-//! as a contact with a moving rigid obstacle reads the rigid motion's.
+//! barycentric mix of its triangle's. A point at height d above a triangle
+//! (along its unit normal n) moves with it at that velocity plus d times the
+//! rate of n over the step: exact when the triangle moves rigidly, as a point
+//! of a rigid obstacle at the cloth vertex moves with the rigid motion. A
+//! contact reads the velocity of the point where the cloth vertex is (it
+//! rides the contact distance above the skin; on a body turning at ω the
+//! skin's own velocity would hold it back by ω d).
 //!
 //! Queries run on a bounding-volume hierarchy of the triangles built once
 //! (median splits) and refitted every step to boxes that hold each triangle
@@ -167,7 +172,9 @@ pub struct Closest {
     pub distance: f64,
     /// Outward unit normal.
     pub normal: V,
-    /// Surface velocity there over the current step, m/s.
+    /// Velocity over the current step of the point at the queried
+    /// position carried by the closest triangle (its surface velocity at the
+    /// foot plus its normal's rate times the height above it), m/s.
     pub velocity: V,
 }
 
@@ -198,6 +205,8 @@ pub struct DeformingBody {
     next: Vec<V>,
     /// Per-vertex velocity over the current step, m/s.
     vel: Vec<V>,
+    /// Rate of each face's unit normal over the current step, 1/s.
+    face_rate: Vec<V>,
     /// The step `next` was prepared for, s.
     prepared: Option<f64>,
     /// Unit face normals and the vertices' and edges' pseudo-normals of `x`
@@ -266,6 +275,7 @@ impl DeformingBody {
             prev: z.clone(),
             next: z.clone(),
             vel: z.clone(),
+            face_rate: Vec::new(),
             prepared: None,
             face_n: Vec::new(),
             vertex_n: Vec::new(),
@@ -282,6 +292,7 @@ impl DeformingBody {
         });
         refit(&mut b.bvh, &b.tris, &b.x, &b.x);
         b.normals();
+        b.face_rate = vec![V::zeros(); b.tris.len()];
         Ok(b)
     }
 
@@ -328,6 +339,14 @@ impl DeformingBody {
         self.pose_at(self.clock + h, pose_next, true)?;
         for i in 0..self.x.len() {
             self.vel[i] = (self.next[i] - self.x[i]) / h;
+        }
+        for (f, t) in self.tris.iter().enumerate() {
+            let [a, b, c] = t.map(|i| self.next[i as usize]);
+            let n1 = (b - a)
+                .cross(&(c - a))
+                .try_normalize(0.0)
+                .unwrap_or_default();
+            self.face_rate[f] = (n1 - self.face_n[f]) / h;
         }
         refit(&mut self.bvh, &self.tris, &self.x, &self.next);
         self.prepared = Some(h);
@@ -501,7 +520,7 @@ impl DeformingBody {
             point,
             distance,
             normal,
-            velocity: self.velocity_on(t, w),
+            velocity: self.velocity_on(t, w) + self.face_rate[t] * d.dot(&self.face_n[t]),
         }
     }
 
@@ -623,6 +642,56 @@ mod tests {
         assert_eq!(out[0], V::new(1.0, 2.0, 3.0));
         assert!(Keyframes::at_rate(10.0, vec![vec![V::zeros()], vec![]]).is_err());
         assert!(Keyframes::at_rate(10.0, vec![vec![V::new(f64::NAN, 0.0, 0.0)]]).is_err());
+    }
+
+    /// The cube turning about the vertical through its centre at 2 rad/s,
+    /// one frame per step: a point at height d above a side face (its foot
+    /// inside the face) has the velocity of the material point of the
+    /// turning cube that is there, the chord of the rotation over the step
+    /// ((R p − p) / h), not the skin's at its foot (which differs by
+    /// ω d); before and after the step is taken.
+    #[test]
+    fn turning_cube_carries_a_point_above_its_face() {
+        let (v, t) = cube();
+        let (omega, h) = (2.0, 0.01);
+        let centre = V::new(0.5, 0.5, 0.0);
+        let turn = |k: usize| {
+            let r = nalgebra::Rotation3::from_axis_angle(&V::z_axis(), omega * h * k as f64);
+            move |p: &V| centre + r * (p - centre)
+        };
+        let frames = (0..4).map(|k| v.iter().map(turn(k)).collect()).collect();
+        let m = Arc::new(Keyframes::at_rate(1.0 / h, frames).unwrap());
+        let mut b = DeformingBody::new(m, t, true, &Isometry3::identity(), false, 0.0).unwrap();
+        b.prepare(h, &Isometry3::identity()).unwrap();
+        // 3 cm out from the face x = 1, off its centre
+        let p = V::new(1.03, 0.3, 0.6);
+        let c = b.closest(&p);
+        assert!((c.distance - 0.03).abs() < 1e-12, "{}", c.distance);
+        let chord = (turn(1)(&p) - p) / h;
+        assert!(
+            (c.velocity - chord).norm() < 1e-12,
+            "{} {}",
+            c.velocity,
+            chord
+        );
+        // the skin's velocity at the foot alone is slower by ω d
+        let foot = b.velocity_on(c.triangle, c.weights);
+        assert!(
+            ((chord - foot).norm() - omega * 0.03).abs() < 1e-3,
+            "{}",
+            (chord - foot).norm()
+        );
+        // after the step: the velocities of the step just done, at the
+        // point's place in the turned cube
+        b.advance(h, &Isometry3::identity());
+        let q = turn(1)(&p);
+        let c = b.closest(&q);
+        assert!(
+            (c.velocity - chord).norm() < 1e-12,
+            "{} {}",
+            c.velocity,
+            chord
+        );
     }
 
     /// The cube moving down at 1 m/s: the velocity over a step, the signed

@@ -1328,13 +1328,19 @@ impl Simulation {
 }
 
 /// A sliding vertex slower than this (relative to the obstacle) sticks, m/s.
+/// On a moving surface so does one whose sliding reversed over the step: it
+/// passed through rest relative to the surface, where static friction takes
+/// over. (The surface's own velocity changes from step to step: on a body
+/// turning at 1 rad/s, by ω² r h = 1.25 mm/s at r = 15 cm and h = 1/120 s,
+/// so the relative velocity left after a step is seldom under this speed.)
 pub const STICK_SPEED: f64 = 1e-3;
 
 /// Coulomb friction state of a vertex in contact.
 #[derive(Debug, Clone, Copy, Default)]
 struct FrictionState {
-    /// Stuck last step, or slid slower than [`STICK_SPEED`]: the next
-    /// constraint phase holds it if static friction can.
+    /// Stuck last step, or slid slower than [`STICK_SPEED`] (or reversed its
+    /// sliding on a moving surface): the next constraint phase holds it if
+    /// static friction can.
     stick: bool,
     /// Normal impulse of the last step, N·s.
     impulse: f64,

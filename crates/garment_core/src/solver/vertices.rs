@@ -239,8 +239,15 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
                 // static friction holds while the tangential impulse stays in the cone
                 rn > 0.0 && (r - nrm * rn).norm() <= mu * rn
             } else {
+                // slow; or, on a moving surface, its sliding reversed over
+                // the step (it passed through rest relative to the surface,
+                // whose own velocity changes from step to step by more than
+                // the stick speed)
                 let rel = v - vo;
-                (rel - nrm * rel.dot(&nrm)).norm() < STICK_SPEED
+                let rt = rel - nrm * rel.dot(&nrm);
+                let before = o.v[k] - vo;
+                let bt = before - nrm * before.dot(&nrm);
+                rt.norm() < STICK_SPEED || (vo != Vector3::zeros() && rt.dot(&bt) < 0.0)
             };
         }
         o.v[k] = v;
