@@ -15,7 +15,9 @@
 //!    still while the garment swings down, then moves along the arm at
 //!    `speed` m/s (along the axis), the ring round the arm's section with at
 //!    least `clearance` m to spare, to the shoulder or as far as the cuff
-//!    passes, and holds there for `hold` s.
+//!    passes, and holds there for `hold` s. Where a ring across the axis
+//!    would meet the body short of the shoulder, the gripper tilts it like
+//!    an armhole seam over the last 10 cm of the axis (`TILT_RAMP`).
 //!    With a `force_limit`, the gripper stops where it is once the garment
 //!    pulls on it with more than that (a robot's safety stop).
 //!
@@ -442,13 +444,16 @@ pub struct DressingRow {
     /// The part of the force on the arm that is on the hand (the arm's
     /// vertices before the wrist ring), N (size of the sum).
     pub hand_force_n: f64,
+    /// The rest of it: the force on the arm past the wrist (forearm and
+    /// upper arm), N (size of the sum).
+    pub wrist_to_shoulder_force_n: f64,
     /// The part of the force on the arm that the sleeve's panels exert, N
     /// (the rest is the garment's other panels).
     pub sleeve_force_n: f64,
-    /// Where along the arm the force on it acts: the contacts' mean
-    /// position along the axis weighted by their normal forces, from the
-    /// wrist, m (negative: on the hand; NaN with no normal force).
-    pub arm_force_at_m: f64,
+    /// Where along the arm the force past the wrist acts: those contacts'
+    /// mean position along the axis weighted by their forces' sizes, from
+    /// the wrist, m (NaN with no contact there).
+    pub wrist_to_shoulder_force_at_m: f64,
     /// Force of the garment on the whole body, N.
     pub body_force_n: f64,
     pub body_contacts: usize,
@@ -496,6 +501,17 @@ pub struct DressingReport {
     /// Largest force on the arm, N, and when, s.
     pub peak_arm_force_n: f64,
     pub peak_arm_force_time_s: f64,
+    /// Largest force on the hand (the arm's vertices before the wrist), N,
+    /// and when, s.
+    pub peak_hand_force_n: f64,
+    pub peak_hand_force_time_s: f64,
+    /// Largest force on the arm past the wrist (forearm and upper arm), N;
+    /// when, s; where along the arm it acted (from the wrist, m); the cuff's
+    /// progress then.
+    pub peak_wrist_to_shoulder_force_n: f64,
+    pub peak_wrist_to_shoulder_force_time_s: f64,
+    pub peak_wrist_to_shoulder_force_at_m: f64,
+    pub peak_wrist_to_shoulder_force_progress: f64,
     pub peak_body_force_n: f64,
     pub peak_gripper_force_n: f64,
     /// First time the garment touched the arm, s (`null`: never).
@@ -995,7 +1011,8 @@ impl Dressing {
         let contacts = body_forces::contacts_with(sim, self.body).unwrap_or_default();
         let ob = sim.obstacles().get(self.body);
         let (mut fa, mut na, mut ca, mut fb) = (V3::zeros(), 0.0, 0, V3::zeros());
-        let (mut fh, mut fs, mut at) = (V3::zeros(), V3::zeros(), 0.0);
+        let (mut fh, mut fw, mut fs) = (V3::zeros(), V3::zeros(), V3::zeros());
+        let (mut nw, mut at) = (0.0, 0.0);
         let wrist_s = self.arm.s[self.arm.wrist_at];
         let hand_level = self.arm.rings[self.arm.wrist_ring].level;
         for c in &contacts {
@@ -1016,12 +1033,15 @@ impl Dressing {
                 ca += 1;
                 if self.arm.geodesic[v] < hand_level {
                     fh += c.force;
+                } else {
+                    fw += c.force;
+                    let f = c.force.norm();
+                    nw += f;
+                    at += f * (project_on_polyline(&self.arm.axis, &c.point).0 - wrist_s);
                 }
                 if self.sleeve[c.vertex] {
                     fs += c.force;
                 }
-                at +=
-                    c.normal_force() * (project_on_polyline(&self.arm.axis, &c.point).0 - wrist_s);
             }
         }
         let pf = sim.pin_forces();
@@ -1038,8 +1058,9 @@ impl Dressing {
             arm_normal_force_n: na,
             arm_contacts: ca,
             hand_force_n: fh.norm(),
+            wrist_to_shoulder_force_n: fw.norm(),
             sleeve_force_n: fs.norm(),
-            arm_force_at_m: if na > 0.0 { at / na } else { f64::NAN },
+            wrist_to_shoulder_force_at_m: if nw > 0.0 { at / nw } else { f64::NAN },
             body_force_n: fb.norm(),
             body_contacts: contacts.len(),
             gripper_force: on_gripper.into(),
@@ -1110,6 +1131,14 @@ impl Dressing {
                 .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
         };
         let (ta, fa) = peak(|r| r.arm_force_n);
+        let (th, fh) = peak(|r| r.hand_force_n);
+        let w = rows
+            .iter()
+            .filter(|r| r.wrist_to_shoulder_force_n > 0.0)
+            .max_by(|a, b| {
+                a.wrist_to_shoulder_force_n
+                    .total_cmp(&b.wrist_to_shoulder_force_n)
+            });
         DressingReport {
             arm: d.arm,
             fingertip: self.arm.fingertip.into(),
@@ -1136,6 +1165,13 @@ impl Dressing {
             final_distance_to_shoulder_m: f64::NAN,
             peak_arm_force_n: fa,
             peak_arm_force_time_s: ta,
+            peak_hand_force_n: fh,
+            peak_hand_force_time_s: th,
+            peak_wrist_to_shoulder_force_n: w.map_or(0.0, |r| r.wrist_to_shoulder_force_n),
+            peak_wrist_to_shoulder_force_time_s: w.map_or(0.0, |r| r.time_s),
+            peak_wrist_to_shoulder_force_at_m: w
+                .map_or(f64::NAN, |r| r.wrist_to_shoulder_force_at_m),
+            peak_wrist_to_shoulder_force_progress: w.map_or(f64::NAN, |r| r.progress),
             peak_body_force_n: peak(|r| r.body_force_n).1,
             peak_gripper_force_n: peak(|r| r.gripper_force_n).1,
             first_arm_contact_s: rows.iter().find(|r| r.arm_contacts > 0).map(|r| r.time_s),
@@ -1208,14 +1244,15 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
             "time_s,gripper_x_m,gripper_y_m,gripper_z_m,progress_m,progress,off_axis_m,\
              arm_force_x_n,arm_force_y_n,arm_force_z_n,arm_force_n,arm_normal_force_n,\
              arm_contacts,body_force_n,body_contacts,gripper_force_x_n,gripper_force_y_n,\
-             gripper_force_z_n,gripper_force_n,hand_force_n,sleeve_force_n,arm_force_at_m"
+             gripper_force_z_n,gripper_force_n,hand_force_n,wrist_to_shoulder_force_n,\
+             sleeve_force_n,wrist_to_shoulder_force_at_m"
         )?;
         for r in rows {
             let (g, a, f) = (r.gripper, r.arm_force, r.gripper_force);
             writeln!(
                 w,
                 "{:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},\
-                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6}",
+                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6}",
                 r.time_s,
                 g[0],
                 g[1],
@@ -1236,8 +1273,9 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
                 f[2],
                 r.gripper_force_n,
                 r.hand_force_n,
+                r.wrist_to_shoulder_force_n,
                 r.sleeve_force_n,
-                r.arm_force_at_m
+                r.wrist_to_shoulder_force_at_m
             )?;
         }
         Ok(())
@@ -1259,29 +1297,47 @@ pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
         &[("cuff centroid", &prog)],
     );
     top.size = (900, 400);
-    let (arm, body, grip) = (
+    let (arm, hand, body, grip) = (
         col(|r| r.arm_force_n),
+        col(|r| r.hand_force_n),
         col(|r| r.body_force_n),
         col(|r| r.gripper_force_n),
     );
-    let mut bottom = LinePlot::columns(
+    let mut middle = LinePlot::columns(
         &format!("{title}: forces"),
         "time (s)",
         "force (N)",
         &t,
         &[
             ("on the arm", &arm),
+            ("on the hand", &hand),
             ("on the body", &body),
             ("on the gripper", &grip),
         ],
     );
+    middle.size = (900, 400);
+    let (w, sl) = (
+        col(|r| r.wrist_to_shoulder_force_n),
+        col(|r| r.sleeve_force_n),
+    );
+    let mut bottom = LinePlot::columns(
+        &format!("{title}: force on the arm past the wrist"),
+        "time (s)",
+        "force (N)",
+        &t,
+        &[
+            ("wrist to shoulder", &w),
+            ("by the sleeve (hand and arm)", &sl),
+        ],
+    );
     bottom.size = (900, 400);
-    let (a, b) = (top.render(), bottom.render());
-    let mut img = crate::plot::Image::new(900, 800, crate::plot::WHITE);
-    for y in 0..400 {
-        for x in 0..900 {
-            img.set(x as i64, y as i64, a.get(x, y));
-            img.set(x as i64, 400 + y as i64, b.get(x, y));
+    let panels = [top.render(), middle.render(), bottom.render()];
+    let mut img = crate::plot::Image::new(900, 1200, crate::plot::WHITE);
+    for (k, p) in panels.iter().enumerate() {
+        for y in 0..400 {
+            for x in 0..900 {
+                img.set(x as i64, (400 * k + y) as i64, p.get(x, y));
+            }
         }
     }
     img.save_png(path)
