@@ -567,6 +567,10 @@ pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
     Ok(cuff)
 }
 
+/// A hoop at an axis point (its index), and the tilt of its plane from
+/// across the axis.
+type PlacedHoop = (usize, Hoop, UnitQuaternion<f64>);
+
 /// The length of the axis, before the shoulder point, over which the
 /// gripper tilts the hoop when a hoop across the axis would meet the body
 /// short of the shoulder, m.
@@ -859,7 +863,7 @@ impl Dressing {
             tilt * (u1 * first.0 + u2 * first.1)
         };
         // the cuff vertices' places on a run of hoops
-        let rings_of = |hoops: &[(usize, Hoop, UnitQuaternion<f64>)]| -> Vec<Vec<V3>> {
+        let rings_of = |hoops: &[PlacedHoop]| -> Vec<Vec<V3>> {
             hoops
                 .iter()
                 .map(|(k, h, q)| h.points(&fractions, &from(*k, q), turn))
@@ -897,7 +901,7 @@ impl Dressing {
         };
         let placed_cuff: Vec<V3> = cuff.iter().map(|&i| x[i]).collect();
         let level = UnitQuaternion::identity();
-        let mut hoops: Vec<(usize, Hoop, UnitQuaternion<f64>)> = Vec::with_capacity(m);
+        let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
         for k in 0..m {
             match hoop_at(k, &level)? {
                 Some(h) => hoops.push((k, h, level)),
@@ -924,11 +928,11 @@ impl Dressing {
             let k0 = (arm.wrist_at..reach)
                 .find(|&k| arm.s[k] >= (s_end - TILT_RAMP).min(arm.s[reach - 1] - 0.02))
                 .unwrap_or(reach - 1);
-            let mut best: Option<(usize, f64, Vec<(usize, Hoop, UnitQuaternion<f64>)>)> = None;
+            let mut best: Option<(usize, f64, Vec<PlacedHoop>)> = None;
             for deg in (1..=6).map(|i| 10.0 * i as f64) {
                 for dir in 0..12 {
                     let phi = std::f64::consts::TAU * dir as f64 / 12.0;
-                    let mut run: Vec<(usize, Hoop, UnitQuaternion<f64>)> = hoops[..k0].to_vec();
+                    let mut run: Vec<PlacedHoop> = hoops[..k0].to_vec();
                     for k in k0..m {
                         let t = arm.tangent(k);
                         let (u1, u2) = (e1[k], t.cross(&e1[k]));
