@@ -312,11 +312,11 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         early < 1.0,
         "force on the arm past the wrist {early} N up to halfway"
     );
-    // the peak force on the arm: 420 N measured at 1 cm, on the hand, where
-    // the T-shirt's body dragged behind the sleeve is caught on the fingers
-    // (docs/bodies.md; at 2 cm the fingers pass between the cloth's
-    // vertices and it is 11 kN); past the wrist, the sleeve pulled taut
-    // between the gripper and that catch, 150 N
+    // the peak force on the arm: 415 N measured at 1 cm (423 N on the hand,
+    // where the T-shirt's body dragged behind the sleeve is caught on the
+    // fingers; docs/bodies.md; at 2 cm the fingers pass between the cloth's
+    // vertices and it is 12 kN); past the wrist, the sleeve pulled taut
+    // between the gripper and that catch, 149 N
     assert!(
         r.peak_arm_force_n > 0.0 && r.peak_arm_force_n < 1000.0,
         "peak force on the arm {} N",
