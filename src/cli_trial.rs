@@ -287,13 +287,20 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     );
     println!(
         "progress {:.3} m ({:.1} % of wrist to shoulder), cuff centroid {:.1} cm from the \
-         shoulder point; peak force on the arm {:.3} N at t = {:.2} s, on the body {:.3} N, \
-         on the gripper {:.3} N; {} vertices inside the body",
+         shoulder point (the gripper's ring tilted {:.0}° there); peak force on the arm \
+         {:.3} N at t = {:.2} s (on the hand {:.3} N; past the wrist {:.3} N at t = {:.2} s, \
+         {:.1} cm from the wrist), on the body {:.3} N, on the gripper {:.3} N; {} vertices \
+         inside the body",
         r.final_progress_m,
         100.0 * r.final_progress,
         100.0 * r.final_distance_to_shoulder_m,
+        r.path_end_tilt_deg,
         r.peak_arm_force_n,
         r.peak_arm_force_time_s,
+        r.peak_hand_force_n,
+        r.peak_wrist_to_shoulder_force_n,
+        r.peak_wrist_to_shoulder_force_time_s,
+        100.0 * r.peak_wrist_to_shoulder_force_at_m,
         r.peak_body_force_n,
         r.peak_gripper_force_n,
         fit.body_penetrations

@@ -15,7 +15,9 @@
 //!    still while the garment swings down, then moves along the arm at
 //!    `speed` m/s (along the axis), the ring round the arm's section with at
 //!    least `clearance` m to spare, to the shoulder or as far as the cuff
-//!    passes, and holds there for `hold` s.
+//!    passes, and holds there for `hold` s. Where a ring across the axis
+//!    would meet the body short of the shoulder, the gripper tilts it like
+//!    an armhole seam over the last 10 cm of the axis (`TILT_RAMP`).
 //!    With a `force_limit`, the gripper stops where it is once the garment
 //!    pulls on it with more than that (a robot's safety stop).
 //!
@@ -398,6 +400,9 @@ pub struct Dressing {
     pub cuff: Vec<usize>,
     /// The vertices the gripper holds (the cuff's, each once).
     pub gripped: Vec<usize>,
+    /// The cloth vertices of the sleeve: the panels the cuff's edges belong
+    /// to.
+    pub sleeve: Vec<bool>,
     /// Simulated times at which the gripper starts to move, arrives at the
     /// end of its path, and the run ends, s.
     pub t_move: f64,
@@ -409,6 +414,9 @@ pub struct Dressing {
     /// The gripper's path ends at this axis point (the shoulder, or as far
     /// as the cuff passes round the arm).
     pub path_end: usize,
+    /// How far the hoop is tilted from across the axis at the path's end,
+    /// degrees (0: it reaches its end untilted).
+    pub end_tilt_deg: f64,
     pub body: Handle<Obstacle>,
     /// The body's mesh (world), for the force split.
     body_vertices: Vec<V3>,
@@ -433,6 +441,19 @@ pub struct DressingRow {
     /// Σ of those contacts' normal forces, N.
     pub arm_normal_force_n: f64,
     pub arm_contacts: usize,
+    /// The part of the force on the arm that is on the hand (the arm's
+    /// vertices before the wrist ring), N (size of the sum).
+    pub hand_force_n: f64,
+    /// The rest of it: the force on the arm past the wrist (forearm and
+    /// upper arm), N (size of the sum).
+    pub wrist_to_shoulder_force_n: f64,
+    /// The part of the force on the arm that the sleeve's panels exert, N
+    /// (the rest is the garment's other panels).
+    pub sleeve_force_n: f64,
+    /// Where along the arm the force past the wrist acts: those contacts'
+    /// mean position along the axis weighted by their forces' sizes, from
+    /// the wrist, m (NaN with no contact there).
+    pub wrist_to_shoulder_force_at_m: f64,
     /// Force of the garment on the whole body, N.
     pub body_force_n: f64,
     pub body_contacts: usize,
@@ -461,6 +482,8 @@ pub struct DressingReport {
     /// m and fraction of wrist → shoulder.
     pub path_end_progress_m: f64,
     pub path_end_progress: f64,
+    /// The hoop's tilt from across the axis there, degrees.
+    pub path_end_tilt_deg: f64,
     pub speed_m_s: f64,
     /// The gripper's force limit, N, and when it stopped the gripper, s
     /// (`null`: no limit / never).
@@ -478,6 +501,17 @@ pub struct DressingReport {
     /// Largest force on the arm, N, and when, s.
     pub peak_arm_force_n: f64,
     pub peak_arm_force_time_s: f64,
+    /// Largest force on the hand (the arm's vertices before the wrist), N,
+    /// and when, s.
+    pub peak_hand_force_n: f64,
+    pub peak_hand_force_time_s: f64,
+    /// Largest force on the arm past the wrist (forearm and upper arm), N;
+    /// when, s; where along the arm it acted (from the wrist, m); the cuff's
+    /// progress then.
+    pub peak_wrist_to_shoulder_force_n: f64,
+    pub peak_wrist_to_shoulder_force_time_s: f64,
+    pub peak_wrist_to_shoulder_force_at_m: f64,
+    pub peak_wrist_to_shoulder_force_progress: f64,
     pub peak_body_force_n: f64,
     pub peak_gripper_force_n: f64,
     /// First time the garment touched the arm, s (`null`: never).
@@ -532,6 +566,15 @@ pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
     }
     Ok(cuff)
 }
+
+/// A hoop at an axis point (its index), and the tilt of its plane from
+/// across the axis.
+type PlacedHoop = (usize, Hoop, UnitQuaternion<f64>);
+
+/// The length of the axis, before the shoulder point, over which the
+/// gripper tilts the hoop when a hoop across the axis would meet the body
+/// short of the shoulder, m.
+const TILT_RAMP: f64 = 0.10;
 
 /// A hoop: the closed curve the gripper holds the cuff along, across the
 /// axis, as a dense polygon counter-clockwise about `normal`.
@@ -746,15 +789,17 @@ impl Dressing {
         // the plane across the axis cuts the edges of the hand's (before the
         // wrist) or the arm's vertices (after), within 15 cm (hand) or 10 cm
         // (arm) of the axis, and those vertices within 1 cm of the plane;
-        // the torso is left to the check of the whole path below
+        // the torso is left to the check of the whole path below. `tilt`
+        // turns the plane (and the frame in it) about the axis point.
+        // `None`: past the wrist, the cuff is too short to pass round.
         let lim_hand = arm.rings[arm.wrist_ring].level;
         let lim_arm = arm.rings[arm.shoulder_ring].level;
         let bedges = mesh_edges(&bt);
-        let mut hoops = Vec::with_capacity(m);
-        for k in 0..m {
-            let t = if k == 0 { t0v } else { arm.tangent(k) };
+        let hoop_at = |k: usize, tilt: &UnitQuaternion<f64>| -> Result<Option<Hoop>> {
+            let t = tilt * if k == 0 { t0v } else { arm.tangent(k) };
             let a3 = arm.axis[k];
-            let (u1, u2) = (e1[k], t.cross(&e1[k]));
+            let u1 = tilt * e1[k];
+            let u2 = t.cross(&u1);
             let (lim, reach) = if k < arm.wrist_at {
                 (lim_hand, 0.15)
             } else {
@@ -780,84 +825,149 @@ impl Dressing {
                         .map(|p| [p.dot(&u1), p.dot(&u2)]),
                 )
                 .collect();
-            let hoop = if pts.len() < 3 {
-                Hoop::circle(a3, t, u1, perimeter)
-            } else {
-                // the section's convex hull grown as far as the cuff's
-                // length allows (the same gap all round), at least by the
-                // clearance
-                let (_, p0) = grown_hull(&pts, 0.0);
-                let grow = (perimeter - p0) / std::f64::consts::TAU;
-                if grow < d.clearance && k > arm.wrist_at + 5 {
-                    // past the wrist: the cuff goes as far up as it passes
-                    break;
-                }
-                if grow < d.clearance {
-                    bail!(
-                        "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
-                         from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
-                         is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
-                         dressing.clearance",
-                        100.0 * perimeter,
-                        100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
-                        a3.x,
-                        a3.y,
-                        a3.z,
-                        100.0 * p0,
-                        100.0 * (p0 + std::f64::consts::TAU * d.clearance)
-                    );
-                }
-                let (curve, _) = grown_hull(&pts, grow);
-                let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
-                let centre = curve.iter().sum::<V3>() / curve.len() as f64;
-                Hoop { centre, curve }
-            };
-            hoops.push(hoop);
-        }
-        let m = hoops.len();
-        let t_start = sim.time;
-        let t_move = t_start + d.hang;
-        let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
-        let from = |k: usize| {
+            if pts.len() < 3 {
+                return Ok(Some(Hoop::circle(a3, t, u1, perimeter)));
+            }
+            // the section's convex hull grown as far as the cuff's length
+            // allows (the same gap all round), at least by the clearance
+            let (_, p0) = grown_hull(&pts, 0.0);
+            let grow = (perimeter - p0) / std::f64::consts::TAU;
+            if grow < d.clearance && k > arm.wrist_at + 5 {
+                return Ok(None);
+            }
+            if grow < d.clearance {
+                bail!(
+                    "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
+                     from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
+                     is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
+                     dressing.clearance",
+                    100.0 * perimeter,
+                    100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
+                    a3.x,
+                    a3.y,
+                    a3.z,
+                    100.0 * p0,
+                    100.0 * (p0 + std::f64::consts::TAU * d.clearance)
+                );
+            }
+            let (curve, _) = grown_hull(&pts, grow);
+            let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
+            let centre = curve.iter().sum::<V3>() / curve.len() as f64;
+            Ok(Some(Hoop { centre, curve }))
+        };
+        let from = |k: usize, tilt: &UnitQuaternion<f64>| {
             let (u1, u2) = (
                 e1[k],
                 if k == 0 { t0v } else { arm.tangent(k) }.cross(&e1[k]),
             );
-            u1 * first.0 + u2 * first.1
+            tilt * (u1 * first.0 + u2 * first.1)
         };
-        let rings: Vec<Vec<V3>> = (0..m)
-            .map(|k| hoops[k].points(&fractions, &from(k), turn))
-            .collect();
-        // the hoop must not touch the skin anywhere on its way
-        let legs: Vec<Vec<V3>> = std::iter::once(cuff.iter().map(|&i| x[i]).collect())
-            .chain(rings.iter().cloned())
-            .collect();
-        let mut m = m;
-        'legs: for (q, w) in legs.windows(2).enumerate() {
-            for f in [0.0, 0.5, 1.0] {
-                for j in 0..nc {
-                    let p = w[0][j] + (w[1][j] - w[0][j]) * f;
-                    let pr = ob.proximity(&p);
-                    if pr.distance < contact && q > arm.wrist_at + 5 {
-                        // past the wrist: the cuff goes as far up as it passes
-                        m = q;
-                        break 'legs;
-                    }
-                    if pr.distance < contact {
-                        bail!(
-                            "the gripper would hold the cuff {:.1} mm from the skin at \
-                             ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
-                             dressing.clearance or start farther (dressing.beyond)",
-                            1e3 * pr.distance,
-                            p.x,
-                            p.y,
-                            p.z,
-                            100.0 * (q as f64 + f) / m as f64
-                        );
+        // the cuff vertices' places on a run of hoops
+        let rings_of = |hoops: &[PlacedHoop]| -> Vec<Vec<V3>> {
+            hoops
+                .iter()
+                .map(|(k, h, q)| h.points(&fractions, &from(*k, q), turn))
+                .collect()
+        };
+        // how many legs of a path (the cuff as placed, then its rings)
+        // clear the skin by the contact distance, every cuff vertex at every
+        // waypoint and halfway between; before the wrist a leg too near is
+        // an error, past it the path ends there
+        let clear_legs = |legs: &[Vec<V3>], from_leg: usize| -> Result<usize> {
+            for (q, w) in legs.windows(2).enumerate().skip(from_leg) {
+                for f in [0.0, 0.5, 1.0] {
+                    for j in 0..nc {
+                        let p = w[0][j] + (w[1][j] - w[0][j]) * f;
+                        let pr = ob.proximity(&p);
+                        if pr.distance < contact && q > arm.wrist_at + 5 {
+                            return Ok(q);
+                        }
+                        if pr.distance < contact {
+                            bail!(
+                                "the gripper would hold the cuff {:.1} mm from the skin at \
+                                 ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
+                                 dressing.clearance or start farther (dressing.beyond)",
+                                1e3 * pr.distance,
+                                p.x,
+                                p.y,
+                                p.z,
+                                100.0 * (q as f64 + f) / (legs.len() - 1) as f64
+                            );
+                        }
                     }
                 }
             }
+            Ok(legs.len() - 1)
+        };
+        let placed_cuff: Vec<V3> = cuff.iter().map(|&i| x[i]).collect();
+        let level = UnitQuaternion::identity();
+        let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
+        for k in 0..m {
+            match hoop_at(k, &level)? {
+                Some(h) => hoops.push((k, h, level)),
+                None => break,
+            }
         }
+        let mut rings = rings_of(&hoops);
+        let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.clone())
+            .chain(rings.iter().cloned())
+            .collect();
+        let mut reach = clear_legs(&legs, 0)?;
+        hoops.truncate(reach);
+        rings.truncate(reach);
+        // where a hoop across the axis meets the body short of the
+        // shoulder (the torso, where the arm joins it), the gripper tilts
+        // it like an armhole seam: over the last `TILT_RAMP` m of the axis
+        // the hoop's plane turns about a line across the axis, evenly up to
+        // `tilt_max` at the shoulder point; of 12 directions of that line
+        // and tilts up to 60° every 10°, the one whose path goes farthest
+        // (the least tilt of those)
+        let mut end_tilt = 0.0;
+        if reach < m && reach > arm.wrist_at + 5 {
+            let s_end = arm.s[m - 1];
+            let k0 = (arm.wrist_at..reach)
+                .find(|&k| arm.s[k] >= (s_end - TILT_RAMP).min(arm.s[reach - 1] - 0.02))
+                .unwrap_or(reach - 1);
+            let mut best: Option<(usize, f64, Vec<PlacedHoop>)> = None;
+            for deg in (1..=6).map(|i| 10.0 * i as f64) {
+                for dir in 0..12 {
+                    let phi = std::f64::consts::TAU * dir as f64 / 12.0;
+                    let mut run: Vec<PlacedHoop> = hoops[..k0].to_vec();
+                    for k in k0..m {
+                        let t = arm.tangent(k);
+                        let (u1, u2) = (e1[k], t.cross(&e1[k]));
+                        let line = nalgebra::Unit::new_normalize(u1 * phi.cos() + u2 * phi.sin());
+                        let f = ((arm.s[k] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
+                        let q = UnitQuaternion::from_axis_angle(&line, (deg * f).to_radians());
+                        match hoop_at(k, &q)? {
+                            Some(h) => run.push((k, h, q)),
+                            None => break,
+                        }
+                    }
+                    let r = rings_of(&run[k0..]);
+                    let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.clone())
+                        .chain(rings[..k0].iter().cloned())
+                        .chain(r)
+                        .collect();
+                    let got = clear_legs(&legs, k0)?;
+                    if got > best.as_ref().map_or(reach, |b| b.0) {
+                        run.truncate(got);
+                        best = Some((got, deg, run));
+                    }
+                }
+            }
+            if let Some((got, deg, run)) = best {
+                reach = got;
+                end_tilt =
+                    deg * ((arm.s[got - 1] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
+                rings = rings_of(&run);
+                hoops = run;
+            }
+        }
+        let m = reach;
+        let t_start = sim.time;
+        let t_move = t_start + d.hang;
+        let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
         let pins = (0..nc)
             .map(|j| {
                 let mut w = vec![(t_start, x[cuff[j]])];
@@ -867,21 +977,30 @@ impl Dressing {
             .collect();
         sim.set_pins(pins)?;
         let gripper_path = std::iter::once((t_start, x[cuff[0]]))
-            .chain((0..m).map(|k| (times[k], hoops[k].centre)))
+            .chain((0..m).map(|k| (times[k], hoops[k].1.centre)))
             .collect();
         let t_arrive = times[m - 1];
         let mut gripped = cuff.clone();
         gripped.sort_unstable();
         gripped.dedup();
+        let mut sleeve = vec![false; x.len()];
+        for p in &g.panels {
+            let r = p.first..p.first + p.count;
+            if cuff.iter().any(|c| r.contains(c)) {
+                sleeve[r].iter_mut().for_each(|b| *b = true);
+            }
+        }
         Ok(Dressing {
             arm,
             cuff,
             gripped,
+            sleeve,
             t_move,
             t_arrive,
             t_end: t_arrive + d.hold,
             gripper_path,
             path_end: m - 1,
+            end_tilt_deg: end_tilt,
             body,
             body_vertices: bv,
             body_triangles: bt,
@@ -896,6 +1015,10 @@ impl Dressing {
         let contacts = body_forces::contacts_with(sim, self.body).unwrap_or_default();
         let ob = sim.obstacles().get(self.body);
         let (mut fa, mut na, mut ca, mut fb) = (V3::zeros(), 0.0, 0, V3::zeros());
+        let (mut fh, mut fw, mut fs) = (V3::zeros(), V3::zeros(), V3::zeros());
+        let (mut nw, mut at) = (0.0, 0.0);
+        let wrist_s = self.arm.s[self.arm.wrist_at];
+        let hand_level = self.arm.rings[self.arm.wrist_ring].level;
         for c in &contacts {
             fb += c.force;
             // the corner of largest weight of the body triangle holding the contact
@@ -912,6 +1035,17 @@ impl Dressing {
                 fa += c.force;
                 na += c.normal_force();
                 ca += 1;
+                if self.arm.geodesic[v] < hand_level {
+                    fh += c.force;
+                } else {
+                    fw += c.force;
+                    let f = c.force.norm();
+                    nw += f;
+                    at += f * (project_on_polyline(&self.arm.axis, &c.point).0 - wrist_s);
+                }
+                if self.sleeve[c.vertex] {
+                    fs += c.force;
+                }
             }
         }
         let pf = sim.pin_forces();
@@ -927,6 +1061,10 @@ impl Dressing {
             arm_force_n: fa.norm(),
             arm_normal_force_n: na,
             arm_contacts: ca,
+            hand_force_n: fh.norm(),
+            wrist_to_shoulder_force_n: fw.norm(),
+            sleeve_force_n: fs.norm(),
+            wrist_to_shoulder_force_at_m: if nw > 0.0 { at / nw } else { f64::NAN },
             body_force_n: fb.norm(),
             body_contacts: contacts.len(),
             gripper_force: on_gripper.into(),
@@ -997,6 +1135,14 @@ impl Dressing {
                 .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
         };
         let (ta, fa) = peak(|r| r.arm_force_n);
+        let (th, fh) = peak(|r| r.hand_force_n);
+        let w = rows
+            .iter()
+            .filter(|r| r.wrist_to_shoulder_force_n > 0.0)
+            .max_by(|a, b| {
+                a.wrist_to_shoulder_force_n
+                    .total_cmp(&b.wrist_to_shoulder_force_n)
+            });
         DressingReport {
             arm: d.arm,
             fingertip: self.arm.fingertip.into(),
@@ -1010,6 +1156,7 @@ impl Dressing {
             path_end_progress_m: self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at],
             path_end_progress: (self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at])
                 / self.arm.length(),
+            path_end_tilt_deg: self.end_tilt_deg,
             speed_m_s: d.speed,
             force_limit_n: d.force_limit,
             safety_stop_s: self.safety_stop(d, rows),
@@ -1022,6 +1169,13 @@ impl Dressing {
             final_distance_to_shoulder_m: f64::NAN,
             peak_arm_force_n: fa,
             peak_arm_force_time_s: ta,
+            peak_hand_force_n: fh,
+            peak_hand_force_time_s: th,
+            peak_wrist_to_shoulder_force_n: w.map_or(0.0, |r| r.wrist_to_shoulder_force_n),
+            peak_wrist_to_shoulder_force_time_s: w.map_or(0.0, |r| r.time_s),
+            peak_wrist_to_shoulder_force_at_m: w
+                .map_or(f64::NAN, |r| r.wrist_to_shoulder_force_at_m),
+            peak_wrist_to_shoulder_force_progress: w.map_or(f64::NAN, |r| r.progress),
             peak_body_force_n: peak(|r| r.body_force_n).1,
             peak_gripper_force_n: peak(|r| r.gripper_force_n).1,
             first_arm_contact_s: rows.iter().find(|r| r.arm_contacts > 0).map(|r| r.time_s),
@@ -1094,14 +1248,15 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
             "time_s,gripper_x_m,gripper_y_m,gripper_z_m,progress_m,progress,off_axis_m,\
              arm_force_x_n,arm_force_y_n,arm_force_z_n,arm_force_n,arm_normal_force_n,\
              arm_contacts,body_force_n,body_contacts,gripper_force_x_n,gripper_force_y_n,\
-             gripper_force_z_n,gripper_force_n"
+             gripper_force_z_n,gripper_force_n,hand_force_n,wrist_to_shoulder_force_n,\
+             sleeve_force_n,wrist_to_shoulder_force_at_m"
         )?;
         for r in rows {
             let (g, a, f) = (r.gripper, r.arm_force, r.gripper_force);
             writeln!(
                 w,
                 "{:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},\
-                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e}",
+                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6}",
                 r.time_s,
                 g[0],
                 g[1],
@@ -1120,7 +1275,11 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
                 f[0],
                 f[1],
                 f[2],
-                r.gripper_force_n
+                r.gripper_force_n,
+                r.hand_force_n,
+                r.wrist_to_shoulder_force_n,
+                r.sleeve_force_n,
+                r.wrist_to_shoulder_force_at_m
             )?;
         }
         Ok(())
@@ -1142,29 +1301,47 @@ pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
         &[("cuff centroid", &prog)],
     );
     top.size = (900, 400);
-    let (arm, body, grip) = (
+    let (arm, hand, body, grip) = (
         col(|r| r.arm_force_n),
+        col(|r| r.hand_force_n),
         col(|r| r.body_force_n),
         col(|r| r.gripper_force_n),
     );
-    let mut bottom = LinePlot::columns(
+    let mut middle = LinePlot::columns(
         &format!("{title}: forces"),
         "time (s)",
         "force (N)",
         &t,
         &[
             ("on the arm", &arm),
+            ("on the hand", &hand),
             ("on the body", &body),
             ("on the gripper", &grip),
         ],
     );
+    middle.size = (900, 400);
+    let (w, sl) = (
+        col(|r| r.wrist_to_shoulder_force_n),
+        col(|r| r.sleeve_force_n),
+    );
+    let mut bottom = LinePlot::columns(
+        &format!("{title}: force on the arm past the wrist"),
+        "time (s)",
+        "force (N)",
+        &t,
+        &[
+            ("wrist to shoulder", &w),
+            ("by the sleeve (hand and arm)", &sl),
+        ],
+    );
     bottom.size = (900, 400);
-    let (a, b) = (top.render(), bottom.render());
-    let mut img = crate::plot::Image::new(900, 800, crate::plot::WHITE);
-    for y in 0..400 {
-        for x in 0..900 {
-            img.set(x as i64, y as i64, a.get(x, y));
-            img.set(x as i64, 400 + y as i64, b.get(x, y));
+    let panels = [top.render(), middle.render(), bottom.render()];
+    let mut img = crate::plot::Image::new(900, 1200, crate::plot::WHITE);
+    for (k, p) in panels.iter().enumerate() {
+        for y in 0..400 {
+            for x in 0..900 {
+                img.set(x as i64, (400 * k + y) as i64, p.get(x, y));
+            }
         }
     }
     img.save_png(path)

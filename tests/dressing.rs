@@ -236,25 +236,32 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         (s[2] - 1.32).abs() < 0.04 && (s[0] - 0.2).abs() < 0.04,
         "shoulder {s:?}"
     );
-    // the gripper's path leaves the hand behind and ends near the shoulder,
-    // at least 90 % of the way from the wrist (91.5 % measured) and within
-    // 4 cm of the shoulder point; the sleeve's opening ends there, centred
-    // on the arm's axis
+    // the sleeve's opening reaches the shoulder: a ring held across the
+    // axis would meet the torso 3.1 cm short of the shoulder point (91.5 %
+    // of the way), so the gripper tilts it like an armhole seam over the
+    // last 10 cm (30° measured) and its path ends at the shoulder point;
+    // the cuff's centroid ends within 1.5 cm of that point (0.3 cm
+    // measured: the cuff follows its pins, 1 cm apart, to a few mm), at 97
+    // % of the way or more, centred on the arm's axis
     assert!(
-        r.path_end_progress >= 0.9,
+        r.path_end_progress > 0.999,
         "path ends at {}",
         r.path_end_progress
     );
     assert!(
-        r.final_distance_to_shoulder_m < 0.04,
+        r.path_end_tilt_deg > 0.0 && r.path_end_tilt_deg <= 60.0,
+        "tilt at the shoulder {}°",
+        r.path_end_tilt_deg
+    );
+    assert!(
+        r.final_distance_to_shoulder_m < 0.015,
         "cuff centroid {} m from the shoulder point",
         r.final_distance_to_shoulder_m
     );
     assert!(
-        (r.final_progress - r.path_end_progress).abs() < 0.03,
-        "cuff at {} of the arm, gripper's path ends at {}",
-        r.final_progress,
-        r.path_end_progress
+        r.final_progress >= 0.97,
+        "cuff at {} of the arm",
+        r.final_progress
     );
     assert!(
         r.final_off_axis_m < 0.02,
@@ -276,13 +283,49 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
             assert_eq!(row.arm_force_n, 0.0, "{row:?}");
         }
     }
-    // the peak force on the arm: 380 N measured at 1 cm (docs/bodies.md;
-    // at 2 cm the fingers pass between the cloth's vertices and it is
-    // 11 kN)
+    // the force on the arm is the hand's part and the part past the wrist
+    // (the size of a sum is at most the sum of the sizes, and at least
+    // either part's size less the other's)
+    for row in rows {
+        let (a, h, w) = (
+            row.arm_force_n,
+            row.hand_force_n,
+            row.wrist_to_shoulder_force_n,
+        );
+        let tol = 1e-9 * (1.0 + h + w);
+        assert!(a <= h + w + tol && a + tol >= (h - w).abs(), "{row:?}");
+        assert!(
+            row.wrist_to_shoulder_force_at_m.is_finite() == (w > 0.0),
+            "{row:?}"
+        );
+    }
+    // the skin load past the wrist while the cuff goes from the wrist
+    // halfway up the arm, with nothing caught yet: the garment (0.51 N)
+    // hangs from the gripper, so it can press on the arm with at most its
+    // weight and rub with μ = 0.5 of that, 0.77 N; 0.52 N measured
+    let early = rows
+        .iter()
+        .filter(|row| (0.0..=0.5).contains(&row.progress))
+        .map(|row| row.wrist_to_shoulder_force_n)
+        .fold(0.0, f64::max);
+    assert!(
+        early < 1.0,
+        "force on the arm past the wrist {early} N up to halfway"
+    );
+    // the peak force on the arm: 415 N measured at 1 cm (423 N on the hand,
+    // where the T-shirt's body dragged behind the sleeve is caught on the
+    // fingers; docs/bodies.md; at 2 cm the fingers pass between the cloth's
+    // vertices and it is 12 kN); past the wrist, the sleeve pulled taut
+    // between the gripper and that catch, 149 N
     assert!(
         r.peak_arm_force_n > 0.0 && r.peak_arm_force_n < 1000.0,
         "peak force on the arm {} N",
         r.peak_arm_force_n
+    );
+    assert!(
+        r.peak_hand_force_n <= r.peak_arm_force_n + r.peak_wrist_to_shoulder_force_n
+            && r.peak_wrist_to_shoulder_force_n < 500.0,
+        "{r:?}"
     );
     // no force limit: no safety stop
     assert_eq!((r.force_limit_n, r.safety_stop_s), (None, None));
@@ -318,7 +361,10 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         .iter()
         .map(|l| l.split(',').map(|x| x.parse::<f64>().unwrap()).collect())
         .collect();
-    assert!(table.iter().flatten().all(|x| x.is_finite()));
+    let cat = col("wrist_to_shoulder_force_at_m");
+    assert!(table
+        .iter()
+        .all(|r| r.iter().enumerate().all(|(k, x)| x.is_finite() || k == cat)));
     for w in table.windows(2) {
         assert!(
             (w[1][ct] - w[0][ct] - dt).abs() < 2e-4,
@@ -327,12 +373,21 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
             w[1][ct]
         );
     }
-    let peak = fit["dressing"]["peak_arm_force_n"].as_f64().unwrap();
-    let csv_peak = table.iter().map(|r| r[cf]).fold(0.0, f64::max);
-    assert!(
-        peak > 0.0 && (csv_peak - peak).abs() <= 1e-6 * peak,
-        "{csv_peak} vs {peak}"
-    );
+    for (key, column) in [
+        ("peak_arm_force_n", cf),
+        ("peak_hand_force_n", col("hand_force_n")),
+        (
+            "peak_wrist_to_shoulder_force_n",
+            col("wrist_to_shoulder_force_n"),
+        ),
+    ] {
+        let peak = fit["dressing"][key].as_f64().unwrap();
+        let csv_peak = table.iter().map(|r| r[column]).fold(0.0, f64::max);
+        assert!(
+            peak > 0.0 && (csv_peak - peak).abs() <= 1e-6 * peak,
+            "{key}: {csv_peak} vs {peak}"
+        );
+    }
 }
 
 /// The gripper's safety stop (`dressing.force_limit`), on the shipped trial
