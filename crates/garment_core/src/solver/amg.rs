@@ -4,7 +4,8 @@
 //! simulation", ACM TOG 34(6), 2015) do: the hierarchy is that of
 //! `Â = S A S + (I − S) m`, whose restriction to the free directions is the
 //! system the PCG solves, and every coarse basis function lies in the range
-//! of the filter S, so the cycle's output obeys the constraints.
+//! of the filter S when it is built; the cycle prolongates with `S P` and
+//! restricts with `Pᵀ S`, so its output obeys the constraints.
 //!
 //! - Aggregates are fixed once: on the finest level from the cloth's springs
 //!   and seam stitches (the links that couple neighbours strongly), on the
@@ -27,6 +28,15 @@
 //!   the coarse correction and one backward sweep after (a symmetric
 //!   operator, as CG needs), and a double-precision sparse Cholesky on the
 //!   coarsest level.
+//! - The prolongators, coarse matrices and coarsest factor are kept from
+//!   step to step (up to [`KEEP_MAX`] steps) while the PCG's iterations stay
+//!   within a quarter (at least two) of those of the first solve with them
+//!   ([`Amg::record`]); the finest level's `S D̂⁻¹ S` follows every step's
+//!   matrix and filter. A kept hierarchy is an older approximation of the
+//!   coarse problem: the cycle stays symmetric positive definite on the
+//!   free directions (the smoother is this step's, and `S P` on the way up
+//!   is the transpose of `Pᵀ S` on the way down), so only the iteration
+//!   count, never the system solved or its stopping test, depends on it.
 //!
 //! Everything runs on one thread in a fixed order: reproducible bit for bit.
 
@@ -49,6 +59,8 @@ const MAX_LEVELS: usize = 10;
 /// (warm-started).
 const POWER_FIRST: usize = 12;
 const POWER_AGAIN: usize = 3;
+/// Steps the coarse levels are kept at most.
+const KEEP_MAX: u32 = 8;
 
 /// Block CSR with `n` rows of 3 × 3 blocks (rectangular).
 #[derive(Debug, Clone, Default)]
@@ -134,6 +146,12 @@ pub struct Amg {
     bottom_filter: Vec<Filter>,
     bottom_mass: Vec<f64>,
     set: bool,
+    /// Steps since the coarse levels were last filled.
+    age: u32,
+    /// Iterations of the first solve with the coarse levels as last filled.
+    fresh: usize,
+    /// A solve took more iterations than [`Amg::record`] allows.
+    stale: bool,
     /// Blocks of the finest matrix.
     blocks0: usize,
 }
@@ -280,6 +298,9 @@ impl Amg {
             work,
             bottom,
             set: false,
+            age: 0,
+            fresh: 0,
+            stale: false,
             blocks0: a.col.len(),
         })
     }
@@ -421,7 +442,8 @@ impl Amg {
     }
 
     /// Fills the hierarchy for this step's matrix `a`, filter and masses,
-    /// and factorises the coarsest level.
+    /// and factorises the coarsest level; or, while the coarse levels are
+    /// kept (see the module's notes), only the finest level's `S D̂⁻¹ S`.
     pub fn setup(
         &mut self,
         a: &BlockMatrix,
@@ -430,6 +452,13 @@ impl Amg {
         x: &[Vector3<f64>],
     ) -> Result<()> {
         let levels = self.transfers.len();
+        if self.set && levels > 0 && !self.stale && self.age + 1 < KEEP_MAX {
+            Self::fill_dinv(a, Some(filter), mass, &mut self.work[0]);
+            self.age += 1;
+            return Ok(());
+        }
+        self.age = 0;
+        self.stale = false;
         for l in 0..levels {
             let (fine_slice, rest) = self.coarse.split_at_mut(l);
             let fine: &BlockMatrix = if l == 0 { a } else { &fine_slice[l - 1] };
@@ -461,6 +490,34 @@ impl Amg {
         Ok(())
     }
 
+    /// Takes the iterations of the solve preconditioned since the last
+    /// [`Amg::setup`]: the first after the coarse levels were filled sets
+    /// the reference; a later one that needs more than a quarter more (at
+    /// least two) has the next setup fill them again.
+    pub fn record(&mut self, iterations: usize) {
+        if self.age == 0 {
+            self.fresh = iterations;
+        } else if iterations > self.fresh + (self.fresh / 4).max(2) {
+            self.stale = true;
+        }
+    }
+
+    /// `S D̂⁻¹ S`, `D̂ = S A_ii S + (I − S) m`, for each vertex of a level.
+    fn fill_dinv(a: &BlockMatrix, filter: Option<&[Filter]>, mass: &[f64], w: &mut Work) {
+        let fl = |i: usize| filter.map_or(Filter::Free, |f| f[i]);
+        for i in 0..a.n {
+            let d = a.val[a.diag[i]];
+            w.dinv[i] = match fl(i) {
+                Filter::Free => block_inverse(&d),
+                Filter::Fixed => Matrix3::zeros(),
+                f => {
+                    let dh = f.left(&f.right(&d)) + (Matrix3::identity() - f.matrix()) * mass[i];
+                    f.left(&f.right(&block_inverse(&dh)))
+                }
+            };
+        }
+    }
+
     /// One level's numeric setup: `D⁻¹` (filtered), ω, P, `Â P`, the coarse
     /// matrix.
     #[allow(clippy::too_many_arguments)]
@@ -478,18 +535,7 @@ impl Amg {
         let n = a.n;
         let fma = has_fma();
         let fl = |i: usize| filter.map_or(Filter::Free, |f| f[i]);
-        // S D̂⁻¹ S, D̂ = S A_ii S + (I − S) m
-        for i in 0..n {
-            let d = a.val[a.diag[i]];
-            w.dinv[i] = match fl(i) {
-                Filter::Free => block_inverse(&d),
-                Filter::Fixed => Matrix3::zeros(),
-                f => {
-                    let dh = f.left(&f.right(&d)) + (Matrix3::identity() - f.matrix()) * mass[i];
-                    f.left(&f.right(&block_inverse(&dh)))
-                }
-            };
-        }
+        Self::fill_dinv(a, filter, mass, w);
         // ρ(D⁻¹ Â) by power iterations on the range of S
         if t.eig.len() != n {
             t.eig = (0..n)
@@ -615,7 +661,8 @@ impl Amg {
         for l in (0..levels).rev() {
             let m: &BlockMatrix = if l == 0 { a } else { &self.coarse[l - 1] };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
-            up(fma, m, &self.transfers[l], w, &rest[0].x);
+            let f = if l == 0 { Some(filter) } else { None };
+            up(fma, m, f, &self.transfers[l], w, &rest[0].x);
         }
         for i in 0..a.n {
             out[i] = filter[i].apply(&self.work[0].x[i]);
@@ -922,13 +969,20 @@ fn down_k<const FMA: bool>(
 
 /// The cycle's way up on one level: the prolongation of the next level's
 /// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep.
-fn up(fma: bool, m: &BlockMatrix, t: &Transfer, w: &mut Work, xc: &[Vector3<f64>]) {
+fn up(
+    fma: bool,
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { up_fma(m, t, w, xc) };
+        return unsafe { up_fma(m, filter, t, w, xc) };
     }
-    up_k::<false>(m, t, w, xc);
+    up_k::<false>(m, filter, t, w, xc);
 }
 
 /// [`up`] compiled with AVX2 and FMA.
@@ -937,14 +991,30 @@ fn up(fma: bool, m: &BlockMatrix, t: &Transfer, w: &mut Work, xc: &[Vector3<f64>
 /// The CPU must have AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn up_fma(m: &BlockMatrix, t: &Transfer, w: &mut Work, xc: &[Vector3<f64>]) {
-    up_k::<true>(m, t, w, xc);
+unsafe fn up_fma(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
+    up_k::<true>(m, filter, t, w, xc);
 }
 
 #[inline(always)]
-fn up_k<const FMA: bool>(m: &BlockMatrix, t: &Transfer, w: &mut Work, xc: &[Vector3<f64>]) {
+fn up_k<const FMA: bool>(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
     for i in 0..m.n {
-        w.x[i] += row_k::<FMA>(&t.p.col, &t.p.val, t.p.ptr[i], t.p.ptr[i + 1], xc);
+        let e = row_k::<FMA>(&t.p.col, &t.p.val, t.p.ptr[i], t.p.ptr[i + 1], xc);
+        w.x[i] += match filter {
+            Some(f) => f[i].apply(&e),
+            None => e,
+        };
     }
     for i in (0..m.n).rev() {
         let ri = w.b[i] - row_k::<FMA>(&m.col, &m.val, m.row_ptr[i], m.row_ptr[i + 1], &w.x);
@@ -1113,6 +1183,94 @@ mod tests {
                 let r = &c.col[c.row_ptr[ci]..c.row_ptr[ci + 1]];
                 r.binary_search(&(cj as u32)).is_ok()
             }));
+        }
+    }
+
+    /// A hierarchy kept from a step with another matrix and other
+    /// constraints still makes a symmetric positive definite cycle whose
+    /// output obeys this step's filter, and the PCG it preconditions reaches
+    /// this step's exact solution.
+    #[test]
+    fn a_kept_hierarchy_preconditions_the_next_system() {
+        use super::super::linear::{Cap, Pcg};
+        let (nx, ny) = (40, 36);
+        let (a, mass, edges, filter) = grid(nx, ny);
+        let n = a.n;
+        let x: Vec<Vector3<f64>> = (0..n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        amg.setup(&a, &filter, &mass, &x).unwrap();
+        amg.record(10);
+        // the next step: stiffer springs, constraints moved by one vertex
+        // (new contacts, released ones, a pin freed)
+        let mut a2 = a.clone();
+        for i in 0..n {
+            for k in a2.row_ptr[i]..a2.row_ptr[i + 1] {
+                let s = if k == a2.diag[i] { 1.0 } else { 1.3 };
+                a2.val[k] *= s;
+            }
+            let off: Matrix3<f64> = (a2.row_ptr[i]..a2.row_ptr[i + 1])
+                .filter(|&k| k != a2.diag[i])
+                .map(|k| a2.val[k])
+                .sum();
+            // keep it diagonally dominant: the diagonal balances the springs
+            a2.val[a2.diag[i]] = Matrix3::identity() * mass[i] - off;
+        }
+        let filter2: Vec<Filter> = (0..n).map(|i| filter[(i + 1) % n]).collect();
+        amg.setup(&a2, &filter2, &mass, &x).unwrap();
+        assert_eq!(amg.age, 1, "the coarse levels are kept");
+        let u: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter2[i].apply(&Vector3::new((i as f64).cos(), 0.3, (i as f64 * 0.2).sin())))
+            .collect();
+        let v: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter2[i].apply(&Vector3::new(0.5, (i as f64 * 1.3).sin(), -1.0)))
+            .collect();
+        let (mut mu, mut mv) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+        amg.apply(&a2, &filter2, &u, &mut mu);
+        amg.apply(&a2, &filter2, &v, &mut mv);
+        let dot = |p: &[Vector3<f64>], q: &[Vector3<f64>]| -> f64 {
+            p.iter().zip(q).map(|(p, q)| p.dot(q)).sum()
+        };
+        let (uv, vu) = (dot(&u, &mv), dot(&v, &mu));
+        assert!(
+            (uv - vu).abs() <= 1e-10 * uv.abs().max(vu.abs()),
+            "{uv} vs {vu}"
+        );
+        assert!(dot(&u, &mu) > 0.0 && dot(&v, &mv) > 0.0);
+        for i in 0..n {
+            assert!((filter2[i].apply(&mu[i]) - mu[i]).amax() <= 1e-15 * mu[i].amax().max(1.0));
+        }
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64 * 0.7).sin(), -1.0, (i as f64 * 0.1).cos()))
+            .collect();
+        let z: Vec<Vector3<f64>> = (0..n)
+            .map(|i| {
+                let w = Vector3::new(0.01, -0.02, 0.03);
+                w - filter2[i].apply(&w)
+            })
+            .collect();
+        let mut exact = vec![Vector3::zeros(); n];
+        Direct::new(&a2)
+            .unwrap()
+            .solve(&a2, &b, &filter2, &z, &mass, &mut exact)
+            .unwrap();
+        let mut got = vec![Vector3::zeros(); n];
+        Pcg::default()
+            .solve_factor(
+                &a2,
+                &b,
+                &filter2,
+                &z,
+                &mut got,
+                1e-10,
+                Cap::Hard(300),
+                &mut amg,
+            )
+            .unwrap();
+        let scale = exact.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        for i in 0..n {
+            assert!((got[i] - exact[i]).amax() <= 1e-7 * scale, "vertex {i}");
         }
     }
 
