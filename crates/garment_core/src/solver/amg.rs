@@ -29,9 +29,9 @@
 //!   operator, as CG needs), and a double-precision sparse Cholesky on the
 //!   coarsest level.
 //! - The prolongators, coarse matrices and coarsest factor are kept from
-//!   step to step (up to [`KEEP_MAX`] steps) while the PCG's iterations stay
-//!   within a quarter (at least two) of those of the first solve with them
-//!   ([`Amg::record`]); the finest level's `S D̂⁻¹ S` follows every step's
+//!   step to step (up to [`KEEP_MAX`] steps) until the PCG's iterations
+//!   beyond those of the first solve with them add up to more than
+//!   [`KEEP_EXTRA`] ([`Amg::record`]); the finest level's `S D̂⁻¹ S` follows every step's
 //!   matrix and filter. A kept hierarchy is an older approximation of the
 //!   coarse problem: the cycle stays symmetric positive definite on the
 //!   free directions (the smoother is this step's, and `S P` on the way up
@@ -61,6 +61,10 @@ const POWER_FIRST: usize = 12;
 const POWER_AGAIN: usize = 3;
 /// Steps the coarse levels are kept at most.
 const KEEP_MAX: u32 = 8;
+/// Iterations beyond those of the first solve with a kept hierarchy, summed
+/// over the later ones, beyond which it is filled again (a setup costs a
+/// few cycles: keeping it longer than that costs more than it saves).
+const KEEP_EXTRA: usize = 2;
 
 /// Block CSR with `n` rows of 3 × 3 blocks (rectangular).
 #[derive(Debug, Clone, Default)]
@@ -152,6 +156,8 @@ pub struct Amg {
     fresh: usize,
     /// A solve took more iterations than [`Amg::record`] allows.
     stale: bool,
+    /// Iterations beyond `fresh` summed over the solves since.
+    extra: usize,
     /// Blocks of the finest matrix.
     blocks0: usize,
 }
@@ -301,6 +307,7 @@ impl Amg {
             age: 0,
             fresh: 0,
             stale: false,
+            extra: 0,
             blocks0: a.col.len(),
         })
     }
@@ -492,13 +499,18 @@ impl Amg {
 
     /// Takes the iterations of the solve preconditioned since the last
     /// [`Amg::setup`]: the first after the coarse levels were filled sets
-    /// the reference; a later one that needs more than a quarter more (at
-    /// least two) has the next setup fill them again.
+    /// the reference; once the later ones have needed more than
+    /// [`KEEP_EXTRA`] iterations beyond it in all, the next setup fills
+    /// them again.
     pub fn record(&mut self, iterations: usize) {
         if self.age == 0 {
             self.fresh = iterations;
-        } else if iterations > self.fresh + (self.fresh / 4).max(2) {
-            self.stale = true;
+            self.extra = 0;
+        } else {
+            self.extra += iterations.saturating_sub(self.fresh);
+            if self.extra > KEEP_EXTRA {
+                self.stale = true;
+            }
         }
     }
 
