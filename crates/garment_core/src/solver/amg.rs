@@ -4,7 +4,8 @@
 //! simulation", ACM TOG 34(6), 2015) do: the hierarchy is that of
 //! `Â = S A S + (I − S) m`, whose restriction to the free directions is the
 //! system the PCG solves, and every coarse basis function lies in the range
-//! of the filter S, so the cycle's output obeys the constraints.
+//! of the filter S when it is built; the cycle prolongates with `S P` and
+//! restricts with `Pᵀ S`, so its output obeys the constraints.
 //!
 //! - Aggregates are fixed once: on the finest level from the cloth's springs
 //!   and seam stitches (the links that couple neighbours strongly), on the
@@ -27,11 +28,22 @@
 //!   the coarse correction and one backward sweep after (a symmetric
 //!   operator, as CG needs), and a double-precision sparse Cholesky on the
 //!   coarsest level.
+//! - The prolongators, coarse matrices and coarsest factor are kept from
+//!   step to step (up to [`KEEP_MAX`] steps) until the PCG's iterations
+//!   beyond those of the first solve with them add up to more than
+//!   [`KEEP_EXTRA`] ([`Amg::record`]); the finest level's `S D̂⁻¹ S` follows every step's
+//!   matrix and filter. A kept hierarchy is an older approximation of the
+//!   coarse problem: the cycle stays symmetric positive definite on the
+//!   free directions (the smoother is this step's, and `S P` on the way up
+//!   is the transpose of `Pᵀ S` on the way down), so only the iteration
+//!   count, never the system solved or its stopping test, depends on it.
 //!
 //! Everything runs on one thread in a fixed order: reproducible bit for bit.
 
 use super::cpu::has_fma;
-use super::linear::{blocks_mul_best, Direct, Filter, Precision};
+#[cfg(target_arch = "x86_64")]
+use super::linear::blocks_mul_fma;
+use super::linear::{blocks_mul_best, blocks_mul_slices, Direct, Filter, Precision};
 use super::sparse::BlockMatrix;
 use anyhow::Result;
 use nalgebra::{Matrix3, Vector3};
@@ -47,6 +59,12 @@ const MAX_LEVELS: usize = 10;
 /// (warm-started).
 const POWER_FIRST: usize = 12;
 const POWER_AGAIN: usize = 3;
+/// Steps the coarse levels are kept at most.
+const KEEP_MAX: u32 = 8;
+/// Iterations beyond those of the first solve with a kept hierarchy, summed
+/// over the later ones, beyond which it is filled again (a setup costs a
+/// few cycles: keeping it longer than that costs more than it saves).
+const KEEP_EXTRA: usize = 2;
 
 /// Block CSR with `n` rows of 3 × 3 blocks (rectangular).
 #[derive(Debug, Clone, Default)]
@@ -86,8 +104,13 @@ struct Transfer {
     rot: bool,
     /// Each vertex's offset from its aggregate's centroid (`rot`).
     arm: Vec<Vector3<f64>>,
+    /// Each vertex's block of the rotations in the tentative prolongator,
+    /// `−S_i [arm_i]×` (`rot`).
+    rot_t: Vec<Matrix3<f64>>,
     /// Smoothed prolongator (fine × coarse).
     p: Csr,
+    /// The transpose of each block of P (the restriction's blocks).
+    pt: Vec<Matrix3<f64>>,
     /// For each block of the fine matrix (row i, column j): the position of
     /// `agg[j]` in row i of P.
     p_pos: Vec<u32>,
@@ -99,6 +122,10 @@ struct Transfer {
     /// For each fine row i, entry of P's row i, entry of `Â P`'s row i in
     /// turn: the position in the coarse matrix.
     g_pos: Vec<u32>,
+    /// For each entry of P (row i, coarse column I): the first entry of
+    /// `Â P`'s row i whose column is I or right of it. The Galerkin sums
+    /// fill the coarse matrix's upper triangle from there and mirror it.
+    g_start: Vec<u32>,
     /// Power-iteration vector of ρ(D⁻¹ Â) (kept from step to step).
     eig: Vec<Vector3<f64>>,
 }
@@ -123,6 +150,14 @@ pub struct Amg {
     bottom_filter: Vec<Filter>,
     bottom_mass: Vec<f64>,
     set: bool,
+    /// Steps since the coarse levels were last filled.
+    age: u32,
+    /// Iterations of the first solve with the coarse levels as last filled.
+    fresh: usize,
+    /// A solve took more iterations than [`Amg::record`] allows.
+    stale: bool,
+    /// Iterations beyond `fresh` summed over the solves since.
+    extra: usize,
     /// Blocks of the finest matrix.
     blocks0: usize,
 }
@@ -269,6 +304,10 @@ impl Amg {
             work,
             bottom,
             set: false,
+            age: 0,
+            fresh: 0,
+            stale: false,
+            extra: 0,
             blocks0: a.col.len(),
         })
     }
@@ -288,7 +327,11 @@ impl Amg {
             } else {
                 self.coarse[l - 1].col.len() as f64
             };
-            setup += 3.0 * (t.ap_pos.len() + t.g_pos.len()) as f64 + 2.0 * fine;
+            let upper: usize = (0..t.agg.len())
+                .flat_map(|i| (t.p.ptr[i]..t.p.ptr[i + 1]).map(move |e| (i, e)))
+                .map(|(i, e)| t.ap.ptr[i + 1] - t.g_start[e] as usize)
+                .sum();
+            setup += 3.0 * (t.ap_pos.len() + upper) as f64 + 2.0 * fine;
             cycle += 2.0 * (fine + t.p.col.len() as f64);
         }
         (setup / blocks0.max(1.0), cycle / blocks0.max(1.0))
@@ -380,23 +423,34 @@ impl Amg {
                 }
             }
         }
+        let g_start = (0..n)
+            .flat_map(|i| (p.ptr[i]..p.ptr[i + 1]).map(move |e| (i, e)))
+            .map(|(i, e)| {
+                let r = &ap.col[ap.ptr[i]..ap.ptr[i + 1]];
+                (ap.ptr[i] + r.partition_point(|&c| c < p.col[e])) as u32
+            })
+            .collect();
         let t = Transfer {
             agg,
             nagg,
             rot,
             arm: vec![Vector3::zeros(); if rot { n } else { 0 }],
+            rot_t: vec![Matrix3::zeros(); if rot { n } else { 0 }],
+            pt: vec![Matrix3::zeros(); p.col.len()],
             p,
             p_pos,
             ap,
             ap_pos,
             g_pos,
+            g_start,
             eig: Vec::new(),
         };
         (t, c)
     }
 
     /// Fills the hierarchy for this step's matrix `a`, filter and masses,
-    /// and factorises the coarsest level.
+    /// and factorises the coarsest level; or, while the coarse levels are
+    /// kept (see the module's notes), only the finest level's `S D̂⁻¹ S`.
     pub fn setup(
         &mut self,
         a: &BlockMatrix,
@@ -405,6 +459,13 @@ impl Amg {
         x: &[Vector3<f64>],
     ) -> Result<()> {
         let levels = self.transfers.len();
+        if self.set && levels > 0 && !self.stale && self.age + 1 < KEEP_MAX {
+            Self::fill_dinv(a, Some(filter), mass, &mut self.work[0]);
+            self.age += 1;
+            return Ok(());
+        }
+        self.age = 0;
+        self.stale = false;
         for l in 0..levels {
             let (fine_slice, rest) = self.coarse.split_at_mut(l);
             let fine: &BlockMatrix = if l == 0 { a } else { &fine_slice[l - 1] };
@@ -436,6 +497,39 @@ impl Amg {
         Ok(())
     }
 
+    /// Takes the iterations of the solve preconditioned since the last
+    /// [`Amg::setup`]: the first after the coarse levels were filled sets
+    /// the reference; once the later ones have needed more than
+    /// [`KEEP_EXTRA`] iterations beyond it in all, the next setup fills
+    /// them again.
+    pub fn record(&mut self, iterations: usize) {
+        if self.age == 0 {
+            self.fresh = iterations;
+            self.extra = 0;
+        } else {
+            self.extra += iterations.saturating_sub(self.fresh);
+            if self.extra > KEEP_EXTRA {
+                self.stale = true;
+            }
+        }
+    }
+
+    /// `S D̂⁻¹ S`, `D̂ = S A_ii S + (I − S) m`, for each vertex of a level.
+    fn fill_dinv(a: &BlockMatrix, filter: Option<&[Filter]>, mass: &[f64], w: &mut Work) {
+        let fl = |i: usize| filter.map_or(Filter::Free, |f| f[i]);
+        for i in 0..a.n {
+            let d = a.val[a.diag[i]];
+            w.dinv[i] = match fl(i) {
+                Filter::Free => block_inverse(&d),
+                Filter::Fixed => Matrix3::zeros(),
+                f => {
+                    let dh = f.left(&f.right(&d)) + (Matrix3::identity() - f.matrix()) * mass[i];
+                    f.left(&f.right(&block_inverse(&dh)))
+                }
+            };
+        }
+    }
+
     /// One level's numeric setup: `D⁻¹` (filtered), ω, P, `Â P`, the coarse
     /// matrix.
     #[allow(clippy::too_many_arguments)]
@@ -453,18 +547,7 @@ impl Amg {
         let n = a.n;
         let fma = has_fma();
         let fl = |i: usize| filter.map_or(Filter::Free, |f| f[i]);
-        // S D̂⁻¹ S, D̂ = S A_ii S + (I − S) m
-        for i in 0..n {
-            let d = a.val[a.diag[i]];
-            w.dinv[i] = match fl(i) {
-                Filter::Free => block_inverse(&d),
-                Filter::Fixed => Matrix3::zeros(),
-                f => {
-                    let dh = f.left(&f.right(&d)) + (Matrix3::identity() - f.matrix()) * mass[i];
-                    f.left(&f.right(&block_inverse(&dh)))
-                }
-            };
-        }
+        Self::fill_dinv(a, filter, mass, w);
         // ρ(D⁻¹ Â) by power iterations on the range of S
         if t.eig.len() != n {
             t.eig = (0..n)
@@ -509,75 +592,18 @@ impl Amg {
                 t.arm[i] = x[i] - c.0 / c.1;
             }
         }
-        let rot_t = |i: usize, arm: &[Vector3<f64>]| fl(i).left(&(-arm[i].cross_matrix()));
-        // P = (I − ω D⁻¹ Â) T, T_j = S_j
-        for v in t.p.val.iter_mut() {
-            *v = Matrix3::zeros();
+        if t.rot {
+            for i in 0..n {
+                t.rot_t[i] = fl(i).left(&(-t.arm[i].cross_matrix()));
+            }
         }
-        for i in 0..n {
-            let di = w.dinv[i] * (-omega);
-            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let j = a.col[k] as usize;
-                let dij = di * a.val[k];
-                let m = fl(j).right(&dij);
-                t.p.val[t.p_pos[k] as usize] += m;
-                if t.rot {
-                    t.p.val[t.p_pos[k] as usize + 1] += dij * rot_t(j, &t.arm);
-                }
-            }
-            let d = t.p_pos[a.diag[i]] as usize;
-            t.p.val[d] += fl(i).matrix();
-            if t.rot {
-                t.p.val[d + 1] += rot_t(i, &t.arm);
-            }
+        // P = (I − ω D⁻¹ Â) T, T_j = S_j
+        smooth_prolongator(fma, a, filter, &w.dinv, omega, t);
+        for (pt, p) in t.pt.iter_mut().zip(&t.p.val) {
+            *pt = p.transpose();
         }
         // Â P = S A P
-        for v in t.ap.val.iter_mut() {
-            *v = Matrix3::zeros();
-        }
-        let mut q = 0;
-        for i in 0..n {
-            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-                let j = a.col[k] as usize;
-                let aik = a.val[k];
-                for e in t.p.ptr[j]..t.p.ptr[j + 1] {
-                    t.ap.val[t.ap_pos[q] as usize] += aik * t.p.val[e];
-                    q += 1;
-                }
-            }
-            if let Some(f) = filter {
-                if f[i] != Filter::Free {
-                    for e in t.ap.ptr[i]..t.ap.ptr[i + 1] {
-                        t.ap.val[e] = f[i].left(&t.ap.val[e]);
-                    }
-                }
-            }
-        }
-        // Pᵀ (Â P)
-        for v in c.val.iter_mut() {
-            *v = Matrix3::zeros();
-        }
-        let mut q = 0;
-        for i in 0..n {
-            for e in t.p.ptr[i]..t.p.ptr[i + 1] {
-                let pt = t.p.val[e].transpose();
-                for g in t.ap.ptr[i]..t.ap.ptr[i + 1] {
-                    c.val[t.g_pos[q] as usize] += pt * t.ap.val[g];
-                    q += 1;
-                }
-            }
-        }
-        // symmetric bit for bit
-        for k in 0..c.val.len() {
-            let kt = c_t[k] as usize;
-            if kt > k {
-                let m = (c.val[k] + c.val[kt].transpose()) * 0.5;
-                c.val[k] = m;
-                c.val[kt] = m.transpose();
-            } else if kt == k {
-                c.val[k] = (c.val[k] + c.val[k].transpose()) * 0.5;
-            }
-        }
+        galerkin(fma, a, filter, t, c);
         // directions constrained over a whole aggregate: the aggregate's
         // mass (and its moment of inertia for the rotations; plus that of a
         // millimetre's arm, for the axis of an aggregate on one line)
@@ -596,6 +622,15 @@ impl Amg {
                         + Matrix3::identity() * (ARM * ARM);
                     c.val[c.diag[ci + 1]] += reg * mass[i];
                 }
+            }
+        }
+        // symmetric bit for bit: the upper triangle mirrored
+        for k in 0..c.val.len() {
+            let kt = c_t[k] as usize;
+            if kt > k {
+                c.val[kt] = c.val[k].transpose();
+            } else if kt == k {
+                c.val[k] = (c.val[k] + c.val[k].transpose()) * 0.5;
             }
         }
     }
@@ -626,25 +661,8 @@ impl Amg {
         for l in 0..levels {
             let m: &BlockMatrix = if l == 0 { a } else { &self.coarse[l - 1] };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
-            let t = &self.transfers[l];
-            // from zero: the blocks right of the diagonal multiply zeros
-            for i in 0..m.n {
-                let ri = w.b[i] - blocks_mul_best(fma, m, m.row_ptr[i], m.diag[i], &w.x);
-                w.x[i] = w.dinv[i] * ri;
-            }
-            // the residual: the sweep zeroed each row's (filtered) residual
-            // as it went, so what is left is the part right of the diagonal
-            let wc = &mut rest[0];
-            wc.b.iter_mut().for_each(|v| *v = Vector3::zeros());
-            for i in 0..m.n {
-                let mut ri = -blocks_mul_best(fma, m, m.diag[i] + 1, m.row_ptr[i + 1], &w.x);
-                if l == 0 {
-                    ri = filter[i].apply(&ri);
-                }
-                for e in t.p.ptr[i]..t.p.ptr[i + 1] {
-                    wc.b[t.p.col[e] as usize] += t.p.val[e].tr_mul(&ri);
-                }
-            }
+            let f = if l == 0 { Some(filter) } else { None };
+            down(fma, m, f, &self.transfers[l], w, &mut rest[0].b);
         }
         // bottom
         {
@@ -655,22 +673,644 @@ impl Amg {
         for l in (0..levels).rev() {
             let m: &BlockMatrix = if l == 0 { a } else { &self.coarse[l - 1] };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
-            let xc = &rest[0].x;
-            let t = &self.transfers[l];
-            for i in 0..m.n {
-                let mut s = Vector3::zeros();
-                for e in t.p.ptr[i]..t.p.ptr[i + 1] {
-                    s += t.p.val[e] * xc[t.p.col[e] as usize];
-                }
-                w.x[i] += s;
-            }
-            for i in (0..m.n).rev() {
-                let ri = w.b[i] - blocks_mul_best(fma, m, m.row_ptr[i], m.row_ptr[i + 1], &w.x);
-                w.x[i] += w.dinv[i] * ri;
-            }
+            let f = if l == 0 { Some(filter) } else { None };
+            up(fma, m, f, &self.transfers[l], w, &rest[0].x);
         }
         for i in 0..a.n {
             out[i] = filter[i].apply(&self.work[0].x[i]);
+        }
+    }
+}
+
+/// The smoothed prolongator `P = (I − ω D⁻¹ Â) T` into `t.p` (`dinv` =
+/// `S D̂⁻¹ S`; T's blocks `S_j` and, with rotations, `t.rot_t`), with AVX2
+/// and FMA when `fma`.
+fn smooth_prolongator(
+    fma: bool,
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    dinv: &[Matrix3<f64>],
+    omega: f64,
+    t: &mut Transfer,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
+        return unsafe { smooth_prolongator_fma(a, filter, dinv, omega, t) };
+    }
+    smooth_prolongator_k::<false>(a, filter, dinv, omega, t);
+}
+
+/// [`smooth_prolongator`] compiled with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn smooth_prolongator_fma(
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    dinv: &[Matrix3<f64>],
+    omega: f64,
+    t: &mut Transfer,
+) {
+    smooth_prolongator_k::<true>(a, filter, dinv, omega, t);
+}
+
+#[inline(always)]
+fn smooth_prolongator_k<const FMA: bool>(
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    dinv: &[Matrix3<f64>],
+    omega: f64,
+    t: &mut Transfer,
+) {
+    let fl = |i: usize| filter.map_or(Filter::Free, |f| f[i]);
+    for v in t.p.val.iter_mut() {
+        *v = Matrix3::zeros();
+    }
+    for i in 0..a.n {
+        let di = dinv[i] * (-omega);
+        for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+            let j = a.col[k] as usize;
+            let pos = t.p_pos[k] as usize;
+            let mut dij = Matrix3::zeros();
+            mat_mul_add::<FMA>(&mut dij, &di, &a.val[k]);
+            t.p.val[pos] += fl(j).right(&dij);
+            if t.rot {
+                mat_mul_add::<FMA>(&mut t.p.val[pos + 1], &dij, &t.rot_t[j]);
+            }
+        }
+        let d = t.p_pos[a.diag[i]] as usize;
+        t.p.val[d] += fl(i).matrix();
+        if t.rot {
+            t.p.val[d + 1] += t.rot_t[i];
+        }
+    }
+}
+
+/// `Â P` (`S A P`, S the filter on the finest level) into `t.ap`, then the
+/// upper triangle of the coarse matrix `Pᵀ Â P` into `c` (its lower
+/// triangle zero), with AVX2 and FMA when `fma`.
+fn galerkin(
+    fma: bool,
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &mut Transfer,
+    c: &mut BlockMatrix,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
+        return unsafe { galerkin_fma(a, filter, t, c) };
+    }
+    galerkin_k::<false>(a, filter, t, c);
+}
+
+/// [`galerkin`] compiled with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn galerkin_fma(
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &mut Transfer,
+    c: &mut BlockMatrix,
+) {
+    galerkin_k::<true>(a, filter, t, c);
+}
+
+#[inline(always)]
+fn galerkin_k<const FMA: bool>(
+    a: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &mut Transfer,
+    c: &mut BlockMatrix,
+) {
+    let n = a.n;
+    for v in t.ap.val.iter_mut() {
+        *v = Matrix3::zeros();
+    }
+    let mut q = 0;
+    for i in 0..n {
+        for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+            let j = a.col[k] as usize;
+            let aik = &a.val[k];
+            for e in t.p.ptr[j]..t.p.ptr[j + 1] {
+                mat_mul_add::<FMA>(&mut t.ap.val[t.ap_pos[q] as usize], aik, &t.p.val[e]);
+                q += 1;
+            }
+        }
+        if let Some(f) = filter {
+            if f[i] != Filter::Free {
+                for e in t.ap.ptr[i]..t.ap.ptr[i + 1] {
+                    t.ap.val[e] = f[i].left(&t.ap.val[e]);
+                }
+            }
+        }
+    }
+    for v in c.val.iter_mut() {
+        *v = Matrix3::zeros();
+    }
+    let mut q = 0;
+    for i in 0..n {
+        let (lo, hi) = (t.ap.ptr[i], t.ap.ptr[i + 1]);
+        for e in t.p.ptr[i]..t.p.ptr[i + 1] {
+            let pt = &t.pt[e];
+            for g in t.g_start[e] as usize..hi {
+                let pos = t.g_pos[q + g - lo] as usize;
+                mat_mul_add::<FMA>(&mut c.val[pos], pt, &t.ap.val[g]);
+            }
+            q += hi - lo;
+        }
+    }
+}
+
+/// `c += a b` for 3 × 3 blocks; with `FMA` (only where the CPU has AVX2 and
+/// FMA, inlined into callers compiled with them) each column of the sum is
+/// one four-wide fused chain over the columns of `a` (nalgebra stores a
+/// block column-major, nine contiguous f64).
+#[inline(always)]
+fn mat_mul_add<const FMA: bool>(c: &mut Matrix3<f64>, a: &Matrix3<f64>, b: &Matrix3<f64>) {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        unsafe { mat_mul_add_fma(c, a, b) };
+        return;
+    }
+    *c += a * b;
+}
+
+/// [`mat_mul_add`] with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn mat_mul_add_fma(c: &mut Matrix3<f64>, a: &Matrix3<f64>, b: &Matrix3<f64>) {
+    use std::arch::x86_64::*;
+    let ap = a.as_ptr();
+    let bp = b.as_ptr();
+    let cp = c.as_mut_ptr();
+    // columns 0 and 1 read four wide (the fourth lane is the next column's
+    // first entry, dropped); column 2 from entries 5..9, moved down a lane
+    let a0 = _mm256_loadu_pd(ap);
+    let a1 = _mm256_loadu_pd(ap.add(3));
+    let a2 = _mm256_permute4x64_pd::<0b11_11_10_01>(_mm256_loadu_pd(ap.add(5)));
+    let c0 = _mm256_loadu_pd(cp);
+    let c1 = _mm256_loadu_pd(cp.add(3));
+    let c2 = _mm256_permute4x64_pd::<0b11_11_10_01>(_mm256_loadu_pd(cp.add(5)));
+    macro_rules! col {
+        ($cj:expr, $j:expr) => {{
+            let t = _mm256_fmadd_pd(a0, _mm256_broadcast_sd(&*bp.add(3 * $j)), $cj);
+            let t = _mm256_fmadd_pd(a1, _mm256_broadcast_sd(&*bp.add(3 * $j + 1)), t);
+            _mm256_fmadd_pd(a2, _mm256_broadcast_sd(&*bp.add(3 * $j + 2)), t)
+        }};
+    }
+    let r0 = col!(c0, 0);
+    let r1 = col!(c1, 1);
+    let r2 = col!(c2, 2);
+    // stored in order, each four-wide store's fourth lane overwritten by
+    // the next; the last column three wide
+    _mm256_storeu_pd(cp, r0);
+    _mm256_storeu_pd(cp.add(3), r1);
+    _mm_storeu_pd(cp.add(6), _mm256_castpd256_pd128(r2));
+    _mm_store_sd(cp.add(8), _mm256_extractf128_pd::<1>(r2));
+}
+
+/// `acc + m v`; with `FMA` (only where the CPU has AVX2 and FMA, inlined
+/// into callers compiled with them) one four-wide fused chain.
+#[inline(always)]
+fn mat_vec_add<const FMA: bool>(
+    m: &Matrix3<f64>,
+    v: &Vector3<f64>,
+    acc: &Vector3<f64>,
+) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        return unsafe { mat_vec_add_fma(m, v, acc) };
+    }
+    acc + m * v
+}
+
+/// `Σ_k val[k] x[col[k]]` over `lo..hi` (one row of a block CSR matrix);
+/// with `FMA` [`blocks_mul_fma`], inlined into callers compiled with AVX2
+/// and FMA.
+#[inline(always)]
+fn row_k<const FMA: bool>(
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        return unsafe { blocks_mul_fma(col, val, lo, hi, x) };
+    }
+    blocks_mul_slices(false, col, val, lo, hi, x)
+}
+
+/// The cycle's way down on one level (matrix `m`; `filter` on the finest):
+/// a forward block Gauss–Seidel sweep from zero into `w.x`, and the
+/// restriction of the residual left into the next level's `bc`.
+fn down(
+    fma: bool,
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    bc: &mut [Vector3<f64>],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
+        return unsafe { down_fma(m, filter, t, w, bc) };
+    }
+    down_k::<false>(m, filter, t, w, bc);
+}
+
+/// [`down`] compiled with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn down_fma(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    bc: &mut [Vector3<f64>],
+) {
+    down_k::<true>(m, filter, t, w, bc);
+}
+
+#[inline(always)]
+fn down_k<const FMA: bool>(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    bc: &mut [Vector3<f64>],
+) {
+    // from zero: the blocks right of the diagonal multiply zeros
+    for i in 0..m.n {
+        let ri = w.b[i] - row_k::<FMA>(&m.col, &m.val, m.row_ptr[i], m.diag[i], &w.x);
+        w.x[i] = mat_vec_add::<FMA>(&w.dinv[i], &ri, &Vector3::zeros());
+    }
+    // the residual: the sweep zeroed each row's (filtered) residual as it
+    // went, so what is left is the part right of the diagonal
+    bc.iter_mut().for_each(|v| *v = Vector3::zeros());
+    for i in 0..m.n {
+        let mut ri = -row_k::<FMA>(&m.col, &m.val, m.diag[i] + 1, m.row_ptr[i + 1], &w.x);
+        if let Some(f) = filter {
+            ri = f[i].apply(&ri);
+        }
+        for e in t.p.ptr[i]..t.p.ptr[i + 1] {
+            let c = t.p.col[e] as usize;
+            bc[c] = mat_vec_add::<FMA>(&t.pt[e], &ri, &bc[c]);
+        }
+    }
+}
+
+/// The cycle's way up on one level: the prolongation of the next level's
+/// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep.
+fn up(
+    fma: bool,
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if fma {
+        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
+        return unsafe { up_fma(m, filter, t, w, xc) };
+    }
+    up_k::<false>(m, filter, t, w, xc);
+}
+
+/// [`up`] compiled with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn up_fma(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
+    up_k::<true>(m, filter, t, w, xc);
+}
+
+#[inline(always)]
+fn up_k<const FMA: bool>(
+    m: &BlockMatrix,
+    filter: Option<&[Filter]>,
+    t: &Transfer,
+    w: &mut Work,
+    xc: &[Vector3<f64>],
+) {
+    for i in 0..m.n {
+        let e = row_k::<FMA>(&t.p.col, &t.p.val, t.p.ptr[i], t.p.ptr[i + 1], xc);
+        w.x[i] += match filter {
+            Some(f) => f[i].apply(&e),
+            None => e,
+        };
+    }
+    for i in (0..m.n).rev() {
+        let ri = w.b[i] - row_k::<FMA>(&m.col, &m.val, m.row_ptr[i], m.row_ptr[i + 1], &w.x);
+        w.x[i] = mat_vec_add::<FMA>(&w.dinv[i], &ri, &w.x[i]);
+    }
+}
+
+/// [`mat_vec_add`] with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn mat_vec_add_fma(m: &Matrix3<f64>, v: &Vector3<f64>, acc: &Vector3<f64>) -> Vector3<f64> {
+    use std::arch::x86_64::*;
+    let mp = m.as_ptr();
+    let c0 = _mm256_loadu_pd(mp);
+    let c1 = _mm256_loadu_pd(mp.add(3));
+    let c2 = _mm256_permute4x64_pd::<0b11_11_10_01>(_mm256_loadu_pd(mp.add(5)));
+    let t = _mm256_setr_pd(acc.x, acc.y, acc.z, 0.0);
+    let t = _mm256_fmadd_pd(c0, _mm256_set1_pd(v.x), t);
+    let t = _mm256_fmadd_pd(c1, _mm256_set1_pd(v.y), t);
+    let t = _mm256_fmadd_pd(c2, _mm256_set1_pd(v.z), t);
+    let mut out = [0.0; 4];
+    _mm256_storeu_pd(out.as_mut_ptr(), t);
+    Vector3::new(out[0], out[1], out[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+
+    /// An `nx` × `ny` grid with random PSD springs to the right, upper and
+    /// diagonal neighbours and a mass on the diagonal, its springs, and a
+    /// filter with pinned, contact and free vertices.
+    fn grid(nx: usize, ny: usize) -> (BlockMatrix, Vec<f64>, Vec<[usize; 2]>, Vec<Filter>) {
+        let id = |i: usize, j: usize| j * nx + i;
+        let mut edges = Vec::new();
+        for j in 0..ny {
+            for i in 0..nx {
+                for (di, dj) in [(1, 0), (0, 1), (1, 1)] {
+                    if i + di < nx && j + dj < ny {
+                        edges.push([id(i, j), id(i + di, j + dj)]);
+                    }
+                }
+            }
+        }
+        let n = nx * ny;
+        let mut a = BlockMatrix::from_cliques(n, edges.iter().map(|e| e.as_slice()));
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        let mass: Vec<f64> = (0..n).map(|_| 1.0 + 0.5 * rnd()).collect();
+        for i in 0..n {
+            a.val[a.diag[i]] = Matrix3::identity() * mass[i];
+        }
+        for e in &edges {
+            let b = Matrix3::from_fn(|_, _| rnd());
+            let k = b * b.transpose() * 30.0;
+            let k = (k + k.transpose()) * 0.5;
+            let (ii, jj, ij, ji) = (
+                a.diag[e[0]],
+                a.diag[e[1]],
+                a.index(e[0], e[1]),
+                a.index(e[1], e[0]),
+            );
+            a.val[ii] += k;
+            a.val[jj] += k;
+            a.val[ij] -= k;
+            a.val[ji] -= k.transpose();
+        }
+        let filter = (0..n)
+            .map(|i| match i % 7 {
+                0 => Filter::Fixed,
+                3 | 5 => Filter::Normal(Vector3::new(0.3, -0.4, 1.0).normalize()),
+                _ => Filter::Free,
+            })
+            .collect();
+        (a, mass, edges, filter)
+    }
+
+    /// Every coarse matrix is the Galerkin product `Pᵀ Â P` of the level
+    /// below (`Â = S A S + (I − S) m` on the finest, the coarse matrix
+    /// itself further down) plus, on the first coarse level, the masses of
+    /// the constrained directions and the rotations' inertia, summed here
+    /// term by term over the sparse blocks; and symmetric bit for bit.
+    #[test]
+    fn coarse_matrices_are_the_galerkin_products() {
+        let (nx, ny) = (60, 55);
+        let (a, mass, edges, filter) = grid(nx, ny);
+        let n = a.n;
+        let x: Vec<Vector3<f64>> = (0..n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        assert!(amg.transfers.len() >= 2, "levels {:?}", amg.sizes());
+        amg.setup(&a, &filter, &mass, &x).unwrap();
+        for l in 0..amg.transfers.len() {
+            let fine = if l == 0 { &a } else { &amg.coarse[l - 1] };
+            let t = &amg.transfers[l];
+            let c = &amg.coarse[l];
+            // Â of the level, blockwise
+            let hat = |i: usize, k: usize| -> Matrix3<f64> {
+                let j = fine.col[k] as usize;
+                if l > 0 {
+                    return fine.val[k];
+                }
+                let (si, sj) = (filter[i].matrix(), filter[j].matrix());
+                let mut m = si * fine.val[k] * sj;
+                if i == j {
+                    m += (Matrix3::identity() - si) * mass[i];
+                }
+                m
+            };
+            let mut ap: BTreeMap<(usize, usize), Matrix3<f64>> = BTreeMap::new();
+            for i in 0..fine.n {
+                for k in fine.row_ptr[i]..fine.row_ptr[i + 1] {
+                    let j = fine.col[k] as usize;
+                    for e in t.p.ptr[j]..t.p.ptr[j + 1] {
+                        *ap.entry((i, t.p.col[e] as usize))
+                            .or_insert(Matrix3::zeros()) += hat(i, k) * t.p.val[e];
+                    }
+                }
+            }
+            let mut want: BTreeMap<(usize, usize), Matrix3<f64>> = BTreeMap::new();
+            for (&(i, cj), m) in &ap {
+                for e in t.p.ptr[i]..t.p.ptr[i + 1] {
+                    *want
+                        .entry((t.p.col[e] as usize, cj))
+                        .or_insert(Matrix3::zeros()) += t.p.val[e].transpose() * m;
+                }
+            }
+            if l == 0 {
+                for i in 0..n {
+                    let ci = 2 * t.agg[i] as usize;
+                    let free = filter[i].matrix();
+                    *want.get_mut(&(ci, ci)).unwrap() += (Matrix3::identity() - free) * mass[i];
+                    let r = -t.arm[i].cross_matrix();
+                    *want.get_mut(&(ci + 1, ci + 1)).unwrap() +=
+                        (r.transpose() * (Matrix3::identity() - free) * r
+                            + Matrix3::identity() * (ARM * ARM))
+                            * mass[i];
+                }
+            }
+            let scale = c.val.iter().map(|m| m.amax()).fold(0.0, f64::max);
+            assert!(scale > 0.0);
+            for ci in 0..c.n {
+                for k in c.row_ptr[ci]..c.row_ptr[ci + 1] {
+                    let cj = c.col[k] as usize;
+                    let w = want.get(&(ci, cj)).copied().unwrap_or(Matrix3::zeros());
+                    assert!(
+                        (c.val[k] - w).amax() <= 1e-12 * scale,
+                        "level {l}, block ({ci}, {cj}): {} vs {w}",
+                        c.val[k]
+                    );
+                    assert_eq!(c.val[k], c.val[c.index(cj, ci)].transpose());
+                }
+            }
+            assert!(want.keys().all(|&(ci, cj)| {
+                let r = &c.col[c.row_ptr[ci]..c.row_ptr[ci + 1]];
+                r.binary_search(&(cj as u32)).is_ok()
+            }));
+        }
+    }
+
+    /// A hierarchy kept from a step with another matrix and other
+    /// constraints still makes a symmetric positive definite cycle whose
+    /// output obeys this step's filter, and the PCG it preconditions reaches
+    /// this step's exact solution.
+    #[test]
+    fn a_kept_hierarchy_preconditions_the_next_system() {
+        use super::super::linear::{Cap, Pcg};
+        let (nx, ny) = (40, 36);
+        let (a, mass, edges, filter) = grid(nx, ny);
+        let n = a.n;
+        let x: Vec<Vector3<f64>> = (0..n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        amg.setup(&a, &filter, &mass, &x).unwrap();
+        amg.record(10);
+        // the next step: stiffer springs, constraints moved by one vertex
+        // (new contacts, released ones, a pin freed)
+        let mut a2 = a.clone();
+        for i in 0..n {
+            for k in a2.row_ptr[i]..a2.row_ptr[i + 1] {
+                let s = if k == a2.diag[i] { 1.0 } else { 1.3 };
+                a2.val[k] *= s;
+            }
+            let off: Matrix3<f64> = (a2.row_ptr[i]..a2.row_ptr[i + 1])
+                .filter(|&k| k != a2.diag[i])
+                .map(|k| a2.val[k])
+                .sum();
+            // keep it diagonally dominant: the diagonal balances the springs
+            a2.val[a2.diag[i]] = Matrix3::identity() * mass[i] - off;
+        }
+        let filter2: Vec<Filter> = (0..n).map(|i| filter[(i + 1) % n]).collect();
+        amg.setup(&a2, &filter2, &mass, &x).unwrap();
+        assert_eq!(amg.age, 1, "the coarse levels are kept");
+        let u: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter2[i].apply(&Vector3::new((i as f64).cos(), 0.3, (i as f64 * 0.2).sin())))
+            .collect();
+        let v: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter2[i].apply(&Vector3::new(0.5, (i as f64 * 1.3).sin(), -1.0)))
+            .collect();
+        let (mut mu, mut mv) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+        amg.apply(&a2, &filter2, &u, &mut mu);
+        amg.apply(&a2, &filter2, &v, &mut mv);
+        let dot = |p: &[Vector3<f64>], q: &[Vector3<f64>]| -> f64 {
+            p.iter().zip(q).map(|(p, q)| p.dot(q)).sum()
+        };
+        let (uv, vu) = (dot(&u, &mv), dot(&v, &mu));
+        assert!(
+            (uv - vu).abs() <= 1e-10 * uv.abs().max(vu.abs()),
+            "{uv} vs {vu}"
+        );
+        assert!(dot(&u, &mu) > 0.0 && dot(&v, &mv) > 0.0);
+        for i in 0..n {
+            assert!((filter2[i].apply(&mu[i]) - mu[i]).amax() <= 1e-15 * mu[i].amax().max(1.0));
+        }
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| Vector3::new((i as f64 * 0.7).sin(), -1.0, (i as f64 * 0.1).cos()))
+            .collect();
+        let z: Vec<Vector3<f64>> = (0..n)
+            .map(|i| {
+                let w = Vector3::new(0.01, -0.02, 0.03);
+                w - filter2[i].apply(&w)
+            })
+            .collect();
+        let mut exact = vec![Vector3::zeros(); n];
+        Direct::new(&a2)
+            .unwrap()
+            .solve(&a2, &b, &filter2, &z, &mass, &mut exact)
+            .unwrap();
+        let mut got = vec![Vector3::zeros(); n];
+        Pcg::default()
+            .solve_factor(
+                &a2,
+                &b,
+                &filter2,
+                &z,
+                &mut got,
+                1e-10,
+                Cap::Hard(300),
+                &mut amg,
+            )
+            .unwrap();
+        let scale = exact.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        for i in 0..n {
+            assert!((got[i] - exact[i]).amax() <= 1e-7 * scale, "vertex {i}");
+        }
+    }
+
+    /// The fused 3 × 3 kernels agree with nalgebra's products to rounding.
+    #[test]
+    fn block_kernels_match_the_plain_products() {
+        let a = Matrix3::new(1.0, 2.0, -3.0, 0.5, -1.5, 4.0, 2.5, 0.25, -0.75);
+        let b = Matrix3::new(-0.3, 1.7, 2.0, 0.9, 0.1, -4.0, 3.5, -2.25, 0.5);
+        let c0 = Matrix3::new(0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9);
+        let v = Vector3::new(0.7, -1.1, 2.3);
+        for fma in [false, true] {
+            if fma && !has_fma() {
+                continue;
+            }
+            let mut c = c0;
+            if fma {
+                mat_mul_add::<true>(&mut c, &a, &b);
+            } else {
+                mat_mul_add::<false>(&mut c, &a, &b);
+            }
+            assert!((c - (c0 + a * b)).amax() <= 1e-14, "{c}");
+            let y = if fma {
+                mat_vec_add::<true>(&a, &v, &c0.column(1).into())
+            } else {
+                mat_vec_add::<false>(&a, &v, &c0.column(1).into())
+            };
+            let want: Vector3<f64> = c0.column(1) + a * v;
+            assert!((y - want).amax() <= 1e-14, "{y}");
         }
     }
 }

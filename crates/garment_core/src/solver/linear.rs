@@ -668,35 +668,37 @@ fn row_mul_k<const FMA: bool>(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> 
 #[target_feature(enable = "avx2,fma")]
 #[inline]
 unsafe fn row_mul_fma(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> Vector3<f64> {
-    blocks_mul_fma(a, a.row_ptr[i], a.row_ptr[i + 1], x)
+    blocks_mul_fma(&a.col, &a.val, a.row_ptr[i], a.row_ptr[i + 1], x)
 }
 
-/// [`row_mul_fma`] over the blocks `lo..hi` of one row.
+/// [`row_mul_fma`] over the blocks `lo..hi` of one row of a block CSR
+/// matrix given by its columns `col` and blocks `val`.
 ///
 /// # Safety
 /// The CPU must have AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn blocks_mul_fma(
-    a: &BlockMatrix,
+pub(super) unsafe fn blocks_mul_fma(
+    col: &[u32],
+    val: &[Matrix3<f64>],
     lo: usize,
     hi: usize,
     x: &[Vector3<f64>],
 ) -> Vector3<f64> {
     use std::arch::x86_64::*;
     assert!(lo <= hi);
-    assert!(hi <= a.val.len() && hi <= a.col.len());
-    let vp = a.val.as_ptr() as *const f64;
+    assert!(hi <= val.len() && hi <= col.len());
+    let vp = val.as_ptr() as *const f64;
     let xp = x.as_ptr() as *const f64;
     let nx = x.len();
     // the last block of the matrix: its third column is read masked (a
     // four-wide load would run one f64 past the end)
-    let last = a.val.len().saturating_sub(1);
+    let last = val.len().saturating_sub(1);
     macro_rules! block {
         ($k:expr) => {{
             let k = $k;
-            let j = *a.col.get_unchecked(k) as usize;
+            let j = *col.get_unchecked(k) as usize;
             assert!(j < nx);
             let m = vp.add(9 * k);
             let xj = xp.add(3 * j);
@@ -752,14 +754,28 @@ pub(super) fn blocks_mul_best(
     hi: usize,
     x: &[Vector3<f64>],
 ) -> Vector3<f64> {
+    blocks_mul_slices(fma, &a.col, &a.val, lo, hi, x)
+}
+
+/// [`blocks_mul_best`] for a block CSR matrix given by its columns `col`
+/// and blocks `val`.
+#[inline]
+pub(super) fn blocks_mul_slices(
+    fma: bool,
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+) -> Vector3<f64> {
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { blocks_mul_fma(a, lo, hi, x) };
+        return unsafe { blocks_mul_fma(col, val, lo, hi, x) };
     }
     let mut s = Vector3::zeros();
     for k in lo..hi {
-        s += a.val[k] * x[a.col[k] as usize];
+        s += val[k] * x[col[k] as usize];
     }
     s
 }

@@ -858,7 +858,7 @@ impl Simulation {
         self.amg()?;
         let m = self.ws.amg.as_mut().expect("multigrid built");
         m.setup(&self.ws.a, &self.ws.filter, &self.cloth.mass, &self.cloth.x)?;
-        self.ws.pcg.solve_factor(
+        let solved = self.ws.pcg.solve_factor(
             &self.ws.a,
             &self.ws.b,
             &self.ws.filter,
@@ -867,7 +867,9 @@ impl Simulation {
             self.params.cg_tolerance,
             cap,
             m,
-        )
+        );
+        m.record(self.ws.pcg.spent());
+        solved
     }
 
     /// `amg`: the multigrid PCG, or the exact Cholesky solve if it does not
