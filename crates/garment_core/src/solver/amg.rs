@@ -1057,6 +1057,37 @@ unsafe fn mat_vec_add_fma(m: &Matrix3<f64>, v: &Vector3<f64>, acc: &Vector3<f64>
 }
 
 #[cfg(test)]
+impl Amg {
+    /// Asserts that the cycle for `a` under `filter` is a symmetric positive
+    /// operator on the free directions (as CG needs) whose output has no
+    /// part along the constrained ones, on two fixed vectors.
+    pub(super) fn check_cycle(&mut self, a: &BlockMatrix, filter: &[Filter]) {
+        let n = a.n;
+        let u: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter[i].apply(&Vector3::new((i as f64).cos(), 0.3, (i as f64 * 0.2).sin())))
+            .collect();
+        let v: Vec<Vector3<f64>> = (0..n)
+            .map(|i| filter[i].apply(&Vector3::new(0.5, (i as f64 * 1.3).sin(), -1.0)))
+            .collect();
+        let (mut mu, mut mv) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
+        self.apply(a, filter, &u, &mut mu);
+        self.apply(a, filter, &v, &mut mv);
+        let dot = |p: &[Vector3<f64>], q: &[Vector3<f64>]| -> f64 {
+            p.iter().zip(q).map(|(p, q)| p.dot(q)).sum()
+        };
+        let (uv, vu) = (dot(&u, &mv), dot(&v, &mu));
+        assert!(
+            (uv - vu).abs() <= 1e-10 * uv.abs().max(vu.abs()),
+            "{uv} vs {vu}"
+        );
+        assert!(dot(&u, &mu) > 0.0 && dot(&v, &mv) > 0.0);
+        for i in 0..n {
+            assert!((filter[i].apply(&mu[i]) - mu[i]).amax() <= 1e-15 * mu[i].amax().max(1.0));
+        }
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use std::collections::BTreeMap;
@@ -1232,27 +1263,7 @@ mod tests {
         let filter2: Vec<Filter> = (0..n).map(|i| filter[(i + 1) % n]).collect();
         amg.setup(&a2, &filter2, &mass, &x).unwrap();
         assert_eq!(amg.age, 1, "the coarse levels are kept");
-        let u: Vec<Vector3<f64>> = (0..n)
-            .map(|i| filter2[i].apply(&Vector3::new((i as f64).cos(), 0.3, (i as f64 * 0.2).sin())))
-            .collect();
-        let v: Vec<Vector3<f64>> = (0..n)
-            .map(|i| filter2[i].apply(&Vector3::new(0.5, (i as f64 * 1.3).sin(), -1.0)))
-            .collect();
-        let (mut mu, mut mv) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
-        amg.apply(&a2, &filter2, &u, &mut mu);
-        amg.apply(&a2, &filter2, &v, &mut mv);
-        let dot = |p: &[Vector3<f64>], q: &[Vector3<f64>]| -> f64 {
-            p.iter().zip(q).map(|(p, q)| p.dot(q)).sum()
-        };
-        let (uv, vu) = (dot(&u, &mv), dot(&v, &mu));
-        assert!(
-            (uv - vu).abs() <= 1e-10 * uv.abs().max(vu.abs()),
-            "{uv} vs {vu}"
-        );
-        assert!(dot(&u, &mu) > 0.0 && dot(&v, &mv) > 0.0);
-        for i in 0..n {
-            assert!((filter2[i].apply(&mu[i]) - mu[i]).amax() <= 1e-15 * mu[i].amax().max(1.0));
-        }
+        amg.check_cycle(&a2, &filter2);
         let b: Vec<Vector3<f64>> = (0..n)
             .map(|i| Vector3::new((i as f64 * 0.7).sin(), -1.0, (i as f64 * 0.1).cos()))
             .collect();
