@@ -16,6 +16,10 @@
 //! point's barycentric coordinates; each body vertex's pressure is what it
 //! received over its area (one third of the area of the triangles around it).
 //! So Σ pressure × area over the body's vertices is the total normal force.
+//!
+//! With the obstacles' edge contacts (`Params::obstacle_edges`) the cloth's
+//! triangles and edges also push on the mesh's vertices: each such vertex is
+//! one more contact, at the vertex, its normal the mesh's there.
 
 use crate::collision::{Obstacle, Proximity, ShapeSpec};
 use crate::set::Handle;
@@ -98,7 +102,41 @@ pub fn contacts_with(sim: &Simulation, body: Handle<Obstacle>) -> Option<Vec<Bod
             }
         }
     }
+    // the cloth's triangles and edges on the mesh's vertices
+    // (`Params::obstacle_edges`), at the vertex, along its normal
+    let edges: Vec<_> = sim
+        .edge_contacts()
+        .into_iter()
+        .filter(|c| c.obstacle == target)
+        .collect();
+    if !edges.is_empty() {
+        if let Some((v, t)) = world_mesh(&all[target]) {
+            let normals = vertex_normals(&v, &t);
+            out.extend(edges.iter().map(|c| BodyContact {
+                vertex: c.cloth_vertex,
+                force: c.force,
+                point: c.point,
+                normal: normals[c.vertex],
+            }));
+        }
+    }
     Some(out)
+}
+
+/// Each vertex's unit normal: the area-weighted mean of its triangles'
+/// (zero for a vertex in none).
+fn vertex_normals(vertices: &[Vector3<f64>], triangles: &[[u32; 3]]) -> Vec<Vector3<f64>> {
+    let mut n = vec![Vector3::zeros(); vertices.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|k| vertices[k as usize]);
+        let f = (b - a).cross(&(c - a));
+        for k in t {
+            n[*k as usize] += f;
+        }
+    }
+    n.iter()
+        .map(|v| v.try_normalize(0.0).unwrap_or_default())
+        .collect()
 }
 
 /// The wrench of a set of contacts about `origin`.

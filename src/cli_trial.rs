@@ -235,18 +235,36 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     let mut dress = crate::progress_printer("dressing".into());
     let wall = std::time::Instant::now();
     let mut t0 = f64::NAN;
-    let mut run = garment_sim::dressing::run_trial(
+    let mut so_far = Vec::new();
+    let ran = garment_sim::dressing::run_trial(
         t,
         ov,
         &mut |_, _, x, of| sew(x, of),
-        &mut |sim, d, _| {
+        &mut |sim, d, row| {
             if t0.is_nan() {
                 t0 = sim.time - sim.params().dt;
             }
+            so_far.push(*row);
             dress(sim.time - t0, d.t_end - t0)
         },
         &|| stop.load(Ordering::Relaxed),
-    )?;
+    );
+    let mut run = match ran {
+        Ok(run) => run,
+        Err(e) => {
+            // what was recorded before the failure is kept
+            if !so_far.is_empty() {
+                let csv = a.out.join("dressing.csv");
+                garment_sim::dressing::write_csv(&so_far, &csv)?;
+                eprintln!(
+                    "the dressing stopped after {} steps; their rows are in {}",
+                    so_far.len(),
+                    csv.display()
+                );
+            }
+            return Err(e);
+        }
+    };
     dress(1.0, 1.0);
     let wall_s = wall.elapsed().as_secs_f64();
     let (sim, g, rows) = (&run.sim, &run.garment, &run.rows);

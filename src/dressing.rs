@@ -72,6 +72,12 @@ pub struct DressingFile {
     /// hoop is made rounder than that where the cuff is long enough).
     #[serde(default = "DressingFile::d_clearance")]
     pub clearance: f64,
+    /// The body's vertices and edges meet the cloth's triangles and edges
+    /// while dressing (`Params::obstacle_edges`), so that fingers thinner
+    /// than the cloth's spacing cannot pass between its vertices (off when
+    /// absent; docs/bodies.md tells what it changes).
+    #[serde(default)]
+    pub edge_contacts: bool,
 }
 
 impl DressingFile {
@@ -1225,6 +1231,11 @@ pub fn run_trial(
         stop,
     )?;
     let dressing = Dressing::set_up(&mut sim, &g, body, d)?;
+    if d.edge_contacts {
+        let mut p = sim.params().clone();
+        p.obstacle_edges = true;
+        sim.set_params(p)?;
+    }
     let wall = Instant::now();
     let rows = dressing.run(&mut sim, d, on_step, stop)?;
     let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());

@@ -343,6 +343,11 @@ pub struct SceneFile {
     /// Keep the cloth from passing through itself (docs/self_collision.md).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub self_collision: bool,
+    /// Triangle-mesh obstacles' vertices and edges meet the cloth's
+    /// triangles and edges too (docs/self_collision.md: an obstacle thinner
+    /// than the cloth's spacing cannot pass between its vertices).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub obstacle_edges: bool,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -603,6 +608,7 @@ impl Scene {
             cloth_thickness: f.cloth.thickness,
             hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
             self_collision: ov.self_collision.unwrap_or(f.self_collision),
+            obstacle_edges: f.obstacle_edges,
             ..Params::default()
         };
         let params = Params {

@@ -176,6 +176,12 @@ pub struct TrialFile {
     /// off when absent, on in the shipped skirt trial).
     #[serde(default)]
     pub self_collision: bool,
+    /// The body's vertices and edges meet the garment's triangles and edges
+    /// too, in every phase (docs/self_collision.md: a body part thinner
+    /// than the cloth's spacing, fingers, cannot pass between the cloth's
+    /// vertices; off when absent).
+    #[serde(default)]
+    pub obstacle_edges: bool,
     /// A gripper pulls a sleeve over an arm after sewing, in place of the
     /// drape (docs/bodies.md, [`crate::dressing`]).
     #[serde(default)]
@@ -449,6 +455,7 @@ impl Trial {
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
             self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
+            obstacle_edges: self.file.obstacle_edges,
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;

@@ -245,6 +245,26 @@ impl Obstacle {
         self.deforming.as_deref()
     }
 
+    /// A triangle-mesh obstacle's vertices where they are now (world),
+    /// appended to `out`, and its triangles; `None` (nothing appended) for
+    /// a primitive.
+    pub fn world_mesh_into(&self, out: &mut Vec<Vector3<f64>>) -> Option<&[[u32; 3]]> {
+        match (self.deforming(), &self.spec, &self.mesh) {
+            (Some(d), _, _) => {
+                out.extend_from_slice(d.positions());
+                Some(d.triangles())
+            }
+            (None, ShapeSpec::Triangles { .. }, Some((v, t))) => {
+                out.extend(
+                    v.iter()
+                        .map(|p| (self.pose * Point3::from(Vector3::from(*p))).coords),
+                );
+                Some(t)
+            }
+            _ => None,
+        }
+    }
+
     /// The moving mesh, to change its start or looping.
     pub fn deforming_mut(&mut self) -> Option<&mut DeformingBody> {
         self.deforming.as_deref_mut()

@@ -159,9 +159,47 @@ struct Active {
     pushed: f64,
 }
 
+/// Triangle meshes of obstacles that join the pass as kinematic surfaces
+/// (see [`SelfContact::with_obstacles`]): their vertices (where they are at
+/// the start), triangles, and per vertex the gap the cloth keeps from it, m,
+/// and the friction coefficient of the cloth on it.
+#[derive(Debug, Clone, Default)]
+pub struct Kinematic {
+    pub x: Vec<V>,
+    pub tris: Vec<[usize; 3]>,
+    pub gap: Vec<f64>,
+    pub friction: Vec<f64>,
+}
+
 /// The cloth's surface as the pass sees it, and its buffers.
 #[derive(Debug, Clone)]
 pub struct SelfContact {
+    /// The cloth's vertices and triangles come first: vertices from `nc` on
+    /// and triangles from `ntc` on are the kinematic obstacles'.
+    nc: usize,
+    ntc: usize,
+    /// Whether cloth–cloth pairs are tested (off: only the cloth against the
+    /// kinematic obstacles).
+    cloth_pairs: bool,
+    /// Where the kinematic vertices are now ([`SelfContact::set_obstacles`]).
+    obst_x: Vec<V>,
+    /// Momentum the pass gave each kinematic vertex in the last step, N s
+    /// (what the cloth's impulses pushed it with), and the cloth vertex of
+    /// the pair that gave it the most (`u32::MAX`: none).
+    obst_impulse: Vec<V>,
+    obst_cloth: Vec<u32>,
+    obst_best: Vec<f64>,
+    /// Per cloth vertex, from the last step's pairs in contact with the
+    /// kinematic obstacles: the unit direction that parts it from them
+    /// (zero: none), their velocity there, the friction coefficient
+    /// ([`SelfContact::obstacle_contact`]); `obst_w` the weights summed.
+    obst_away: Vec<V>,
+    obst_vel: Vec<V>,
+    obst_w: Vec<f64>,
+    obst_mu: Vec<f64>,
+    /// Buffers of the whole system (cloth and obstacles) for a step.
+    xe: Vec<V>,
+    ve: Vec<V>,
     tris: Vec<[usize; 3]>,
     edges: Vec<[usize; 2]>,
     /// The vertices and edges each triangle is the one to test them from
@@ -222,13 +260,61 @@ impl SelfContact {
         thickness: Vec<f64>,
         friction: Vec<f64>,
     ) -> Result<SelfContact> {
-        let n = x.len();
-        if thickness.len() != n || friction.len() != n {
+        Self::with_obstacles(
+            x,
+            tris,
+            stitches,
+            thickness,
+            friction,
+            Kinematic::default(),
+            true,
+        )
+    }
+
+    /// The pass with kinematic obstacle surfaces: their vertices move as
+    /// given ([`SelfContact::set_obstacles`]) and have infinite mass; a
+    /// kinematic vertex against a cloth triangle and a kinematic edge against
+    /// a cloth edge are pairs like the cloth's own, kept `gap` apart, so
+    /// that a part of an obstacle thinner than the cloth's spacing (a
+    /// body's fingers) cannot pass between the cloth's vertices. A cloth
+    /// vertex against an obstacle triangle is the obstacle contact's
+    /// business (the solver's), not tested here. `cloth_pairs`: whether
+    /// the cloth's own pairs are tested too.
+    pub fn with_obstacles(
+        x: &[V],
+        tris: &[[usize; 3]],
+        stitches: &[[usize; 2]],
+        mut thickness: Vec<f64>,
+        mut friction: Vec<f64>,
+        obstacles: Kinematic,
+        cloth_pairs: bool,
+    ) -> Result<SelfContact> {
+        let nc = x.len();
+        if thickness.len() != nc || friction.len() != nc {
             bail!("self-contact: one thickness and one friction per vertex");
         }
-        if let Some(t) = tris.iter().find(|t| t.iter().any(|&v| v >= n)) {
-            bail!("self-contact: triangle {t:?} names a vertex beyond {n}");
+        if let Some(t) = tris.iter().find(|t| t.iter().any(|&v| v >= nc)) {
+            bail!("self-contact: triangle {t:?} names a vertex beyond {nc}");
         }
+        let nb = obstacles.x.len();
+        if obstacles.gap.len() != nb || obstacles.friction.len() != nb {
+            bail!("self-contact: one gap and one friction per obstacle vertex");
+        }
+        if let Some(t) = obstacles.tris.iter().find(|t| t.iter().any(|&v| v >= nb)) {
+            bail!("self-contact: obstacle triangle {t:?} names a vertex beyond {nb}");
+        }
+        let ntc = tris.len();
+        let all: Vec<[usize; 3]> = tris
+            .iter()
+            .copied()
+            .chain(obstacles.tris.iter().map(|t| t.map(|v| v + nc)))
+            .collect();
+        let tris = &all[..];
+        let xs: Vec<V> = x.iter().chain(&obstacles.x).copied().collect();
+        let x = &xs[..];
+        thickness.extend(&obstacles.gap);
+        friction.extend(&obstacles.friction);
+        let n = x.len();
         let mut edges: Vec<[usize; 2]> = Vec::with_capacity(3 * tris.len() / 2 + 8);
         let mut index = std::collections::HashMap::new();
         let mut tri_edges = Vec::with_capacity(tris.len());
@@ -282,16 +368,29 @@ impl SelfContact {
             own_edge_ptr.push(own_edges.len() as u32);
         }
         let max_thickness = thickness.iter().copied().fold(0.0, f64::max);
-        let mean_edge = if edges.is_empty() {
+        let cloth_edges = edges.iter().filter(|e| e[0] < nc);
+        let mean_edge = if edges.is_empty() || nc == 0 {
             0.0
         } else {
-            edges
-                .iter()
-                .map(|&[a, b]| (x[a] - x[b]).norm())
-                .sum::<f64>()
-                / edges.len() as f64
+            let (sum, count) = cloth_edges.fold((0.0, 0usize), |(s, c), &[a, b]| {
+                (s + (x[a] - x[b]).norm(), c + 1)
+            });
+            sum / count.max(1) as f64
         };
         Ok(SelfContact {
+            nc,
+            ntc,
+            cloth_pairs,
+            obst_x: obstacles.x,
+            obst_impulse: vec![V::zeros(); nb],
+            obst_cloth: vec![u32::MAX; nb],
+            obst_best: vec![0.0; nb],
+            obst_away: vec![V::zeros(); if nb > 0 { nc } else { 0 }],
+            obst_vel: vec![V::zeros(); if nb > 0 { nc } else { 0 }],
+            obst_w: vec![0.0; if nb > 0 { nc } else { 0 }],
+            obst_mu: vec![0.0; if nb > 0 { nc } else { 0 }],
+            xe: Vec::new(),
+            ve: Vec::new(),
             tris: tris.to_vec(),
             edges,
             own_ptr,
@@ -346,6 +445,7 @@ impl SelfContact {
     #[inline]
     fn related(&self, a: usize, b: usize) -> bool {
         a == b
+            || (a >= self.nc && b >= self.nc)
             || self.sewn[self.sewn_ptr[a] as usize..self.sewn_ptr[a + 1] as usize]
                 .binary_search(&(b as u32))
                 .is_ok()
@@ -353,6 +453,87 @@ impl SelfContact {
 
     fn tri_related(&self, p: usize, t: &[usize; 3]) -> bool {
         t.iter().any(|&q| self.related(p, q))
+    }
+
+    /// Whether the pass tests the pairs of triangles `a` and `b`: never two
+    /// obstacle triangles, two cloth triangles only with the cloth's own
+    /// pairs on.
+    #[inline]
+    fn tested(&self, a: usize, b: usize) -> bool {
+        match (a >= self.ntc, b >= self.ntc) {
+            (true, true) => false,
+            (false, false) => self.cloth_pairs,
+            _ => true,
+        }
+    }
+
+    /// Sets where the kinematic obstacles' vertices are now: before
+    /// [`SelfContact::begin`] at the step's start, before
+    /// [`SelfContact::resolve`] at its end.
+    pub fn set_obstacles(&mut self, x: &[V]) -> Result<()> {
+        if x.len() != self.obst_x.len() {
+            bail!(
+                "self-contact: {} obstacle vertices given, {} expected",
+                x.len(),
+                self.obst_x.len()
+            );
+        }
+        self.obst_x.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// Cloth vertex `i`'s contact with the kinematic obstacles in the last
+    /// step, if its triangles or edges were in contact with their vertices
+    /// or edges: the unit direction that parts it from them, their
+    /// velocity there (m/s) and the friction coefficient (the solver's next
+    /// step constrains it as it does an obstacle contact).
+    pub fn obstacle_contact(&self, i: usize) -> Option<(V, V, f64)> {
+        let a = *self.obst_away.get(i)?;
+        (a != V::zeros()).then(|| (a, self.obst_vel[i], self.obst_mu[i]))
+    }
+
+    /// Notes a pair in contact for [`SelfContact::obstacle_contact`] if it
+    /// holds a kinematic vertex: each cloth vertex's parting direction is
+    /// `sign(c_k) n` (its motion along it increases the pair's separation),
+    /// weighted by `|c_k|`.
+    fn note_obstacle(&mut self, i: &[usize; 4], c: &[f64; 4], n: V, mu: f64) {
+        let nc = self.nc;
+        if !i.iter().any(|&k| k >= nc) {
+            return;
+        }
+        let (mut vb, mut wb) = (V::zeros(), 0.0);
+        for k in 0..4 {
+            if i[k] >= nc {
+                vb += self.vb[i[k]] * c[k].abs();
+                wb += c[k].abs();
+            }
+        }
+        let vb = if wb > 0.0 { vb / wb } else { V::zeros() };
+        for k in 0..4 {
+            let w = c[k].abs();
+            if i[k] < nc && w > 0.0 {
+                self.obst_away[i[k]] += n * (c[k].signum() * w);
+                self.obst_vel[i[k]] += vb * w;
+                self.obst_w[i[k]] += w;
+                self.obst_mu[i[k]] = mu;
+            }
+        }
+    }
+
+    /// The kinematic obstacles' vertex count.
+    pub fn obstacle_vertices(&self) -> usize {
+        self.obst_x.len()
+    }
+
+    /// What the cloth pushed the kinematic vertices with in the last step:
+    /// `(obstacle vertex, cloth vertex of its largest pair, momentum N s)`
+    /// for every vertex that got some.
+    pub fn obstacle_impulses(&self) -> impl Iterator<Item = (usize, usize, V)> + '_ {
+        self.obst_impulse
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| **p != V::zeros())
+            .map(|(k, p)| (k, self.obst_cloth[k] as usize, *p))
     }
 
     /// Refuses a cloth whose triangles already cross each other (two
@@ -364,6 +545,9 @@ impl SelfContact {
         let mut crossing = Vec::new();
         let mut stack = std::mem::take(&mut self.stack);
         self.bvh.self_pairs(&mut stack, |a, b| {
+            if !self.tested(a, b) {
+                return;
+            }
             let (ta, tb) = (self.tris[a], self.tris[b]);
             if ta.iter().any(|&p| self.tri_related(p, &tb)) {
                 return;
@@ -384,6 +568,24 @@ impl SelfContact {
             }
         });
         self.stack = stack;
+        let ntc = self.ntc;
+        let caught: Vec<(usize, usize)> = crossing
+            .iter()
+            .copied()
+            .filter(|&(_, b)| b >= ntc)
+            .collect();
+        if let Some(&(a, b)) = caught.iter().min() {
+            bail!(
+                "the cloth starts caught on an obstacle: {} of its triangles cross the \
+                 obstacle's (first: cloth triangle {a} {:?} and obstacle triangle {} {:?}). \
+                 The obstacle's vertices and edges cannot be pulled back through the cloth: \
+                 place the cloth clear of the obstacle, or turn the obstacle's edge contacts off",
+                caught.len(),
+                self.tris[a],
+                b - ntc,
+                self.tris[b].map(|v| v - self.nc)
+            );
+        }
         if let Some(&(a, b)) = crossing.iter().min() {
             bail!(
                 "the cloth starts tangled: {} pairs of its triangles cross each other \
@@ -516,7 +718,15 @@ impl SelfContact {
             &self.own_edges[self.own_edge_ptr[k] as usize..self.own_edge_ptr[k + 1] as usize]
         };
         self.bvh.self_pairs(&mut stack, |a, b| {
+            if !self.tested(a, b) {
+                return;
+            }
             for (s, t) in [(a, b), (b, a)] {
+                // a cloth vertex against an obstacle triangle: the solver's
+                // obstacle contact
+                if s < self.ntc && t >= self.ntc {
+                    continue;
+                }
                 let tt = self.tris[t];
                 let tb = &self.tbox[t];
                 for &p in owned(s) {
@@ -740,6 +950,25 @@ impl SelfContact {
             return false;
         }
         let w: [f64; 4] = std::array::from_fn(|k| c[k] * im[i[k]] / denom);
+        if i.iter().any(|&k| k >= self.nc) && du_end != V::zeros() {
+            // the kinematic vertices take the pair's momentum the cloth's do
+            // not: c_k / denom of it each (Σ c_k = 0)
+            let cloth = (0..4)
+                .filter(|&k| i[k] < self.nc)
+                .max_by(|&a, &b| c[a].abs().total_cmp(&c[b].abs()))
+                .map_or(u32::MAX, |k| i[k] as u32);
+            let size = du_end.norm();
+            for k in 0..4 {
+                if i[k] >= self.nc {
+                    let b = i[k] - self.nc;
+                    self.obst_impulse[b] += du_end * (c[k] / denom);
+                    if size * c[k].abs() > self.obst_best[b] {
+                        self.obst_best[b] = size * c[k].abs();
+                        self.obst_cloth[b] = cloth;
+                    }
+                }
+            }
+        }
         for k in 0..4 {
             let w = w[k];
             if w != 0.0 {
@@ -752,6 +981,9 @@ impl SelfContact {
     }
 
     fn pair_thickness(&self, i: &[usize; 4]) -> (f64, f64) {
+        if let Some(&k) = i.iter().find(|&&k| k >= self.nc) {
+            return (self.thickness[k], self.friction[k]);
+        }
         let t = 0.25 * i.iter().map(|&k| self.thickness[k]).sum::<f64>();
         let mu = 0.25 * i.iter().map(|&k| self.friction[k]).sum::<f64>();
         (t, mu)
@@ -760,10 +992,24 @@ impl SelfContact {
     /// Starts a step: the positions at its start (checked for crossings on
     /// the first step).
     pub fn begin(&mut self, x: &[V], first: bool) -> Result<()> {
-        if first {
-            self.check_untangled(x)?;
+        if x.len() != self.nc {
+            bail!(
+                "self-contact: {} cloth vertices given, {} expected",
+                x.len(),
+                self.nc
+            );
         }
-        self.x0.copy_from_slice(x);
+        self.x0[..self.nc].copy_from_slice(x);
+        let nc = self.nc;
+        let obst = std::mem::take(&mut self.obst_x);
+        self.x0[nc..].copy_from_slice(&obst);
+        self.obst_x = obst;
+        if first {
+            let x0 = std::mem::take(&mut self.x0);
+            let checked = self.check_untangled(&x0);
+            self.x0 = x0;
+            checked?;
+        }
         Ok(())
     }
 
@@ -782,17 +1028,66 @@ impl SelfContact {
         pinned: &dyn Fn(usize) -> bool,
         held: &dyn Fn(usize) -> bool,
     ) -> SelfStats {
+        self.obst_impulse.iter_mut().for_each(|p| *p = V::zeros());
+        self.obst_best.iter_mut().for_each(|p| *p = 0.0);
+        self.obst_cloth.iter_mut().for_each(|p| *p = u32::MAX);
+        self.obst_away.iter_mut().for_each(|p| *p = V::zeros());
+        self.obst_vel.iter_mut().for_each(|p| *p = V::zeros());
+        self.obst_w.iter_mut().for_each(|p| *p = 0.0);
+        if self.obst_x.is_empty() {
+            return self.run(h, x, v, mass, pinned, held);
+        }
+        // the whole system: the cloth, then the obstacles at the step's end
+        // moving at their average velocity over it
+        let nc = self.nc;
+        let (mut xe, mut ve) = (std::mem::take(&mut self.xe), std::mem::take(&mut self.ve));
+        xe.clear();
+        xe.extend_from_slice(x);
+        xe.extend_from_slice(&self.obst_x);
+        ve.clear();
+        ve.extend_from_slice(v);
+        ve.extend((nc..xe.len()).map(|i| (xe[i] - self.x0[i]) / h));
+        let stats = self.run(h, &mut xe, &mut ve, mass, pinned, held);
+        for i in 0..nc {
+            if self.obst_w[i] > 0.0 {
+                self.obst_away[i] = self.obst_away[i].try_normalize(1e-12).unwrap_or_default();
+                self.obst_vel[i] /= self.obst_w[i];
+            }
+        }
+        x.copy_from_slice(&xe[..nc]);
+        v.copy_from_slice(&ve[..nc]);
+        (self.xe, self.ve) = (xe, ve);
+        stats
+    }
+
+    /// [`SelfContact::resolve`] on the whole system (`x`, `v`: the cloth's
+    /// vertices then the obstacles'; `mass`, `pinned` and `held`: the
+    /// cloth's).
+    fn run(
+        &mut self,
+        h: f64,
+        x: &mut [V],
+        v: &mut [V],
+        mass: &[f64],
+        pinned: &dyn Fn(usize) -> bool,
+        held: &dyn Fn(usize) -> bool,
+    ) -> SelfStats {
         let t0 = Instant::now();
         let n = x.len();
+        let nc = self.nc;
         let mut stats = SelfStats::default();
         for i in 0..n {
             self.vb[i] = (x[i] - self.x0[i]) / h;
-            self.inv_mass[i] = if pinned(i) || mass[i] <= 0.0 {
+            self.inv_mass[i] = if i >= nc || pinned(i) || mass[i] <= 0.0 {
                 0.0
             } else {
                 1.0 / mass[i]
             };
-            self.weight[i] = if held(i) { 0.0 } else { self.inv_mass[i] };
+            self.weight[i] = if i < nc && held(i) {
+                0.0
+            } else {
+                self.inv_mass[i]
+            };
             self.moved[i] = false;
         }
         // 1. proximity at the start positions, for pairs near there or
@@ -845,6 +1140,13 @@ impl SelfContact {
             if utn > 0.0 {
                 let dut = -ut * ((a.mu * a.inelastic).min(utn) / utn);
                 self.impulse(a.i, &a.c, dut, dut, v);
+            }
+        }
+        if !self.obst_x.is_empty() {
+            for a in &active {
+                if a.touching || a.inelastic > 0.0 || a.pushed > 0.0 {
+                    self.note_obstacle(&a.i, &a.c, a.n, a.mu);
+                }
             }
         }
         stats.contacts = active
@@ -962,13 +1264,16 @@ impl SelfContact {
         let mut found = Vec::new();
         for &p in &pairs {
             let i = self.verts(p);
-            let (th, _) = self.pair_thickness(&i);
+            let (th, mu) = self.pair_thickness(&i);
             let Some(hit) = self.first_hit(p, i, h, HIT_DISTANCE * th) else {
                 continue;
             };
             hits += 1;
             match v.as_deref_mut() {
                 Some(v) => {
+                    if !self.obst_x.is_empty() {
+                        self.note_obstacle(&i, &hit.c, hit.n, mu);
+                    }
                     let u: V = (0..4).map(|k| self.vb[i[k]] * hit.c[k]).sum();
                     let vn = u.dot(&hit.n);
                     let mut need = (COLLISION_SEPARATION * th - hit.d) / h - vn;
@@ -1057,11 +1362,26 @@ impl SelfContact {
             .collect();
         if !pinned.is_empty() {
             let vt = pinned.iter().map(|&i| self.vb[i]).sum::<V>() / pinned.len() as f64;
+            let mut given = V::zeros();
             for &i in ids {
                 if self.inv_mass[i] > 0.0 {
+                    given += (vt - v[i]) / self.inv_mass[i];
                     self.vb[i] = vt;
                     v[i] = vt;
                     self.moved[i] = true;
+                }
+            }
+            // the momentum the zone's free vertices gained came from its
+            // vertices of infinite mass, shared alike
+            let share = -given / pinned.len() as f64;
+            let free = ids.iter().copied().find(|&i| self.inv_mass[i] > 0.0);
+            for &i in &pinned {
+                if i >= self.nc {
+                    let b = i - self.nc;
+                    self.obst_impulse[b] += share;
+                    if self.obst_cloth[b] == u32::MAX {
+                        self.obst_cloth[b] = free.map_or(u32::MAX, |f| f as u32);
+                    }
                 }
             }
             return;
@@ -1177,5 +1497,116 @@ mod tests {
         assert!(seldom <= 15, "rebuilt {seldom} times in 60 steps");
         assert!(fresh == kept, "the results depend on the margin");
         assert!(fresh == default);
+    }
+
+    /// A falling sheet meets the apex of a fixed spike (a kinematic
+    /// pyramid) under the inside of one of its triangles: the triangle
+    /// stops above the apex, the momentum the cloth lost is what the
+    /// spike's vertices took, and the triangle's vertices are noted as in
+    /// contact, parted from the spike upwards.
+    #[test]
+    fn a_kinematic_spike_stops_a_triangle_and_takes_its_momentum() {
+        let n = 5;
+        let (x0, tris) = grid(n, 0.02, 0.002, 0.0, 0);
+        let m = x0.len();
+        // the apex under the centroid of the triangle left of the middle
+        let t0 = tris[2 * (n - 1) + 2];
+        let apex = (x0[t0[0]] + x0[t0[1]] + x0[t0[2]]) / 3.0 - V::new(0.0, 0.0, 0.002);
+        let spike = Kinematic {
+            x: vec![
+                apex,
+                apex + V::new(-0.004, -0.004, -0.01),
+                apex + V::new(0.004, -0.004, -0.01),
+                apex + V::new(0.0, 0.005, -0.01),
+            ],
+            tris: vec![[0, 2, 1], [0, 3, 2], [0, 1, 3], [1, 2, 3]],
+            gap: vec![0.5e-3; 4],
+            friction: vec![0.3; 4],
+        };
+        let start = spike.x.clone();
+        let mut sc = SelfContact::with_obstacles(
+            &x0,
+            &tris,
+            &[],
+            vec![0.4e-3; m],
+            vec![0.3; m],
+            spike,
+            false,
+        )
+        .unwrap();
+        let h = 0.01;
+        let mass = vec![1e-4; m];
+        // a fall at 1 m/s, with a drift sideways
+        let v0 = vec![V::new(0.1, 0.0, -1.0); m];
+        sc.set_obstacles(&start).unwrap();
+        sc.begin(&x0, true).unwrap();
+        let mut x: Vec<V> = x0.iter().zip(&v0).map(|(p, v)| p + v * h).collect();
+        let mut v = v0.clone();
+        sc.set_obstacles(&start).unwrap();
+        sc.resolve(h, &mut x, &mut v, &mass, &|_| false, &|_| false);
+        let lost: V = (0..m).map(|i| (v0[i] - v[i]) * mass[i]).sum();
+        let taken: V = sc.obstacle_impulses().map(|(_, _, p)| p).sum();
+        eprintln!("cloth lost {lost:?}, the spike took {taken:?}");
+        assert!(lost.z < -1e-6, "the cloth was stopped: {lost:?}");
+        assert!(
+            (lost - taken).norm() <= 1e-12 * lost.norm().max(1e-300) + 1e-18,
+            "momentum: lost {lost:?}, taken {taken:?}"
+        );
+        // the triangle ends above the apex, within its plane's side
+        let [a, b, c] = t0.map(|k| x[k]);
+        let nrm = (b - a).cross(&(c - a)).normalize();
+        let side = (apex - a).dot(&nrm) * nrm.z.signum();
+        assert!(side < 0.0, "the apex stays below the triangle: {side:e}");
+        for &k in &t0 {
+            let (away, vel, mu) = sc.obstacle_contact(k).expect("in contact");
+            assert!(away.z > 0.9, "parted upwards: {away:?}");
+            assert_eq!(vel, V::zeros());
+            assert_eq!(mu, 0.3);
+        }
+        // a vertex far from the spike is not in contact
+        assert!(sc.obstacle_contact(0).is_none());
+    }
+
+    /// A cloth that starts with a triangle through an obstacle's is
+    /// refused, naming the obstacle's triangle; the same cloth clear of it
+    /// starts.
+    #[test]
+    fn a_start_caught_on_an_obstacle_is_refused() {
+        let (x, tris) = grid(3, 0.02, 0.0, 0.0, 0);
+        let m = x.len();
+        let blade = |z: f64| Kinematic {
+            x: vec![
+                V::new(0.005, -0.05, z - 0.01),
+                V::new(0.005, 0.05, z - 0.01),
+                V::new(0.005, 0.0, z + 0.01),
+            ],
+            tris: vec![[0, 1, 2]],
+            gap: vec![1e-3; 3],
+            friction: vec![0.3; 3],
+        };
+        let mut sc = SelfContact::with_obstacles(
+            &x,
+            &tris,
+            &[],
+            vec![4e-4; m],
+            vec![0.3; m],
+            blade(0.0),
+            false,
+        )
+        .unwrap();
+        let e = sc.begin(&x, true).unwrap_err().to_string();
+        assert!(e.contains("caught on an obstacle"), "{e}");
+        assert!(e.contains("obstacle triangle 0 [0, 1, 2]"), "{e}");
+        let mut clear = SelfContact::with_obstacles(
+            &x,
+            &tris,
+            &[],
+            vec![4e-4; m],
+            vec![0.3; m],
+            blade(0.05),
+            false,
+        )
+        .unwrap();
+        clear.begin(&x, true).unwrap();
     }
 }

@@ -72,6 +72,41 @@ pub struct Params {
     /// its fabric-on-fabric friction. Off: folds may pass through each other.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub self_collision: bool,
+    /// The triangle-mesh obstacles' vertices and edges meet the cloth's
+    /// triangles and edges too, as kinematic points and edges of infinite
+    /// mass in the cloth–cloth pass ([`crate::self_contact::Kinematic`],
+    /// kept [`OBSTACLE_EDGE_GAP`] of the contact distance apart): a part of
+    /// a body thinner than the cloth's spacing (fingers) then cannot pass
+    /// between the cloth's vertices and hook the cloth. Off: only the
+    /// cloth's vertices meet the obstacles' surfaces.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub obstacle_edges: bool,
+}
+
+/// The gap the cloth keeps from a triangle-mesh obstacle's vertices and
+/// edges with [`Params::obstacle_edges`], as a fraction of the contact
+/// distance `e` (obstacle thickness + cloth thickness) its vertices keep
+/// from the surface: well below `e`, so that a cloth triangle lying on a
+/// curved body over one of its vertices (its chord sags towards the surface
+/// by l²/8R between corners held at `e`) is not pushed off it, the pass and
+/// the surface contacts pulling the cloth two ways (with half of `e` they
+/// did between a hand's fingers at 1 cm; docs/self_collision.md).
+pub const OBSTACLE_EDGE_GAP: f64 = 0.25;
+
+/// Where a triangle-mesh obstacle's vertex was pushed by the cloth in the
+/// last step ([`Params::obstacle_edges`]).
+#[derive(Debug, Clone, Copy)]
+pub struct EdgeContact {
+    /// The obstacle's index among [`Simulation::obstacles`].
+    pub obstacle: usize,
+    /// The vertex of its mesh.
+    pub vertex: usize,
+    /// The cloth vertex of the pair that pushed it most.
+    pub cloth_vertex: usize,
+    /// Force on the obstacle, N (the momentum over the step).
+    pub force: Vector3<f64>,
+    /// Where the vertex is (world), m.
+    pub point: Vector3<f64>,
 }
 
 impl Default for Params {
@@ -87,6 +122,7 @@ impl Default for Params {
             threads: 0,
             friction_bound_now: false,
             self_collision: false,
+            obstacle_edges: false,
         }
     }
 }
@@ -392,6 +428,17 @@ struct Workspace {
     /// The cloth–cloth pass (built on the first step with
     /// [`Params::self_collision`]).
     self_contact: Option<Box<crate::self_contact::SelfContact>>,
+    /// The triangle-mesh obstacles in that pass ([`Params::obstacle_edges`]):
+    /// each one's index, first kinematic vertex and vertex count, and
+    /// their vertices where they are now.
+    kinematic: Vec<(usize, usize, usize)>,
+    kinematic_x: Vec<Vector3<f64>>,
+    /// Whether the pass tests the cloth's own pairs.
+    self_pairs: bool,
+    /// Each vertex's contact with the triangle-mesh obstacles' vertices and
+    /// edges in the last step's pass (parting direction, their velocity,
+    /// friction), constrained in the next step as an obstacle contact.
+    edge_contact: Vec<Option<vertices::EdgeHold>>,
 }
 
 impl Workspace {
@@ -429,6 +476,10 @@ impl Workspace {
             direct,
             amg: None,
             self_contact: None,
+            kinematic: Vec::new(),
+            kinematic_x: Vec::new(),
+            self_pairs: params.self_collision,
+            edge_contact: vec![None; n],
         })
     }
 }
@@ -973,6 +1024,7 @@ impl Simulation {
             mass: &self.cloth.mass,
             force: &self.force,
             gravity: self.params.gravity,
+            edge: &self.ws.edge_contact,
         };
         let bounds = &self.ws.part.bounds;
         let mut filter = vertices::chunks(&mut self.ws.filter, bounds).into_iter();
@@ -1047,16 +1099,46 @@ impl Simulation {
             .run_each(&mut rows, |_, r| vertices::finish(&solved, r));
     }
 
-    /// With [`Params::self_collision`]: the cloth–cloth pass (built on the
-    /// first step, which refuses a tangled start) takes the positions at the
-    /// start of the update. Whether it runs, and the time this took, s.
+    /// The triangle-mesh obstacles where they are now, into
+    /// `ws.kinematic_x`: whether the set changed since the last call (other
+    /// obstacles, or other vertex counts).
+    fn kinematic_now(&mut self) -> bool {
+        let mut x = std::mem::take(&mut self.ws.kinematic_x);
+        x.clear();
+        let mut parts = Vec::with_capacity(self.ws.kinematic.len());
+        for (k, ob) in self.obstacles.as_slice().iter().enumerate() {
+            let first = x.len();
+            if ob.world_mesh_into(&mut x).is_some() {
+                parts.push((k, first, x.len() - first));
+            }
+        }
+        self.ws.kinematic_x = x;
+        let changed = parts != self.ws.kinematic;
+        self.ws.kinematic = parts;
+        changed
+    }
+
+    /// With [`Params::self_collision`] or [`Params::obstacle_edges`]: the
+    /// cloth–cloth pass (built on the first step, which refuses a tangled
+    /// start, and again when the triangle-mesh obstacles change) takes the
+    /// positions at the start of the update. Whether it runs, and the time
+    /// this took, s.
     fn begin_self_contact(&mut self) -> Result<Option<f64>> {
-        if !self.params.self_collision {
+        let edges = self.params.obstacle_edges;
+        if !self.params.self_collision && !edges {
             return Ok(None);
         }
         let t = Instant::now();
+        let changed = if edges {
+            self.kinematic_now()
+        } else {
+            let had = !self.ws.kinematic.is_empty();
+            self.ws.kinematic.clear();
+            had
+        } || self.ws.self_pairs != self.params.self_collision;
+        self.ws.self_pairs = self.params.self_collision;
         let first = self.ws.self_contact.is_none();
-        if first {
+        if first || changed {
             let c = &self.cloth;
             let n = c.len();
             let mut stitches = Vec::new();
@@ -1068,15 +1150,39 @@ impl Simulation {
                 .map(|i| self.fabric_of(i).layer_thickness())
                 .collect();
             let friction = (0..n).map(|i| self.fabric_of(i).cloth_friction()).collect();
-            self.ws.self_contact = Some(Box::new(crate::self_contact::SelfContact::new(
-                &c.x,
-                &c.triangles,
-                &stitches,
-                thickness,
-                friction,
-            )?));
+            let mut kin = crate::self_contact::Kinematic::default();
+            if edges {
+                let obstacles = self.obstacles.as_slice();
+                for &(k, first, count) in &self.ws.kinematic {
+                    let ob = &obstacles[k];
+                    let mut scratch = Vec::new();
+                    let tris = ob.world_mesh_into(&mut scratch).unwrap_or_default();
+                    kin.tris
+                        .extend(tris.iter().map(|t| t.map(|v| first + v as usize)));
+                    let e = ob.thickness + self.params.cloth_thickness;
+                    kin.gap
+                        .extend(std::iter::repeat_n(OBSTACLE_EDGE_GAP * e, count));
+                    kin.friction.extend(std::iter::repeat_n(ob.friction, count));
+                }
+                kin.x = self.ws.kinematic_x.clone();
+            }
+            self.ws.self_contact =
+                Some(Box::new(crate::self_contact::SelfContact::with_obstacles(
+                    &c.x,
+                    &c.triangles,
+                    &stitches,
+                    thickness,
+                    friction,
+                    kin,
+                    self.params.self_collision,
+                )?));
         }
         let sc = self.ws.self_contact.as_mut().expect("self-contact built");
+        if edges {
+            sc.set_obstacles(&self.ws.kinematic_x)?;
+        }
+        // a pass rebuilt for a new set of obstacles is not checked again: a
+        // cloth caught on a new obstacle stays caught
         sc.begin(&self.cloth.x, first)?;
         Ok(Some(t.elapsed().as_secs_f64()))
     }
@@ -1087,9 +1193,22 @@ impl Simulation {
         h: f64,
         begun: Option<f64>,
     ) -> crate::self_contact::SelfStats {
-        let (Some(begin_s), Some(sc)) = (begun, self.ws.self_contact.as_mut()) else {
+        let Some(begin_s) = begun else {
             return Default::default();
         };
+        let t = Instant::now();
+        if self.params.obstacle_edges {
+            // the obstacles at the step's end (their set does not change
+            // within a step)
+            self.kinematic_now();
+        }
+        let Some(sc) = self.ws.self_contact.as_mut() else {
+            return Default::default();
+        };
+        if self.params.obstacle_edges {
+            // same count as at the step's start: cannot fail
+            let _ = sc.set_obstacles(&self.ws.kinematic_x);
+        }
         let (pinned, contact_of) = (&self.pinned, &self.ws.contact_of);
         let mut st = sc.resolve(
             h,
@@ -1099,8 +1218,37 @@ impl Simulation {
             &|i| pinned[i].is_some(),
             &|i| contact_of[i].is_some(),
         );
-        st.time_s += begin_s;
+        if self.params.obstacle_edges {
+            for (i, e) in self.ws.edge_contact.iter_mut().enumerate() {
+                *e = sc.obstacle_contact(i);
+            }
+        }
+        st.time_s = begin_s + t.elapsed().as_secs_f64();
         st
+    }
+
+    /// With [`Params::obstacle_edges`]: the triangle-mesh obstacles'
+    /// vertices the cloth pushed in the last step, with the force on each.
+    pub fn edge_contacts(&self) -> Vec<EdgeContact> {
+        let Some(sc) = self.ws.self_contact.as_ref() else {
+            return Vec::new();
+        };
+        let h = self.params.dt;
+        let parts = &self.ws.kinematic;
+        sc.obstacle_impulses()
+            .filter_map(|(b, cloth, p)| {
+                let &(k, first, _) = parts
+                    .iter()
+                    .find(|&&(_, first, count)| b >= first && b < first + count)?;
+                Some(EdgeContact {
+                    obstacle: k,
+                    vertex: b - first,
+                    cloth_vertex: cloth,
+                    force: p / h,
+                    point: self.ws.kinematic_x[b],
+                })
+            })
+            .collect()
     }
 
     fn commit_laws(&mut self) {

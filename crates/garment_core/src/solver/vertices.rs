@@ -12,6 +12,11 @@ use crate::collision::{Obstacle, Proximity};
 use crate::deforming::HIT_TOLERANCE;
 use nalgebra::Vector3;
 
+/// A vertex's contact with obstacles' vertices and edges from the last
+/// cloth–cloth pass: the direction that parts them, their velocity (m/s),
+/// the friction coefficient.
+pub(super) type EdgeHold = (Vector3<f64>, Vector3<f64>, f64);
+
 /// Axis-aligned box (min, max corners).
 pub(super) type Bounds = ([f64; 3], [f64; 3]);
 
@@ -42,6 +47,10 @@ pub(super) struct Scene<'a> {
     pub force: &'a [Vector3<f64>],
     /// Gravity, m/s².
     pub gravity: Vector3<f64>,
+    /// Each vertex's contact with the obstacles' vertices and edges in the
+    /// last step's cloth–cloth pass (`Params::obstacle_edges`): parting
+    /// direction, their velocity, friction.
+    pub edge: &'a [Option<EdgeHold>],
 }
 
 /// What the constraint phase writes, for vertices `first..first + len`.
@@ -110,20 +119,31 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 best = Some((ob_i, pr, e));
             }
         }
+        // the contact: an obstacle's surface, else last step's contact of
+        // the vertex's triangles or edges with an obstacle's vertices or
+        // edges (held along the direction that parts them, no position
+        // correction: the cloth–cloth pass keeps their gap)
+        let contact = match best {
+            Some((ob_i, pr, e)) => Some((
+                pr.normal,
+                pr.velocity,
+                s.obstacles[ob_i].friction,
+                pr.distance - e,
+                e,
+            )),
+            None => s.edge[i].map(|(n, vo, mu)| (n, vo, mu, 0.0, f64::INFINITY)),
+        };
         let mut touching = false;
-        if let Some((ob_i, pr, e)) = best {
-            let n = pr.normal;
-            let rel = s.v[i] - pr.velocity;
+        if let Some((n, velocity, mu, gap, e)) = contact {
+            let rel = s.v[i] - velocity;
             let vrel = rel.dot(&n);
             // pressed against it by last step's force (resting contact)
             let pressed = s.force[i].dot(&n) < 0.0;
-            let gap = pr.distance - e;
             // beyond the margin: reached within this step at the present speed
             let landing = gap >= 0.1 * e;
             if landing || vrel < 0.0 || pressed || gap < 0.0 {
                 touching = true;
-                let mu = s.obstacles[ob_i].friction;
-                o.y[k] = n * (e - pr.distance).max(0.0);
+                o.y[k] = n * (-gap).max(0.0);
                 // a slow vertex sticks if static friction can hold it against the
                 // force that drives it along the surface (else it creeps on)
                 let along = driving - n * driving.dot(&n);
@@ -131,7 +151,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 if o.friction[k].stick && mu > 0.0 && !landing && holds {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
-                    o.z[k] = pr.velocity - s.v[i];
+                    o.z[k] = velocity - s.v[i];
                     o.stuck += 1;
                 } else {
                     // inelastic normal constraint (a separating velocity is kept;
@@ -156,7 +176,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                         );
                     }
                 }
-                o.contact_of[k] = Some((mu, pr.velocity));
+                o.contact_of[k] = Some((mu, velocity));
                 o.normals[k] = n;
                 o.contacts += 1;
             }
