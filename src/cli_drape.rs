@@ -44,6 +44,11 @@ pub struct DrapeArgs {
     /// scene file's `self_collision`, off when absent).
     #[arg(long)]
     pub self_collision: Option<bool>,
+    /// The triangle-mesh obstacles' vertices and edges meet the cloth's
+    /// triangles and edges too, true or false (default: the scene file's
+    /// `obstacle_edges`, off when absent; docs/self_collision.md).
+    #[arg(long)]
+    pub obstacle_edges: Option<bool>,
     #[command(flatten)]
     pub bag: BagArgs,
     #[command(flatten)]
@@ -149,6 +154,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         cg_tolerance,
         threads,
         self_collision,
+        obstacle_edges,
         bag,
         live,
     } = a;
@@ -162,6 +168,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         cg_tolerance,
         threads,
         self_collision,
+        obstacle_edges,
     };
     let view = live
         .foxglove

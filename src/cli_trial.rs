@@ -29,6 +29,10 @@ pub struct TrialArgs {
     /// `self_collision`, on in the shipped skirt trial).
     #[arg(long)]
     self_collision: Option<bool>,
+    /// The body's vertices and edges meet the garment's triangles and edges too, true or
+    /// false (default: the trial's `obstacle_edges`, off when absent; docs/self_collision.md).
+    #[arg(long)]
+    obstacle_edges: Option<bool>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -39,6 +43,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         max_time: a.max_time,
         threads: a.threads,
         self_collision: a.self_collision,
+        obstacle_edges: a.obstacle_edges,
     };
     if t.file.dressing.is_some() {
         return dress(&t, &ov, &a);

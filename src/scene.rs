@@ -383,6 +383,9 @@ pub struct Overrides {
     /// Self-collision on or off, whatever the scene file says.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<bool>,
+    /// The obstacles' edge contacts on or off, whatever the scene file says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub obstacle_edges: Option<bool>,
 }
 
 impl Overrides {
@@ -608,7 +611,7 @@ impl Scene {
             cloth_thickness: f.cloth.thickness,
             hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
             self_collision: ov.self_collision.unwrap_or(f.self_collision),
-            obstacle_edges: f.obstacle_edges,
+            obstacle_edges: ov.obstacle_edges.unwrap_or(f.obstacle_edges),
             ..Params::default()
         };
         let params = Params {

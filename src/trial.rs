@@ -210,6 +210,8 @@ pub struct TrialOverrides {
     pub threads: Option<usize>,
     /// Keep the cloth from passing through itself (docs/self_collision.md).
     pub self_collision: Option<bool>,
+    /// The body's vertices and edges meet the garment's triangles and edges.
+    pub obstacle_edges: Option<bool>,
 }
 
 /// What the body mesh check found and repaired.
@@ -455,7 +457,7 @@ impl Trial {
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
             self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
-            obstacle_edges: self.file.obstacle_edges,
+            obstacle_edges: ov.obstacle_edges.unwrap_or(self.file.obstacle_edges),
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;

@@ -21,7 +21,7 @@
 //! | `pins` | garment_sim_msgs/msg/Pin | in: pin, move, release |
 //! | `body` | garment_sim_msgs/msg/Body | in: a deforming body's topology, then its frames |
 //! | `body_mesh` | mesh_msgs/msg/MeshGeometryStamped | in: a deforming body, the whole mesh every frame |
-//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameters `scene`, `self_collision`) |
+//! | `~/reset` | std_srvs/srv/Trigger | reloads the scene (parameters `scene`, `self_collision`, `obstacle_edges`) |
 //! | `~/set_paused` | std_srvs/srv/SetBool | |
 //! | `~/step` | garment_sim_msgs/srv/Step | N steps while paused |
 
@@ -163,6 +163,7 @@ fn load(s: &Settings) -> Result<Loaded> {
             threads: ov.threads,
             max_time: None,
             self_collision: ov.self_collision,
+            obstacle_edges: ov.obstacle_edges,
         })?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;
@@ -806,7 +807,7 @@ impl Node {
     /// to load leaves the old one running).
     fn reset(&mut self) -> msgs::TriggerResponse {
         // the parameters read on reset besides at start
-        for name in ["scene", "self_collision"] {
+        for name in ["scene", "self_collision", "obstacle_edges"] {
             let fresh = self
                 .ros
                 .get_parameter(name)
@@ -1111,7 +1112,7 @@ mod tests {
 
     /// The node's `self_collision` parameter reaches the simulation: unset,
     /// the scene's or trial's own (off in the table drape, on in the
-    /// shipped skirt trial); set, it wins over either.
+    /// shipped skirt trial); set, it wins over either. `obstacle_edges` too.
     #[test]
     fn the_self_collision_parameter_reaches_the_simulation() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -1137,6 +1138,22 @@ mod tests {
             })
             .unwrap();
             assert_eq!(l.sim.params().self_collision, want, "{scene} {set:?}");
+        }
+        // `obstacle_edges` alike (off in both files)
+        for (scene, set, want) in [
+            (&table, None, false),
+            (&table, Some(true), true),
+            (&skirt, None, false),
+            (&skirt, Some(true), true),
+        ] {
+            let l = super::load(&super::Settings {
+                scene: scene.clone(),
+                spacing: 0.05,
+                obstacle_edges: set,
+                ..Default::default()
+            })
+            .unwrap();
+            assert_eq!(l.sim.params().obstacle_edges, want, "{scene} {set:?}");
         }
     }
 

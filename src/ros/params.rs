@@ -33,6 +33,8 @@ pub struct Settings {
     pub body_mesh_friction: f64,
     /// `None`: the scene's or trial's own `self_collision`.
     pub self_collision: Option<bool>,
+    /// `None`: the scene's or trial's own `obstacle_edges`.
+    pub obstacle_edges: Option<bool>,
 }
 
 impl Default for Settings {
@@ -55,6 +57,7 @@ impl Default for Settings {
             body_mesh_thickness: crate::collision::DEFAULT_OBSTACLE_THICKNESS,
             body_mesh_friction: crate::collision::DEFAULT_FRICTION,
             self_collision: None,
+            obstacle_edges: None,
         }
     }
 }
@@ -433,23 +436,46 @@ pub const PARAMETERS: &[Parameter] = &[
                       `true` or `false`, empty for the scene's or trial's own `self_collision` \
                       (the shipped skirt trial has it on); a string (`-p` and params files \
                       also take a bool); read at start and on `~/reset`",
-        get: |s| {
-            Value::Str(match s.self_collision {
-                None => String::new(),
-                Some(b) => b.to_string(),
-            })
-        },
+        get: |s| switch_value(s.self_collision),
         put: |s, v| {
-            s.self_collision = match text(v).as_str() {
-                "" => None,
-                "true" => Some(true),
-                "false" => Some(false),
-                _ => return Err("`true`, `false` or empty (the scene's own)".into()),
-            };
+            s.self_collision = switch(v)?;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "obstacle_edges",
+        kind: Kind::Switch,
+        runtime: false,
+        description:
+            "the triangle-mesh obstacles' vertices and edges (bodies) meet the cloth's triangles \
+                      and edges too, so that a part thinner than the cloth's spacing cannot pass \
+                      between its vertices ([self_collision.md](self_collision.md)): `true` or \
+                      `false`, empty for the scene's or trial's own `obstacle_edges` (off in the \
+                      shipped files); a string like `self_collision`; read at start and on `~/reset`",
+        get: |s| switch_value(s.obstacle_edges),
+        put: |s, v| {
+            s.obstacle_edges = switch(v)?;
             Ok(())
         },
     },
 ];
+
+/// A switch's value as the node declares it: `true`, `false` or empty
+/// (the scene's own).
+fn switch_value(b: Option<bool>) -> Value {
+    Value::Str(b.map_or_else(String::new, |b| b.to_string()))
+}
+
+/// A switch from `true`, `false` or empty (a string, or a bool from `-p`
+/// and params files).
+fn switch(v: Value) -> std::result::Result<Option<bool>, String> {
+    match text(v).as_str() {
+        "" => Ok(None),
+        "true" => Ok(Some(true)),
+        "false" => Ok(Some(false)),
+        _ => Err("`true`, `false` or empty (the scene's own)".into()),
+    }
+}
 
 /// The parameter called `name`.
 pub fn parameter(name: &str) -> Option<&'static Parameter> {
@@ -490,6 +516,7 @@ impl Settings {
             },
             threads: (self.threads > 0).then_some(self.threads as usize),
             self_collision: self.self_collision,
+            obstacle_edges: self.obstacle_edges,
             ..Default::default()
         })
     }
@@ -651,6 +678,14 @@ mod tests {
             let p = format!("self_collision:={text}");
             let (_, ra) = args::parse(&s(&["--ros-args", "-p", &p])).unwrap();
             assert_eq!(of(&ra), Some(want), "{p}");
+            // `obstacle_edges` is the same kind of switch
+            let p = format!("obstacle_edges:={text}");
+            let (_, ra) = args::parse(&s(&["--ros-args", "-p", &p])).unwrap();
+            let ov = settings_from_args(&ra, "/garment_sim")
+                .unwrap()
+                .overrides()
+                .unwrap();
+            assert_eq!(ov.obstacle_edges, Some(want), "{p}");
         }
         // a params file says false, `-p` wins over it
         let dir = std::env::temp_dir().join(format!("gs_selfcol_{}", std::process::id()));
