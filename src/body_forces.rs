@@ -21,7 +21,7 @@
 //! triangles and edges also push on the mesh's vertices: each such vertex is
 //! one more contact, at the vertex, its normal the mesh's there.
 
-use crate::collision::{Obstacle, Proximity, ShapeSpec};
+use crate::collision::{Obstacle, Proximity};
 use crate::set::Handle;
 use crate::solver::Simulation;
 use nalgebra::{Point3, Vector3};
@@ -217,16 +217,9 @@ pub type WorldMesh = (Vec<Vector3<f64>>, Vec<[u32; 3]>);
 /// deforming body's present positions, a rigid mesh placed by its pose
 /// (`None` for other shapes).
 pub fn world_mesh(ob: &Obstacle) -> Option<WorldMesh> {
-    match (ob.deforming(), &ob.spec, &ob.mesh) {
-        (Some(d), _, _) => Some((d.positions().to_vec(), d.triangles().to_vec())),
-        (None, ShapeSpec::Triangles { .. }, Some((v, t))) => Some((
-            v.iter()
-                .map(|p| (ob.pose * Point3::from(Vector3::from(*p))).coords)
-                .collect(),
-            t.clone(),
-        )),
-        _ => None,
-    }
+    let mut v = Vec::new();
+    let t = ob.world_mesh_into(&mut v)?.to_vec();
+    Some((v, t))
 }
 
 /// The triangle of obstacle `ob`'s mesh (`vertices`, `triangles`: where it

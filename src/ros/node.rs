@@ -1112,7 +1112,8 @@ mod tests {
 
     /// The node's `self_collision` parameter reaches the simulation: unset,
     /// the scene's or trial's own (off in the table drape, on in the
-    /// shipped skirt trial); set, it wins over either. `obstacle_edges` too.
+    /// shipped skirt trial); set, it wins over either. `obstacle_edges` too
+    /// (off in both files).
     #[test]
     fn the_self_collision_parameter_reaches_the_simulation() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -1124,36 +1125,27 @@ mod tests {
             .join("config/trials/skirt_on_anny.yaml")
             .display()
             .to_string();
-        for (scene, set, want) in [
-            (&table, None, false),
-            (&table, Some(true), true),
-            (&skirt, None, true),
-            (&skirt, Some(false), false),
+        // (scene, the two parameters, what the simulation gets)
+        for (scene, sc, oe, want) in [
+            (&table, None, None, (false, false)),
+            (&table, Some(true), Some(true), (true, true)),
+            (&skirt, None, None, (true, false)),
+            (&skirt, Some(false), Some(true), (false, true)),
         ] {
             let l = super::load(&super::Settings {
                 scene: scene.clone(),
                 spacing: 0.05,
-                self_collision: set,
+                self_collision: sc,
+                obstacle_edges: oe,
                 ..Default::default()
             })
             .unwrap();
-            assert_eq!(l.sim.params().self_collision, want, "{scene} {set:?}");
-        }
-        // `obstacle_edges` alike (off in both files)
-        for (scene, set, want) in [
-            (&table, None, false),
-            (&table, Some(true), true),
-            (&skirt, None, false),
-            (&skirt, Some(true), true),
-        ] {
-            let l = super::load(&super::Settings {
-                scene: scene.clone(),
-                spacing: 0.05,
-                obstacle_edges: set,
-                ..Default::default()
-            })
-            .unwrap();
-            assert_eq!(l.sim.params().obstacle_edges, want, "{scene} {set:?}");
+            let p = l.sim.params();
+            assert_eq!(
+                (p.self_collision, p.obstacle_edges),
+                want,
+                "{scene} {sc:?} {oe:?}"
+            );
         }
     }
 

@@ -250,17 +250,21 @@ impl Obstacle {
     /// a primitive.
     pub fn world_mesh_into(&self, out: &mut Vec<Vector3<f64>>) -> Option<&[[u32; 3]]> {
         match (self.deforming(), &self.spec, &self.mesh) {
-            (Some(d), _, _) => {
-                out.extend_from_slice(d.positions());
-                Some(d.triangles())
-            }
-            (None, ShapeSpec::Triangles { .. }, Some((v, t))) => {
-                out.extend(
-                    v.iter()
-                        .map(|p| (self.pose * Point3::from(Vector3::from(*p))).coords),
-                );
-                Some(t)
-            }
+            (Some(d), _, _) => out.extend_from_slice(d.positions()),
+            (None, ShapeSpec::Triangles { .. }, Some((v, _))) => out.extend(
+                v.iter()
+                    .map(|p| (self.pose * Point3::from(Vector3::from(*p))).coords),
+            ),
+            _ => return None,
+        }
+        self.mesh_triangles()
+    }
+
+    /// A triangle-mesh obstacle's triangles (`None` for a primitive).
+    pub fn mesh_triangles(&self) -> Option<&[[u32; 3]]> {
+        match (self.deforming(), &self.spec, &self.mesh) {
+            (Some(d), _, _) => Some(d.triangles()),
+            (None, ShapeSpec::Triangles { .. }, Some((_, t))) => Some(t),
             _ => None,
         }
     }

@@ -1089,6 +1089,7 @@ impl Amg {
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_systems::{grid_edges, spd_grid_sized};
     use super::*;
     use std::collections::BTreeMap;
 
@@ -1096,45 +1097,9 @@ mod tests {
     /// diagonal neighbours and a mass on the diagonal, its springs, and a
     /// filter with pinned, contact and free vertices.
     fn grid(nx: usize, ny: usize) -> (BlockMatrix, Vec<f64>, Vec<[usize; 2]>, Vec<Filter>) {
-        let id = |i: usize, j: usize| j * nx + i;
-        let mut edges = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                for (di, dj) in [(1, 0), (0, 1), (1, 1)] {
-                    if i + di < nx && j + dj < ny {
-                        edges.push([id(i, j), id(i + di, j + dj)]);
-                    }
-                }
-            }
-        }
-        let n = nx * ny;
-        let mut a = BlockMatrix::from_cliques(n, edges.iter().map(|e| e.as_slice()));
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        };
-        let mass: Vec<f64> = (0..n).map(|_| 1.0 + 0.5 * rnd()).collect();
-        for i in 0..n {
-            a.val[a.diag[i]] = Matrix3::identity() * mass[i];
-        }
-        for e in &edges {
-            let b = Matrix3::from_fn(|_, _| rnd());
-            let k = b * b.transpose() * 30.0;
-            let k = (k + k.transpose()) * 0.5;
-            let (ii, jj, ij, ji) = (
-                a.diag[e[0]],
-                a.diag[e[1]],
-                a.index(e[0], e[1]),
-                a.index(e[1], e[0]),
-            );
-            a.val[ii] += k;
-            a.val[jj] += k;
-            a.val[ij] -= k;
-            a.val[ji] -= k.transpose();
-        }
+        let (a, mass) = spd_grid_sized(nx, ny, 0x9e37_79b9_7f4a_7c15);
+        let edges = grid_edges(nx, ny);
+        let n = a.n;
         let filter = (0..n)
             .map(|i| match i % 7 {
                 0 => Filter::Fixed,

@@ -24,6 +24,8 @@ pub mod linear;
 pub(crate) mod sets;
 pub mod sparse;
 pub mod team;
+#[cfg(test)]
+mod test_systems;
 pub mod trisolve;
 mod vertices;
 
@@ -433,12 +435,10 @@ struct Workspace {
     /// their vertices where they are now.
     kinematic: Vec<(usize, usize, usize)>,
     kinematic_x: Vec<Vector3<f64>>,
+    /// The list being made by [`Simulation::kinematic_now`] (kept to reuse).
+    kinematic_next: Vec<(usize, usize, usize)>,
     /// Whether the pass tests the cloth's own pairs.
     self_pairs: bool,
-    /// Each vertex's contact with the triangle-mesh obstacles' vertices and
-    /// edges in the last step's pass (parting direction, their velocity,
-    /// friction), constrained in the next step as an obstacle contact.
-    edge_contact: Vec<Option<vertices::EdgeHold>>,
 }
 
 impl Workspace {
@@ -478,8 +478,8 @@ impl Workspace {
             self_contact: None,
             kinematic: Vec::new(),
             kinematic_x: Vec::new(),
+            kinematic_next: Vec::new(),
             self_pairs: params.self_collision,
-            edge_contact: vec![None; n],
         })
     }
 }
@@ -1024,7 +1024,11 @@ impl Simulation {
             mass: &self.cloth.mass,
             force: &self.force,
             gravity: self.params.gravity,
-            edge: &self.ws.edge_contact,
+            edge: if self.params.obstacle_edges {
+                self.ws.self_contact.as_deref()
+            } else {
+                None
+            },
         };
         let bounds = &self.ws.part.bounds;
         let mut filter = vertices::chunks(&mut self.ws.filter, bounds).into_iter();
@@ -1104,8 +1108,9 @@ impl Simulation {
     /// obstacles, or other vertex counts).
     fn kinematic_now(&mut self) -> bool {
         let mut x = std::mem::take(&mut self.ws.kinematic_x);
+        let mut parts = std::mem::take(&mut self.ws.kinematic_next);
         x.clear();
-        let mut parts = Vec::with_capacity(self.ws.kinematic.len());
+        parts.clear();
         for (k, ob) in self.obstacles.as_slice().iter().enumerate() {
             let first = x.len();
             if ob.world_mesh_into(&mut x).is_some() {
@@ -1114,7 +1119,7 @@ impl Simulation {
         }
         self.ws.kinematic_x = x;
         let changed = parts != self.ws.kinematic;
-        self.ws.kinematic = parts;
+        self.ws.kinematic_next = std::mem::replace(&mut self.ws.kinematic, parts);
         changed
     }
 
@@ -1155,8 +1160,7 @@ impl Simulation {
                 let obstacles = self.obstacles.as_slice();
                 for &(k, first, count) in &self.ws.kinematic {
                     let ob = &obstacles[k];
-                    let mut scratch = Vec::new();
-                    let tris = ob.world_mesh_into(&mut scratch).unwrap_or_default();
+                    let tris = ob.mesh_triangles().unwrap_or_default();
                     kin.tris
                         .extend(tris.iter().map(|t| t.map(|v| first + v as usize)));
                     let e = ob.thickness + self.params.cloth_thickness;
@@ -1218,11 +1222,6 @@ impl Simulation {
             &|i| pinned[i].is_some(),
             &|i| contact_of[i].is_some(),
         );
-        if self.params.obstacle_edges {
-            for (i, e) in self.ws.edge_contact.iter_mut().enumerate() {
-                *e = sc.obstacle_contact(i);
-            }
-        }
         st.time_s = begin_s + t.elapsed().as_secs_f64();
         st
     }

@@ -12,11 +12,6 @@ use crate::collision::{Obstacle, Proximity};
 use crate::deforming::HIT_TOLERANCE;
 use nalgebra::Vector3;
 
-/// A vertex's contact with obstacles' vertices and edges from the last
-/// cloth–cloth pass: the direction that parts them, their velocity (m/s),
-/// the friction coefficient.
-pub(super) type EdgeHold = (Vector3<f64>, Vector3<f64>, f64);
-
 /// Axis-aligned box (min, max corners).
 pub(super) type Bounds = ([f64; 3], [f64; 3]);
 
@@ -47,10 +42,10 @@ pub(super) struct Scene<'a> {
     pub force: &'a [Vector3<f64>],
     /// Gravity, m/s².
     pub gravity: Vector3<f64>,
-    /// Each vertex's contact with the obstacles' vertices and edges in the
-    /// last step's cloth–cloth pass (`Params::obstacle_edges`): parting
-    /// direction, their velocity, friction.
-    pub edge: &'a [Option<EdgeHold>],
+    /// The cloth–cloth pass whose last step's contacts with the obstacles'
+    /// vertices and edges hold vertices (`Params::obstacle_edges`; see
+    /// [`crate::self_contact::SelfContact::obstacle_contact`]).
+    pub edge: Option<&'a crate::self_contact::SelfContact>,
 }
 
 /// What the constraint phase writes, for vertices `first..first + len`.
@@ -131,7 +126,10 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 pr.distance - e,
                 e,
             )),
-            None => s.edge[i].map(|(n, vo, mu)| (n, vo, mu, 0.0, f64::INFINITY)),
+            None => s
+                .edge
+                .and_then(|sc| sc.obstacle_contact(i))
+                .map(|(n, vo, mu)| (n, vo, mu, 0.0, f64::INFINITY)),
         };
         let mut touching = false;
         if let Some((n, velocity, mu, gap, e)) = contact {
