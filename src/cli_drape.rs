@@ -49,6 +49,11 @@ pub struct DrapeArgs {
     /// `obstacle_edges`, off when absent; docs/self_collision.md).
     #[arg(long)]
     pub obstacle_edges: Option<bool>,
+    /// Each cell's shear from both its diagonals, with the egg-crate guards,
+    /// true or false (default: the scene file's `cell_shear`, off when
+    /// absent; docs/lab.md).
+    #[arg(long)]
+    pub cell_shear: Option<bool>,
     #[command(flatten)]
     pub bag: BagArgs,
     #[command(flatten)]
@@ -155,6 +160,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         threads,
         self_collision,
         obstacle_edges,
+        cell_shear,
         bag,
         live,
     } = a;
@@ -169,6 +175,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         threads,
         self_collision,
         obstacle_edges,
+        cell_shear,
     };
     let view = live
         .foxglove

@@ -116,6 +116,14 @@ pub struct DrapemeterArgs {
     /// Keep the specimen's folds from passing through each other.
     #[arg(long)]
     pub self_collision: bool,
+    /// Each cell's shear from both its diagonals, with the egg-crate guards
+    /// (docs/lab.md); default: each diagonal alone (thesis eq. 4.34).
+    #[arg(long)]
+    pub cell_shear: bool,
+    /// Clamp out to the radius whose pinned region's hull has the disks' area
+    /// (default: the vertices within the disks).
+    #[arg(long)]
+    pub clamp_area_matched: bool,
     /// Output directory (report.json, top_view.png).
     #[arg(long, default_value = "out/drapemeter")]
     pub out: PathBuf,
@@ -133,6 +141,8 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         seed: a.seed,
         border_on_outline: !a.staircase_border,
         self_collision: a.self_collision,
+        cell_shear: a.cell_shear,
+        clamp_area_matched: a.clamp_area_matched,
         ..Default::default()
     };
     let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));

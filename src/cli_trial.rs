@@ -33,6 +33,10 @@ pub struct TrialArgs {
     /// false (default: the trial's `obstacle_edges`, off when absent; docs/self_collision.md).
     #[arg(long)]
     obstacle_edges: Option<bool>,
+    /// Each cell's shear from both its diagonals, with the egg-crate guards, true or false
+    /// (default: the trial's `cell_shear`, off when absent; docs/lab.md).
+    #[arg(long)]
+    cell_shear: Option<bool>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -44,6 +48,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         threads: a.threads,
         self_collision: a.self_collision,
         obstacle_edges: a.obstacle_edges,
+        cell_shear: a.cell_shear,
     };
     if t.file.dressing.is_some() {
         return dress(&t, &ov, &a);

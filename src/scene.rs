@@ -348,6 +348,10 @@ pub struct SceneFile {
     /// than the cloth's spacing cannot pass between its vertices).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub obstacle_edges: bool,
+    /// Each cell's shear from both its diagonals, with the egg-crate guards
+    /// (docs/lab.md); off: each diagonal alone (thesis eq. 4.34).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cell_shear: bool,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -386,6 +390,9 @@ pub struct Overrides {
     /// The obstacles' edge contacts on or off, whatever the scene file says.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub obstacle_edges: Option<bool>,
+    /// The cells' shear measure on or off, whatever the scene file says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell_shear: Option<bool>,
 }
 
 impl Overrides {
@@ -612,6 +619,7 @@ impl Scene {
             hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
             self_collision: ov.self_collision.unwrap_or(f.self_collision),
             obstacle_edges: ov.obstacle_edges.unwrap_or(f.obstacle_edges),
+            cell_shear: ov.cell_shear.unwrap_or(f.cell_shear),
             ..Params::default()
         };
         let params = Params {

@@ -182,6 +182,10 @@ pub struct TrialFile {
     /// vertices; off when absent).
     #[serde(default)]
     pub obstacle_edges: bool,
+    /// Each cell's shear from both its diagonals, with the egg-crate guards
+    /// (docs/lab.md; off when absent: each diagonal alone, thesis eq. 4.34).
+    #[serde(default)]
+    pub cell_shear: bool,
     /// A gripper pulls a sleeve over an arm after sewing, in place of the
     /// drape (docs/bodies.md, [`crate::dressing`]).
     #[serde(default)]
@@ -212,6 +216,8 @@ pub struct TrialOverrides {
     pub self_collision: Option<bool>,
     /// The body's vertices and edges meet the garment's triangles and edges.
     pub obstacle_edges: Option<bool>,
+    /// The cells' shear measure with the egg-crate guards.
+    pub cell_shear: Option<bool>,
 }
 
 /// What the body mesh check found and repaired.
@@ -458,6 +464,7 @@ impl Trial {
             friction_bound_now: true,
             self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
             obstacle_edges: ov.obstacle_edges.unwrap_or(self.file.obstacle_edges),
+            cell_shear: ov.cell_shear.unwrap_or(self.file.cell_shear),
             ..Params::default()
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
@@ -1034,6 +1041,13 @@ fn spring_strains(
                 .iter()
                 .map(move |s| (2, s.a, s.b, (x[s.b] - x[s.a]).norm() / s.l0 - 1.0)),
         )
+        .chain(c.shear_cells.iter().flat_map(move |s| {
+            let (d1, d2) = s.diagonals(x);
+            [
+                (2, s.v[0], s.v[1], d1.norm() / s.l1 - 1.0),
+                (2, s.v[2], s.v[3], d2.norm() / s.l2 - 1.0),
+            ]
+        }))
 }
 
 /// The per-vertex fit of the garment as it is now (what `garment.ply` and

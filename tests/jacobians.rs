@@ -17,13 +17,23 @@ fn fixture() -> Fabric {
 /// with random σp inside the loop, then moved to a second shape so that springs
 /// sit on both branches (increment > 0 and < 0).
 fn deformed(seed: u64, scale: f64) -> Simulation {
+    deformed_with(seed, scale, false)
+}
+
+/// [`deformed`], with the cells' shear measure and the egg-crate guards
+/// (`Params::cell_shear`) when `cell_shear`.
+fn deformed_with(seed: u64, scale: f64, cell_shear: bool) -> Simulation {
     let spec = GridSpec {
         size: [0.06, 0.08],
         spacing: [0.02, 0.02],
         pose: Isometry3::identity(),
     };
     let cloth = Cloth::grid(&spec, 0.213).unwrap();
-    let mut sim = Simulation::new(cloth, fixture(), Params::default()).unwrap();
+    let params = Params {
+        cell_shear,
+        ..Params::default()
+    };
+    let mut sim = Simulation::new(cloth, fixture(), params).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     for p in sim.cloth.x.iter_mut() {
         *p += Vector3::new(
@@ -49,7 +59,11 @@ fn deformed(seed: u64, scale: f64) -> Simulation {
 }
 
 fn check(fam: Family, seed: u64, scale: f64) {
-    let mut sim = deformed(seed, scale);
+    check_with(fam, seed, scale, false);
+}
+
+fn check_with(fam: Family, seed: u64, scale: f64, cell_shear: bool) {
+    let mut sim = deformed_with(seed, scale, cell_shear);
     let k = sim.family_jacobian(fam, false);
     let n = sim.cloth.len();
     let mut max_err: f64 = 0.0;
@@ -101,6 +115,18 @@ fn bending_jacobian_matches_finite_differences() {
     }
 }
 
+/// The same with the cells' shear measure: the shear cells, the tension
+/// springs without the correction of eq. 4.59, the hinges with the
+/// egg-crate guards.
+#[test]
+fn cell_shear_jacobians_match_finite_differences() {
+    for seed in 0..4 {
+        check_with(Family::Tension, seed, 0.0015, true);
+        check_with(Family::Shear, seed, 0.0015, true);
+        check_with(Family::Bending, seed, 0.004, true);
+    }
+}
+
 #[test]
 fn both_hysteresis_branches_are_exercised() {
     let sim = deformed(1, 0.0015);
@@ -121,7 +147,13 @@ fn both_hysteresis_branches_are_exercised() {
 /// equal the damping matrix C = αM + Σ β K̃ the solver assembles.
 #[test]
 fn velocity_jacobian_is_the_damping_matrix() {
-    let mut sim = deformed(7, 0.0015);
+    for cell_shear in [false, true] {
+        velocity_jacobian_with(cell_shear);
+    }
+}
+
+fn velocity_jacobian_with(cell_shear: bool) {
+    let mut sim = deformed_with(7, 0.0015, cell_shear);
     let mut rng = rand::rngs::StdRng::seed_from_u64(3);
     let n = sim.cloth.len();
     let v: Vec<Vector3<f64>> = (0..n)
@@ -164,7 +196,13 @@ fn velocity_jacobian_is_the_damping_matrix() {
 /// energy.csv (hysteresis off), and the dihedral gradient is that of the angle.
 #[test]
 fn forces_are_energy_gradients() {
-    let mut sim = deformed(11, 0.002);
+    for cell_shear in [false, true] {
+        forces_are_energy_gradients_with(cell_shear);
+    }
+}
+
+fn forces_are_energy_gradients_with(cell_shear: bool) {
+    let mut sim = deformed_with(11, 0.002, cell_shear);
     let f = fixture().without_hysteresis();
     sim.fabric = f;
     let n = sim.cloth.len();

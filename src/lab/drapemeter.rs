@@ -75,6 +75,9 @@ pub struct DrapeOptions {
     pub clamp_area_matched: bool,
     /// Keep the folds from passing through each other.
     pub self_collision: bool,
+    /// The cells' shear measure with the egg-crate guards
+    /// ([`Params::cell_shear`]).
+    pub cell_shear: bool,
 }
 
 impl Default for DrapeOptions {
@@ -92,6 +95,7 @@ impl Default for DrapeOptions {
             symmetric_hinges: true,
             clamp_area_matched: false,
             self_collision: false,
+            cell_shear: false,
         }
     }
 }
@@ -280,6 +284,7 @@ pub fn run(
     let params = Params {
         dt: opt.dt,
         self_collision: opt.self_collision,
+        cell_shear: opt.cell_shear,
         ..Default::default()
     };
     let disk_h = 0.01;

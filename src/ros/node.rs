@@ -164,6 +164,7 @@ fn load(s: &Settings) -> Result<Loaded> {
             max_time: None,
             self_collision: ov.self_collision,
             obstacle_edges: ov.obstacle_edges,
+            cell_shear: ov.cell_shear,
         })?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;

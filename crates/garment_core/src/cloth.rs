@@ -48,6 +48,9 @@ pub struct TensionSpring {
     pub l0: f64,
     /// The other direction's spacing (for the shear correction, eq. 4.59), m.
     pub l_other: f64,
+    /// Subtract the spurious shear of eq. 4.59 (the diagonal springs read a
+    /// stretch as shear; the cells' measure, [`ShearCell`], does not).
+    pub corrected: bool,
 }
 
 /// A shear spring on a cell diagonal (Provot; thesis ch. 4).
@@ -70,6 +73,78 @@ impl ShearSpring {
         (l * l - self.l0 * self.l0) / (2.0 * self.lc * self.lt)
     }
 }
+
+/// The shear element of a grid cell ([`Cloth::use_cell_shear`]): its two
+/// diagonals `v[0]–v[1]` and `v[2]–v[3]` share one measure. For a cell of
+/// sides `l_c`, `l_t` sheared in its plane by θ the diagonals' squares move by
+/// `±2 l_c l_t sin θ`, so
+/// `sin θ = [(l₁² − l₁₀²) − (l₂² − l₂₀²)] / (4 l_c l_t)`: the thesis' eq. 4.34
+/// from both diagonals at once. Each diagonal alone ([`ShearSpring`], eq. 4.34
+/// as the thesis uses it) also reads a stretch of the cell and a fold across
+/// the other diagonal as shear, a strain growing as (κh)² that makes coarse
+/// grids resist folds; their difference reads neither, so the tension springs
+/// need no correction (eq. 4.59). It reads no egg-crate either, which no hinge
+/// sees: [`EggCrateGuard`] comes with it.
+#[derive(Debug, Clone, Copy)]
+pub struct ShearCell {
+    /// Diagonal 1 is `v[0]–v[1]`, diagonal 2 `v[2]–v[3]`; `v[0]` is the cell's
+    /// corner (i, j), `v[1]` (i + 1, j + 1), `v[2]` (i + 1, j), `v[3]` (i, j + 1).
+    pub v: [usize; 4],
+    /// Cell sides l_c (warp), l_t (weft), m.
+    pub lc: f64,
+    pub lt: f64,
+    /// Rest lengths of the two diagonals, m.
+    pub l1: f64,
+    pub l2: f64,
+}
+
+impl ShearCell {
+    /// The two diagonals' vectors `x[v1] − x[v0]`, `x[v3] − x[v2]`.
+    #[inline(always)]
+    pub fn diagonals(&self, x: &[Vector3<f64>]) -> (Vector3<f64>, Vector3<f64>) {
+        (x[self.v[1]] - x[self.v[0]], x[self.v[3]] - x[self.v[2]])
+    }
+
+    /// The shear measure `sin θ` of the cell with diagonals `d1`, `d2`.
+    #[inline(always)]
+    pub fn strain_of(&self, d1: &Vector3<f64>, d2: &Vector3<f64>) -> f64 {
+        ((d1.norm_squared() - self.l1 * self.l1) - (d2.norm_squared() - self.l2 * self.l2))
+            / (4.0 * self.lc * self.lt)
+    }
+
+    /// The shear measure `sin θ` at positions `x`.
+    #[inline]
+    pub fn strain(&self, x: &[Vector3<f64>]) -> f64 {
+        let (d1, d2) = self.diagonals(x);
+        self.strain_of(&d1, &d2)
+    }
+}
+
+/// A guard of the grid's egg-crate mode (every vertex alternately up and
+/// down, each thread segment at its length), which no bending hinge sees
+/// (each hinge's four vertices stay coplanar) and only the diagonal springs
+/// read: six vertices, two neighbouring cells along one thread, `v[0..3]` a
+/// row of three along the thread and `v[3..6]` the next row, with weights
+/// [`EGG_CRATE_WEIGHTS`]. `D = Σ w_p x_p` is the third difference
+/// `l² l' x_uuv` (u along the thread): zero on a plane and on a cylinder
+/// along either thread, `O(h³)` on any smooth shape, and `8a` on the
+/// egg-crate of amplitude `a`. Energy `k |D|²` with `k = B l' / (8 l³)` (`B`
+/// the elastic bending rigidity of the thread the second difference runs
+/// along, `l` its spacing, `l'` the other): the egg-crate costs `½ B κ²` per
+/// area for each thread, `κ = 4a/l²` the curvature of its zigzag, and a
+/// smooth shape `B l² |x_uuv|² / 8` per area, which vanishes with the
+/// spacing.
+#[derive(Debug, Clone, Copy)]
+pub struct EggCrateGuard {
+    pub v: [usize; 6],
+    /// The second difference runs along weft (true) or warp.
+    pub weft: bool,
+    /// `l' / (8 l³)`, 1/m².
+    pub scale: f64,
+}
+
+/// The weights of [`EggCrateGuard`].
+pub const EGG_CRATE_WEIGHTS: [f64; 6] = [1.0, -2.0, 1.0, -1.0, 2.0, -1.0];
 
 /// A bending hinge: shared edge `v[0]–v[1]`, wings `v[2]` and `v[3]`.
 #[derive(Debug, Clone, Copy)]
@@ -219,6 +294,12 @@ pub struct Cloth {
     pub hinges: Vec<Hinge>,
     pub tension_state: Vec<LawState>,
     pub shear_state: Vec<LawState>,
+    /// The cells' shear elements and their memories, in place of `shear`
+    /// after [`Cloth::use_cell_shear`] (empty otherwise).
+    pub shear_cells: Vec<ShearCell>,
+    pub shear_cell_state: Vec<LawState>,
+    /// Guards of the egg-crate mode, with `shear_cells`.
+    pub guards: Vec<EggCrateGuard>,
     pub hinge_state: Vec<LawState>,
     /// Triangles of the surface (for output), counter-clockwise seen from +z.
     pub triangles: Vec<[usize; 3]>,
@@ -918,6 +999,7 @@ impl Cloth {
                         },
                         l0: rest(a, b, lc),
                         l_other: lt,
+                        corrected: true,
                     });
                 }
                 if let Some(b) = gv(i, j + 1) {
@@ -934,6 +1016,7 @@ impl Cloth {
                         },
                         l0: rest(a, b, lt),
                         l_other: lc,
+                        corrected: true,
                     });
                 }
                 let (b, c, d) = (gv(i + 1, j), gv(i + 1, j + 1), gv(i, j + 1));
@@ -999,6 +1082,9 @@ impl Cloth {
             hinge_state: vec![LawState::at(0.0); hinges.len()],
             tension,
             shear,
+            shear_cells: Vec::new(),
+            shear_cell_state: Vec::new(),
+            guards: Vec::new(),
             hinges,
             triangles,
             // a rectangle keeps every node: node k is vertex k
@@ -1006,6 +1092,105 @@ impl Cloth {
             seams: Vec::new(),
             vertex_fabric: Vec::new(),
         })
+    }
+
+    /// Replaces the diagonal spring pairs of every cell ([`ShearSpring`],
+    /// thesis eq. 4.34 per diagonal) by one [`ShearCell`], adds the
+    /// [`EggCrateGuard`]s along both threads wherever two neighbouring cells
+    /// lie at their grid places, and turns off the tension springs'
+    /// correction (eq. 4.59). A cloth already converted is left as it is.
+    /// The memories of the cells start at zero.
+    pub fn use_cell_shear(&mut self) -> Result<()> {
+        if self.shear.is_empty() {
+            return Ok(());
+        }
+        if !self.shear.len().is_multiple_of(2) {
+            bail!(
+                "{} shear springs: not pairs of cell diagonals",
+                self.shear.len()
+            );
+        }
+        let m = &self.material;
+        // a cell's four sides are tension springs
+        let sides: std::collections::HashSet<(usize, usize)> = self
+            .tension
+            .iter()
+            .map(|t| (t.a.min(t.b), t.a.max(t.b)))
+            .collect();
+        let side = |a: usize, b: usize| sides.contains(&(a.min(b), a.max(b)));
+        let mut cells = Vec::with_capacity(self.shear.len() / 2);
+        for (k, p) in self.shear.chunks_exact(2).enumerate() {
+            let (d1, d2) = (p[0], p[1]);
+            let v = [d1.a, d1.b, d2.a, d2.b];
+            if d1.lc != d2.lc
+                || d1.lt != d2.lt
+                || !(side(v[0], v[2]) && side(v[2], v[1]) && side(v[1], v[3]) && side(v[3], v[0]))
+            {
+                bail!(
+                    "shear springs {} and {} are not the diagonals of one cell",
+                    2 * k,
+                    2 * k + 1
+                );
+            }
+            cells.push(ShearCell {
+                v,
+                lc: d1.lc,
+                lt: d1.lt,
+                l1: d1.l0,
+                l2: d2.l0,
+            });
+        }
+        // neighbours: the cell whose left edge (v0, v3) or bottom edge (v0, v2) it is
+        let left: std::collections::HashMap<(usize, usize), usize> = cells
+            .iter()
+            .enumerate()
+            .map(|(k, c)| ((c.v[0], c.v[3]), k))
+            .collect();
+        let bottom: std::collections::HashMap<(usize, usize), usize> = cells
+            .iter()
+            .enumerate()
+            .map(|(k, c)| ((c.v[0], c.v[2]), k))
+            .collect();
+        let mut guards = Vec::new();
+        for a in &cells {
+            for weft in [false, true] {
+                let (v, l, lo) = if weft {
+                    let Some(&n) = bottom.get(&(a.v[3], a.v[1])) else {
+                        continue;
+                    };
+                    let c = &cells[n];
+                    ([a.v[0], a.v[3], c.v[3], a.v[2], a.v[1], c.v[1]], a.lt, a.lc)
+                } else {
+                    let Some(&n) = left.get(&(a.v[2], a.v[1])) else {
+                        continue;
+                    };
+                    let b = &cells[n];
+                    ([a.v[0], a.v[2], b.v[2], a.v[3], a.v[1], b.v[1]], a.lc, a.lt)
+                };
+                // only where the nodes are at their grid places (a node moved
+                // onto an outline would make D nonzero at rest)
+                let d0 = (0..6).fold([0.0, 0.0], |d, p| {
+                    let w = EGG_CRATE_WEIGHTS[p];
+                    [d[0] + w * m[v[p]][0], d[1] + w * m[v[p]][1]]
+                });
+                if d0[0].hypot(d0[1]) <= 1e-9 * l {
+                    guards.push(EggCrateGuard {
+                        v,
+                        weft,
+                        scale: lo / (8.0 * l * l * l),
+                    });
+                }
+            }
+        }
+        self.shear_cell_state = vec![LawState::at(0.0); cells.len()];
+        self.shear_cells = cells;
+        self.guards = guards;
+        self.shear.clear();
+        self.shear_state.clear();
+        for t in &mut self.tension {
+            t.corrected = false;
+        }
+        Ok(())
     }
 
     /// The pieces as one cloth (a garment's panels): vertices, springs,
@@ -1047,6 +1232,15 @@ impl Cloth {
             c.shear.extend(p.shear.into_iter().map(|mut s| {
                 s.a += o;
                 s.b += o;
+                s
+            }));
+            c.shear_cells.extend(p.shear_cells.into_iter().map(|mut s| {
+                s.v.iter_mut().for_each(|v| *v += o);
+                s
+            }));
+            c.shear_cell_state.extend(p.shear_cell_state);
+            c.guards.extend(p.guards.into_iter().map(|mut s| {
+                s.v.iter_mut().for_each(|v| *v += o);
                 s
             }));
             c.hinges.extend(p.hinges.into_iter().map(|mut h| {

@@ -251,8 +251,13 @@ impl Visit for Tile<'_, '_, '_, '_> {
         let slots = &self.ctx.slots.of[s];
         let Out { acc, mem } = &mut *self.o;
         let mem = &mut mem[s];
+        let mut fresh = LawState::at(0.0);
         for k in k0..k1 {
-            let st = &mut mem[k - r.start];
+            let st = if E::MEMORY {
+                &mut mem[k - r.start]
+            } else {
+                &mut fresh
+            };
             els[k].step(st, &slots[m * k..m * (k + 1)], &self.ctx.step, acc);
         }
         self.at[s] = k1;

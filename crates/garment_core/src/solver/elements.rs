@@ -12,6 +12,9 @@
 //!   the matrix indefinite and the PCG break down. Dropping it (Choi & Ko 2002)
 //!   only removes the buckling instability from the *linearisation*; the force
 //!   itself is unchanged, so equilibria are the same.
+//! - shear cells: `K̃ = max(F', 0)/(4 l_c l_t) G Gᵀ` plus the Laplacian of the
+//!   diagonal in tension (see [`CellShear`]); egg-crate guards: their exact,
+//!   constant `2k w wᵀ ⊗ I`.
 //! - bending hinges: `K̃ = (L/h) σ'(κ) ∇θ∇θᵀ` (Gauss–Newton; σ' clamped at ≥ 0):
 //!   the term `L σ ∇²θ` is indefinite and small for cloth (bending forces are
 //!   orders of magnitude below tension), and dropping it keeps K̃ PSD.
@@ -19,7 +22,7 @@
 //! The exact Jacobians are also implemented (tests compare them with finite
 //! differences, and the damping identification uses them).
 
-use crate::cloth::{Hinge, ShearSpring, TensionSpring};
+use crate::cloth::{Hinge, ShearCell, ShearSpring, TensionSpring};
 use crate::fabric::{Law, LawState};
 use nalgebra::{Matrix3, SMatrix, Vector3};
 
@@ -63,6 +66,14 @@ pub fn tension_law_step(
 ) -> (f64, f64, f64, f64) {
     let eps = l / s.l0 - 1.0;
     let (sig, dsig, dsig_step) = law.eval_for_step(st, eps);
+    if !s.corrected {
+        return (
+            s.width * sig,
+            s.width * dsig / s.l0,
+            s.width * dsig_step / s.l0,
+            eps,
+        );
+    }
     let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
     let (ss, dss) = shear.elastic.eval(u);
     let t = s.width * (sig - ss * l / s.l_other);
@@ -95,6 +106,91 @@ pub fn shear_law_step(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64
         0.5 * (dsig_step * k + sig),
         u,
     )
+}
+
+/// A shear cell's response ([`ShearCell`]): energy `E = l_c l_t Φ(u)` with
+/// `u = sin θ` its measure, so the force on its clique `(v0, v1, v2, v3)` is
+/// `f_p = −½ F(u) G_p` with `G = (−d₁, d₁, d₂, −d₂)` (`d₁ = x₁ − x₀`,
+/// `d₂ = x₃ − x₂`): each diagonal carries the tension `½ F l` of thesis
+/// eq. 4.54, the first with `F(u)`, the second with `F(−u) = −F(u)`. The
+/// stiffness is `K = F'/(4 l_c l_t) G Gᵀ + ½ F (L₁ − L₂)`, `L_k` the
+/// Laplacian of diagonal k (`I` on its two diagonal blocks, `−I` between
+/// them); the projected one keeps `max(F', 0)` and the positive half of the
+/// second term (the diagonal in tension: `½ |F|` on `L₁` when `F > 0`, on `L₂`
+/// when `F < 0`), as the axial springs drop the geometric term in compression.
+#[derive(Debug, Clone, Copy)]
+pub struct CellShear {
+    /// `G` of the clique.
+    pub g: [Vector3<f64>; 4],
+    /// sin θ.
+    pub u: f64,
+    /// `F(u)` (N/m), its branch and step tangents.
+    pub s: f64,
+    pub ds: f64,
+    pub dss: f64,
+    /// `1 / (4 l_c l_t)`.
+    pub k4: f64,
+}
+
+/// Evaluates a shear cell at `x` with memory `st` (not committed).
+#[inline(always)]
+pub fn cell_shear(c: &ShearCell, law: &Law, st: &LawState, x: &[Vector3<f64>]) -> CellShear {
+    let (d1, d2) = c.diagonals(x);
+    let u = c.strain_of(&d1, &d2);
+    let (s, ds, dss) = law.eval_for_step(st, u);
+    CellShear {
+        g: [-d1, d1, d2, -d2],
+        u,
+        s,
+        ds,
+        dss,
+        k4: 1.0 / (4.0 * c.lc * c.lt),
+    }
+}
+
+impl CellShear {
+    /// Block `(p, q)` of the stiffness `K̃` (`−∂f/∂x`): the Gauss–Newton
+    /// coefficient `gn` on `G Gᵀ` and the Laplacian coefficients `l1`, `l2`.
+    #[inline(always)]
+    pub fn block(&self, p: usize, q: usize, gn: f64, l1: f64, l2: f64) -> Matrix3<f64> {
+        let mut m = self.g[p] * self.g[q].transpose() * gn;
+        // diagonal k joins clique entries 2k and 2k + 1
+        let lap = if p / 2 != q / 2 {
+            0.0
+        } else {
+            let c = if p / 2 == 0 { l1 } else { l2 };
+            if p == q {
+                c
+            } else {
+                -c
+            }
+        };
+        if lap != 0.0 {
+            m += Matrix3::identity() * lap;
+        }
+        m
+    }
+
+    /// The coefficients (`gn`, `l1`, `l2`) of `K̃` for the tangent `dt`
+    /// (`projected`: with the projections above; otherwise the exact
+    /// stiffness).
+    #[inline(always)]
+    pub fn coefficients(&self, dt: f64, projected: bool) -> (f64, f64, f64) {
+        if projected {
+            (
+                dt.max(0.0) * self.k4,
+                0.5 * self.s.max(0.0),
+                0.5 * (-self.s).max(0.0),
+            )
+        } else {
+            (dt * self.k4, 0.5 * self.s, -0.5 * self.s)
+        }
+    }
+}
+
+/// Elastic energy of a shear cell (J): `l_c l_t Φ(u)`.
+pub fn shear_cell_energy(c: &ShearCell, law: &Law, x: &[Vector3<f64>]) -> f64 {
+    c.lc * c.lt * law.elastic.energy(c.strain(x))
 }
 
 #[inline]
@@ -131,7 +227,12 @@ pub fn axial_block(a: &Axial, projected: bool) -> Matrix3<f64> {
 pub fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 {
     let eps = l / s.l0 - 1.0;
     let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
-    s.width * s.l0 * (law.elastic.energy(eps) - shear.elastic.energy(u))
+    let corr = if s.corrected {
+        shear.elastic.energy(u)
+    } else {
+        0.0
+    };
+    s.width * s.l0 * (law.elastic.energy(eps) - corr)
 }
 
 /// Elastic energy of a shear spring (J): `½ l_c l_t Φ(u)`.

@@ -103,7 +103,8 @@ impl Simulation {
         c
     }
 
-    /// Sets the hysteresis memory of every spring (tests and experiments).
+    /// Sets the hysteresis memory of every spring (tests and experiments):
+    /// tension springs, the shear family's elements (springs or cells), hinges.
     pub fn laws_mut(
         &mut self,
     ) -> (
@@ -112,7 +113,12 @@ impl Simulation {
         &mut [crate::fabric::LawState],
     ) {
         let c = &mut self.cloth;
-        (&mut c.tension_state, &mut c.shear_state, &mut c.hinge_state)
+        let shear = if c.shear_cells.is_empty() {
+            &mut c.shear_state
+        } else {
+            &mut c.shear_cell_state
+        };
+        (&mut c.tension_state, shear, &mut c.hinge_state)
     }
 
     /// Commits the hysteresis memory at the current positions.

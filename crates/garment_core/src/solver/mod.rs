@@ -83,6 +83,14 @@ pub struct Params {
     /// cloth's vertices meet the obstacles' surfaces.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub obstacle_edges: bool,
+    /// Each grid cell's shear from both its diagonals
+    /// ([`crate::cloth::ShearCell`], with the egg-crate guards,
+    /// [`Cloth::use_cell_shear`]): a fold or a stretch reads no shear, so
+    /// coarse grids do not resist folds (docs/lab.md). Off: each diagonal
+    /// reads the shear alone (thesis eq. 4.34, with the tension correction
+    /// of eq. 4.59).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub cell_shear: bool,
 }
 
 /// The gap the cloth keeps from a triangle-mesh obstacle's vertices and
@@ -125,6 +133,7 @@ impl Default for Params {
             friction_bound_now: false,
             self_collision: false,
             obstacle_edges: false,
+            cell_shear: false,
         }
     }
 }
@@ -521,6 +530,9 @@ impl Simulation {
             fabric.without_hysteresis()
         };
         let n = cloth.len();
+        if params.cell_shear {
+            cloth.use_cell_shear()?;
+        }
         sets::check(&cloth)?;
         let ws = Workspace::new(&mut cloth, &params)?;
         Ok(Simulation {
@@ -1395,6 +1407,21 @@ impl Simulation {
                 "most sheared: diagonal {k} (vertices {}–{}) at sin θ = {e:.3e}, shear law \
                  tangent {tangent:.3e} N/m",
                 s.a, s.b
+            ));
+        }
+        let worst = c
+            .shear_cells
+            .iter()
+            .enumerate()
+            .map(|(k, s)| (k, s, s.strain(&c.x)))
+            .filter(|(_, _, e)| e.is_finite())
+            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
+        if let Some((k, s, e)) = worst {
+            let (_, tangent) = self.fabric_of(s.v[0]).shear.elastic.eval(e);
+            parts.push(format!(
+                "most sheared: cell {k} (diagonals {}–{}, {}–{}) at sin θ = {e:.3e}, shear law \
+                 tangent {tangent:.3e} N/m",
+                s.v[0], s.v[1], s.v[2], s.v[3]
             ));
         }
         let moved = self
