@@ -659,3 +659,95 @@ fn cell_shear_drapes_the_soft_faille_alike_at_1_and_half_a_cm() {
     }
     assert!((dc[0] - dc[1]).abs() < 0.03, "{dc:?}");
 }
+
+/// The switch reaches the simulation from each place a user sets it: the
+/// drapemeter's `--cell-shear` (its report equals the library's run with
+/// `DrapeOptions::cell_shear`, and differs from the default's), a scene
+/// file's `cell_shear: true`, and `drape --cell-shear` over the file.
+#[test]
+fn cell_shear_is_set_from_the_command_line_and_the_scene_file() {
+    use garment_sim::scene::{Overrides, Scene};
+    let out = support::Scratch::new("cell_shear_cli");
+    let o = support::garment_sim()
+        .args([
+            "drapemeter",
+            "config/fabrics/polyester_faille.yaml",
+            "--spacing",
+            "0.015",
+            "--cell-shear",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let faille =
+        garment_sim::io::load_fabric(Path::new("config/fabrics/polyester_faille.yaml")).unwrap();
+    let dc = |cell_shear| {
+        let opt = DrapeOptions {
+            spacing: 0.015,
+            cell_shear,
+            ..Default::default()
+        };
+        run(&faille, &opt, &mut |_, _| {})
+            .unwrap()
+            .0
+            .drape_coefficient
+    };
+    let cli = rep["drape_coefficient"].as_f64().unwrap();
+    assert_eq!(cli, dc(true));
+    assert!((cli - dc(false)).abs() > 1e-3, "{cli} {}", dc(false));
+
+    // the scene file's key, and the command line over it
+    let text = std::fs::read_to_string("config/scenes/table_drape.yaml").unwrap();
+    for dir in ["scenes", "fabrics"] {
+        std::fs::create_dir_all(out.join(dir)).unwrap();
+    }
+    let scene_path = out.join("scenes/table_cell.yaml");
+    std::fs::write(&scene_path, format!("{text}\ncell_shear: true\n")).unwrap();
+    std::fs::copy(
+        "config/fabrics/acrylic.yaml",
+        out.join("fabrics/acrylic.yaml"),
+    )
+    .unwrap();
+    let sc = Scene::load(&scene_path).unwrap();
+    let small = Overrides {
+        spacing: Some(0.05),
+        ..Default::default()
+    };
+    let sim = sc.build(&small).unwrap();
+    assert!(sim.cloth.shear.is_empty() && !sim.cloth.shear_cells.is_empty());
+    assert!(!sim.cloth.guards.is_empty());
+    let off = sc
+        .build(&Overrides {
+            cell_shear: Some(false),
+            ..small.clone()
+        })
+        .unwrap();
+    assert!(off.cloth.shear_cells.is_empty() && !off.cloth.shear.is_empty());
+    // drape's flag: the energies written differ (the tension springs lose
+    // the eq. 4.59 correction, the guards add to the bending column)
+    let energies = |on: &str| {
+        let dir = out.join(format!("drape_{on}"));
+        let o = support::garment_sim()
+            .arg("drape")
+            .arg(&scene_path)
+            .args([
+                "--spacing",
+                "0.05",
+                "--duration",
+                "0.05",
+                "--cell-shear",
+                on,
+                "--out",
+            ])
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(dir.join("energy.csv")).unwrap()
+    };
+    assert_ne!(energies("true"), energies("false"));
+}
