@@ -39,6 +39,10 @@ pub struct Summary {
     pub spacing_m: [f64; 2],
     pub dt_s: f64,
     pub linear_solver: String,
+    /// The shear measure: `diagonals` (each diagonal alone, thesis eq. 4.34,
+    /// the default) or `cells` (`cell_shear`: both diagonals of each cell,
+    /// with the egg-crate guards).
+    pub shear_measure: &'static str,
     /// Threads of the assembly, the PCG and the contacts.
     pub threads: usize,
     pub simulated_s: f64,
@@ -191,6 +195,11 @@ pub fn run_with(
         spacing_m: [sim.cloth.lc, sim.cloth.lt],
         dt_s: sim.params().dt,
         linear_solver: format!("{:?}", sim.params().linear_solver).to_lowercase(),
+        shear_measure: if sim.params().cell_shear {
+            "cells"
+        } else {
+            "diagonals"
+        },
         threads: sim.threads(),
         simulated_s: sim.time,
         steps,

@@ -747,6 +747,11 @@ fn cell_shear_is_set_from_the_command_line_and_the_scene_file() {
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        let want = if on == "true" { "cells" } else { "diagonals" };
+        assert_eq!(summary["shear_measure"], want);
         std::fs::read_to_string(dir.join("energy.csv")).unwrap()
     };
     assert_ne!(energies("true"), energies("false"));
