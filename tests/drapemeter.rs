@@ -450,28 +450,34 @@ fn drapemeter_command_writes_report_and_top_view() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("disk"));
 }
 
+/// A square of side `size` on a grid of `spacing`: with the grid's single
+/// skewed hinge per edge, and with mirror-symmetric hinge pairs.
+fn square_with_both_hinge_layouts(size: f64, spacing: f64, areal_mass: f64) -> (Cloth, Cloth) {
+    let spec = garment_sim::cloth::GridSpec {
+        size: [size, size],
+        spacing: [spacing, spacing],
+        pose: Isometry3::identity(),
+    };
+    let skewed = Cloth::grid(&spec, areal_mass).unwrap();
+    let mirror = Cloth::panel(&PanelSpec {
+        hinges: HingeLayout::MirrorSymmetric,
+        ..PanelSpec::rectangle(&spec, areal_mass)
+    })
+    .unwrap();
+    (skewed, mirror)
+}
+
 /// On a full rectangular grid, for a fold along the threads, the pairs of
 /// hinges give the single hinge's bending energy (measured: equal to 1e-15):
 /// on a cylinder along a thread both stencils see the same dihedral angle.
 #[test]
 fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
-    use garment_sim::cloth::GridSpec;
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
     let wool = garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml"))
         .unwrap()
         .without_hysteresis();
-    let spec = GridSpec {
-        size: [0.1, 0.1],
-        spacing: [0.01, 0.01],
-        pose: Isometry3::identity(),
-    };
-    let single = Cloth::grid(&spec, wool.areal_mass).unwrap();
-    let pair = Cloth::panel(&PanelSpec {
-        hinges: HingeLayout::MirrorSymmetric,
-        ..PanelSpec::rectangle(&spec, wool.areal_mass)
-    })
-    .unwrap();
+    let (single, pair) = square_with_both_hinge_layouts(0.1, 0.01, wool.areal_mass);
     // two half hinges where the grid had one
     assert_eq!(pair.hinges.len(), 2 * single.hinges.len());
     let radius = 0.04;
@@ -570,24 +576,13 @@ fn area_matched_clamp_converges_under_refinement_with_soft_shear() {
 /// into the mode (docs/lab.md).
 #[test]
 fn the_egg_crate_costs_energy_with_either_shear_measure() {
-    use garment_sim::cloth::GridSpec;
     use garment_sim::solver::{Params, Simulation};
     use nalgebra::Vector3;
     let wool = garment_sim::io::load_fabric(Path::new("config/fabrics/wool_tropical.yaml"))
         .unwrap()
         .without_hysteresis();
     let h = 0.01;
-    let spec = GridSpec {
-        size: [0.2, 0.2],
-        spacing: [h, h],
-        pose: Isometry3::identity(),
-    };
-    let skewed = Cloth::grid(&spec, wool.areal_mass).unwrap();
-    let mirror = Cloth::panel(&PanelSpec {
-        hinges: HingeLayout::MirrorSymmetric,
-        ..PanelSpec::rectangle(&spec, wool.areal_mass)
-    })
-    .unwrap();
+    let (skewed, mirror) = square_with_both_hinge_layouts(0.2, h, wool.areal_mass);
     let b = wool.warp.bending.elastic.c[0];
     for (name, c0) in [("skewed", skewed), ("mirror-symmetric", mirror)] {
         for frac in [0.05, 0.1] {

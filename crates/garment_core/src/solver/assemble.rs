@@ -8,7 +8,7 @@
 //! springs changes nothing else), so every thread also owns a contiguous
 //! slice of each set's memories.
 
-use super::sets::{self, Element, Stage, StepIn, StepOut, Visit, VisitMut, SETS};
+use super::sets::{self, memory_mut, Element, Stage, StepIn, StepOut, Visit, VisitMut, SETS};
 use super::sparse::BlockMatrix;
 use super::team::Team;
 use super::Fabrics;
@@ -253,11 +253,7 @@ impl Visit for Tile<'_, '_, '_, '_> {
         let mem = &mut mem[s];
         let mut fresh = LawState::at(0.0);
         for k in k0..k1 {
-            let st = if E::MEMORY {
-                &mut mem[k - r.start]
-            } else {
-                &mut fresh
-            };
+            let st = memory_mut::<E>(mem, k - r.start, &mut fresh);
             els[k].step(st, &slots[m * k..m * (k + 1)], &self.ctx.step, acc);
         }
         self.at[s] = k1;
@@ -280,11 +276,7 @@ impl Visit for Last<'_, '_, '_> {
         let slots = &self.ctx.slots.of[s];
         let mut fresh = LawState::at(0.0);
         for (k, e) in els.iter().enumerate() {
-            let st = if E::MEMORY {
-                &mut self.mem[s][k]
-            } else {
-                &mut fresh
-            };
+            let st = memory_mut::<E>(&mut self.mem[s], k, &mut fresh);
             e.step(st, &slots[m * k..m * (k + 1)], &self.ctx.step, self.o);
         }
     }

@@ -67,6 +67,8 @@ pub fn tension_law_step(
     let eps = l / s.l0 - 1.0;
     let (sig, dsig, dsig_step) = law.eval_for_step(st, eps);
     if !s.corrected {
+        // no eq. 4.59 correction (the cells' shear measure reads no
+        // spurious shear)
         return (
             s.width * sig,
             s.width * dsig / s.l0,
@@ -136,7 +138,19 @@ pub struct CellShear {
 #[inline(always)]
 pub fn cell_shear(c: &ShearCell, law: &Law, st: &LawState, x: &[Vector3<f64>]) -> CellShear {
     let (d1, d2) = c.diagonals(x);
-    let u = c.strain_of(&d1, &d2);
+    cell_shear_of(c, law, st, d1, d2, c.strain_of(&d1, &d2))
+}
+
+/// [`cell_shear`] of the diagonals `d1`, `d2` and their measure `u`.
+#[inline(always)]
+pub fn cell_shear_of(
+    c: &ShearCell,
+    law: &Law,
+    st: &LawState,
+    d1: Vector3<f64>,
+    d2: Vector3<f64>,
+    u: f64,
+) -> CellShear {
     let (s, ds, dss) = law.eval_for_step(st, u);
     CellShear {
         g: [-d1, d1, d2, -d2],

@@ -1394,34 +1394,25 @@ impl Simulation {
                 }
             ));
         }
-        let worst = c
-            .shear
-            .iter()
-            .enumerate()
-            .map(|(k, s)| (k, s, s.strain((c.x[s.b] - c.x[s.a]).norm())))
-            .filter(|(_, _, e)| e.is_finite())
-            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
-        if let Some((k, s, e)) = worst {
-            let (_, tangent) = self.fabric_of(s.a).shear.elastic.eval(e);
+        // the shear family's elements: diagonal springs, or cells (one set is empty)
+        let springs = c.shear.iter().enumerate().map(|(k, s)| {
+            let e = s.strain((c.x[s.b] - c.x[s.a]).norm());
+            (k, [s.a, s.b, 0, 0], false, e)
+        });
+        let cells = (c.shear_cells.iter().enumerate()).map(|(k, s)| (k, s.v, true, s.strain(&c.x)));
+        let worst = springs
+            .chain(cells)
+            .filter(|w| w.3.is_finite())
+            .max_by(|a, b| a.3.abs().total_cmp(&b.3.abs()));
+        if let Some((k, v, cell, e)) = worst {
+            let (_, tangent) = self.fabric_of(v[0]).shear.elastic.eval(e);
+            let which = if cell {
+                format!("cell {k} (diagonals {}–{}, {}–{})", v[0], v[1], v[2], v[3])
+            } else {
+                format!("diagonal {k} (vertices {}–{})", v[0], v[1])
+            };
             parts.push(format!(
-                "most sheared: diagonal {k} (vertices {}–{}) at sin θ = {e:.3e}, shear law \
-                 tangent {tangent:.3e} N/m",
-                s.a, s.b
-            ));
-        }
-        let worst = c
-            .shear_cells
-            .iter()
-            .enumerate()
-            .map(|(k, s)| (k, s, s.strain(&c.x)))
-            .filter(|(_, _, e)| e.is_finite())
-            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
-        if let Some((k, s, e)) = worst {
-            let (_, tangent) = self.fabric_of(s.v[0]).shear.elastic.eval(e);
-            parts.push(format!(
-                "most sheared: cell {k} (diagonals {}–{}, {}–{}) at sin θ = {e:.3e}, shear law \
-                 tangent {tangent:.3e} N/m",
-                s.v[0], s.v[1], s.v[2], s.v[3]
+                "most sheared: {which} at sin θ = {e:.3e}, shear law tangent {tangent:.3e} N/m"
             ));
         }
         let moved = self

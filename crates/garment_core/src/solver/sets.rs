@@ -187,6 +187,21 @@ fn memory_of<E: Element>(mem: &[LawState], k: usize) -> &LawState {
     }
 }
 
+/// Element `k`'s memory to change (a set without memory: `fresh`, a
+/// scratch state the caller keeps).
+#[inline(always)]
+pub(crate) fn memory_mut<'a, E: Element>(
+    mem: &'a mut [LawState],
+    k: usize,
+    fresh: &'a mut LawState,
+) -> &'a mut LawState {
+    if E::MEMORY {
+        &mut mem[k]
+    } else {
+        fresh
+    }
+}
+
 /// Moves every set's memories out of the cloth (the assembly writes them
 /// from several threads while it reads the elements).
 pub(crate) fn take_memories(c: &mut Cloth) -> [Vec<LawState>; SETS] {
@@ -659,8 +674,10 @@ impl Element for ShearCell {
         let f = i.fabrics.at(self.v[0]);
         let beta = f.damping.beta_shear;
         let law = &f.shear;
-        law.commit(st, self.strain(i.x));
-        let e = cell_shear(self, law, st, i.x);
+        let (d1, d2) = self.diagonals(i.x);
+        let u = self.strain_of(&d1, &d2);
+        law.commit(st, u);
+        let e = cell_shear_of(self, law, st, d1, d2, u);
         let (cd, l1, l2) = e.coefficients(e.ds, true);
         let cs = e.dss.max(0.0) * e.k4;
         let vv = self.v.map(|p| v[p]);
