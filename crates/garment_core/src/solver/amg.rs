@@ -45,6 +45,8 @@
 //! Everything runs on one thread in a fixed order: reproducible bit for bit.
 
 use super::cpu::has_fma;
+#[cfg(target_arch = "x86_64")]
+use super::linear::sum_blocks_fma;
 use super::linear::{blocks_mul_best, Direct, Filter, Precision};
 use super::sparse::BlockMatrix;
 use anyhow::Result;
@@ -472,7 +474,9 @@ impl Amg {
         x: &[Vector3<f64>],
     ) -> Result<()> {
         let levels = self.transfers.len();
-        self.fine32.fill(&a.val);
+        if levels > 0 {
+            self.fine32.fill(&a.val);
+        }
         if self.set && levels > 0 && !self.stale && self.age + 1 < KEEP_MAX {
             Self::fill_dinv(a, Some(filter), mass, &mut self.work[0]);
             self.age += 1;
@@ -497,7 +501,10 @@ impl Amg {
                 &self.coarse_t[l],
                 first,
             );
-            self.coarse32[l].fill(&self.coarse[l].val);
+            // the sweeps' copy (the coarsest level is solved, not swept)
+            if l + 1 < levels {
+                self.coarse32[l].fill(&self.coarse[l].val);
+            }
         }
         // diagonal blocks of the coarsest level, for its smoothing-free solve
         let last = self.coarse.last().unwrap_or(a);
@@ -1166,40 +1173,23 @@ unsafe fn blocks32_mul_fma(
     let vp = val.as_ptr();
     let xp = x.as_ptr() as *const f64;
     let nx = x.len();
-    macro_rules! block {
-        ($k:expr) => {{
-            let k = $k;
-            let j = *col.get_unchecked(k) as usize;
-            assert!(j < nx);
-            let m = vp.add(9 * k);
-            let xj = xp.add(3 * j);
-            let t = _mm256_mul_pd(_mm256_cvtps_pd(_mm_loadu_ps(m)), _mm256_broadcast_sd(&*xj));
-            let t = _mm256_fmadd_pd(
-                _mm256_cvtps_pd(_mm_loadu_ps(m.add(3))),
-                _mm256_broadcast_sd(&*xj.add(1)),
-                t,
-            );
-            _mm256_fmadd_pd(
-                _mm256_cvtps_pd(_mm_loadu_ps(m.add(6))),
-                _mm256_broadcast_sd(&*xj.add(2)),
-                t,
-            )
-        }};
-    }
-    let mut acc0 = _mm256_setzero_pd();
-    let mut acc1 = _mm256_setzero_pd();
-    let mut k = lo;
-    while k + 1 < hi {
-        acc0 = _mm256_add_pd(acc0, block!(k));
-        acc1 = _mm256_add_pd(acc1, block!(k + 1));
-        k += 2;
-    }
-    if k < hi {
-        acc0 = _mm256_add_pd(acc0, block!(k));
-    }
-    let mut out = [0.0; 4];
-    _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(acc0, acc1));
-    Vector3::new(out[0], out[1], out[2])
+    sum_blocks_fma(lo, hi, |k| {
+        let j = *col.get_unchecked(k) as usize;
+        assert!(j < nx);
+        let m = vp.add(9 * k);
+        let xj = xp.add(3 * j);
+        let t = _mm256_mul_pd(_mm256_cvtps_pd(_mm_loadu_ps(m)), _mm256_broadcast_sd(&*xj));
+        let t = _mm256_fmadd_pd(
+            _mm256_cvtps_pd(_mm_loadu_ps(m.add(3))),
+            _mm256_broadcast_sd(&*xj.add(1)),
+            t,
+        );
+        _mm256_fmadd_pd(
+            _mm256_cvtps_pd(_mm_loadu_ps(m.add(6))),
+            _mm256_broadcast_sd(&*xj.add(2)),
+            t,
+        )
+    })
 }
 
 /// [`mat_vec_add`] with AVX2 and FMA.

@@ -695,37 +695,52 @@ pub(super) unsafe fn blocks_mul_fma(
     // the last block of the matrix: its third column is read masked (a
     // four-wide load would run one f64 past the end)
     let last = val.len().saturating_sub(1);
-    macro_rules! block {
-        ($k:expr) => {{
-            let k = $k;
-            let j = *col.get_unchecked(k) as usize;
-            assert!(j < nx);
-            let m = vp.add(9 * k);
-            let xj = xp.add(3 * j);
-            let c2 = if k < last {
-                _mm256_loadu_pd(m.add(6))
-            } else {
-                _mm256_maskload_pd(m.add(6), _mm256_setr_epi64x(-1, -1, -1, 0))
-            };
-            let t = _mm256_mul_pd(_mm256_loadu_pd(m), _mm256_broadcast_sd(&*xj));
-            let t = _mm256_fmadd_pd(
-                _mm256_loadu_pd(m.add(3)),
-                _mm256_broadcast_sd(&*xj.add(1)),
-                t,
-            );
-            _mm256_fmadd_pd(c2, _mm256_broadcast_sd(&*xj.add(2)), t)
-        }};
-    }
+    sum_blocks_fma(lo, hi, |k| {
+        let j = *col.get_unchecked(k) as usize;
+        assert!(j < nx);
+        let m = vp.add(9 * k);
+        let xj = xp.add(3 * j);
+        let c2 = if k < last {
+            _mm256_loadu_pd(m.add(6))
+        } else {
+            _mm256_maskload_pd(m.add(6), _mm256_setr_epi64x(-1, -1, -1, 0))
+        };
+        let t = _mm256_mul_pd(_mm256_loadu_pd(m), _mm256_broadcast_sd(&*xj));
+        let t = _mm256_fmadd_pd(
+            _mm256_loadu_pd(m.add(3)),
+            _mm256_broadcast_sd(&*xj.add(1)),
+            t,
+        );
+        _mm256_fmadd_pd(c2, _mm256_broadcast_sd(&*xj.add(2)), t)
+    })
+}
+
+/// `Σ block(k)` over `lo..hi` as a 3-vector (lane 3 of each four-wide
+/// product dropped): the loop of the fused row kernels ([`blocks_mul_fma`]
+/// and the multigrid's single-precision one), two accumulators so that
+/// consecutive blocks' products overlap.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA (inlined into callers compiled with them);
+/// `block` must be safe to call for every k in `lo..hi`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(super) unsafe fn sum_blocks_fma(
+    lo: usize,
+    hi: usize,
+    mut block: impl FnMut(usize) -> std::arch::x86_64::__m256d,
+) -> Vector3<f64> {
+    use std::arch::x86_64::*;
     let mut acc0 = _mm256_setzero_pd();
     let mut acc1 = _mm256_setzero_pd();
     let mut k = lo;
     while k + 1 < hi {
-        acc0 = _mm256_add_pd(acc0, block!(k));
-        acc1 = _mm256_add_pd(acc1, block!(k + 1));
+        acc0 = _mm256_add_pd(acc0, block(k));
+        acc1 = _mm256_add_pd(acc1, block(k + 1));
         k += 2;
     }
     if k < hi {
-        acc0 = _mm256_add_pd(acc0, block!(k));
+        acc0 = _mm256_add_pd(acc0, block(k));
     }
     let mut out = [0.0; 4];
     _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(acc0, acc1));
