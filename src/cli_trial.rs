@@ -246,6 +246,10 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     let wall = std::time::Instant::now();
     let mut t0 = f64::NAN;
     let mut so_far = Vec::new();
+    // pictures at the first step and as the gripper passes each quarter of
+    // its path: dressing_0.png … dressing_4.png
+    let mut shot = 0;
+    let mut shot_err: Option<anyhow::Error> = None;
     let ran = garment_sim::dressing::run_trial(
         t,
         ov,
@@ -255,6 +259,27 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
                 t0 = sim.time - sim.params().dt;
             }
             so_far.push(*row);
+            let due = if shot == 0 {
+                t0
+            } else {
+                d.t_move + (d.t_arrive - d.t_move) * (shot as f64 / 4.0)
+            };
+            if shot <= 4 && sim.time >= due - 1e-9 {
+                let title = format!(
+                    "{}: t = {:.2} s, progress {:.0} %, force on the arm {:.1} N",
+                    t.garment.name,
+                    sim.time,
+                    100.0 * row.progress,
+                    row.arm_force_n
+                );
+                let png = a.out.join(format!("dressing_{shot}.png"));
+                if let Err(e) =
+                    garment_sim::render::Picture::from_simulation(sim, &title).save_png(&png)
+                {
+                    shot_err.get_or_insert(e);
+                }
+                shot += 1;
+            }
             dress(sim.time - t0, d.t_end - t0)
         },
         &|| stop.load(Ordering::Relaxed),
@@ -276,6 +301,9 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         }
     };
     dress(1.0, 1.0);
+    if let Some(e) = shot_err {
+        return Err(e.context("writing the dressing's pictures"));
+    }
     let wall_s = wall.elapsed().as_secs_f64();
     let (sim, g, rows) = (&run.sim, &run.garment, &run.rows);
     let mut stats = run.sewing.clone();
@@ -299,7 +327,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     garment_sim::io::write_atomic(&a.out.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
     let r = &mut run.report;
     println!(
-        "{}: {} arm, wrist to shoulder {:.3} m; cuff of {} vertices, {} held by the gripper; \
+        "{}: {} arm, wrist to shoulder {:.3} m; {} of {} vertices, {} held by the gripper; \
          {} dressing steps in {:.1} s wall ({:.1} ms/step)",
         t.garment.name,
         match r.arm {
@@ -307,6 +335,10 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
             garment_sim::dressing::Side::Right => "right",
         },
         r.arm_length_m,
+        match r.grip {
+            garment_sim::dressing::Grip::Cuff => "cuff",
+            garment_sim::dressing::Grip::Armhole => "armhole",
+        },
         r.cuff_vertices,
         r.gripped_vertices,
         r.steps,
@@ -314,8 +346,9 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         r.ms_per_step
     );
     println!(
-        "progress {:.3} m ({:.1} % of wrist to shoulder), cuff centroid {:.1} cm from the \
-         shoulder point (the gripper's ring tilted {:.0}° there); peak force on the arm \
+        "progress {:.3} m ({:.1} % of wrist to shoulder), held opening's centroid {:.1} cm from \
+         the shoulder point (the gripper's ring tilted {:.0}° there), the sleeve's cuff {:.3} m \
+         from the wrist; peak force on the arm \
          {:.3} N at t = {:.2} s (on the hand {:.3} N; past the wrist {:.3} N at t = {:.2} s, \
          {:.1} cm from the wrist), on the body {:.3} N, on the gripper {:.3} N; {} vertices \
          inside the body",
@@ -323,6 +356,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         100.0 * r.final_progress,
         100.0 * r.final_distance_to_shoulder_m,
         r.path_end_tilt_deg,
+        r.final_sleeve_end_progress_m,
         r.peak_arm_force_n,
         r.peak_arm_force_time_s,
         r.peak_hand_force_n,

@@ -46,11 +46,32 @@ pub enum Side {
     Right,
 }
 
+/// Which end of the sleeve the gripper holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Grip {
+    /// The sleeve's top, where it is sewn into the armhole, as a carer
+    /// dresses an arm: the garment starts threaded on the hand through its
+    /// widest opening (a T-shirt's hem), the hand enters the sleeve from
+    /// inside the garment, leaves it at the cuff, and the armhole is drawn
+    /// up to the shoulder.
+    Armhole,
+    /// The sleeve's free end (its cuff), the garment beyond it, away from
+    /// the body: the hand enters the cuff and the sleeve goes on the arm
+    /// upside down; once the armhole passes the hand, the garment's body is
+    /// dragged over it (docs/bodies.md).
+    #[default]
+    Cuff,
+}
+
 /// The `dressing:` section of a trial file.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DressingFile {
     pub arm: Side,
+    /// Which end of the sleeve the gripper holds (`cuff` when absent).
+    #[serde(default)]
+    pub grip: Grip,
     /// Gripper speed along the arm's axis, m/s.
     #[serde(default = "DressingFile::d_speed")]
     pub speed: f64,
@@ -60,7 +81,8 @@ pub struct DressingFile {
     /// Time it holds at the shoulder at the end, s.
     #[serde(default = "DressingFile::d_hold")]
     pub hold: f64,
-    /// Where the cuff starts: this far past the fingertips along the hand, m.
+    /// Where the held opening's centre starts: this far past the fingertips
+    /// along the hand, m.
     #[serde(default = "DressingFile::d_beyond")]
     pub beyond: f64,
     /// The gripper's safety stop: once the garment pulls on it with more
@@ -402,8 +424,11 @@ fn up_across(t: &V3) -> V3 {
 #[derive(Debug, Clone)]
 pub struct Dressing {
     pub arm: Arm,
-    /// The sleeve's opening (cuff) vertices, in order around it.
+    /// The held opening's vertices (the armhole's or the cuff's, as
+    /// `DressingFile::grip` says), in order around it.
     pub cuff: Vec<usize>,
+    /// The sleeve's free end (its cuff) vertices, in order around it.
+    pub sleeve_end: Vec<usize>,
     /// The vertices the gripper holds (the cuff's, each once).
     pub gripped: Vec<usize>,
     /// The cloth vertices of the sleeve: the panels the cuff's edges belong
@@ -413,6 +438,12 @@ pub struct Dressing {
     /// end of its path, and the run ends, s.
     pub t_move: f64,
     pub t_arrive: f64,
+    /// When the gripper lets the sleeve's cuff go, s, and its vertices
+    /// (holding the armhole, it holds the cuff open over the hand first).
+    pub release: Option<(f64, Vec<usize>)>,
+    /// Holding the armhole: the length around of the opening the garment
+    /// was threaded on the arm through, m.
+    pub entry_opening_m: Option<f64>,
     pub t_end: f64,
     /// The gripper's path: the ring's centre at each waypoint (at the
     /// start, the first cuff vertex), m.
@@ -439,6 +470,9 @@ pub struct DressingRow {
     /// not yet at the wrist), and as a fraction of wrist → shoulder.
     pub progress_m: f64,
     pub progress: f64,
+    /// The same for the sleeve's free end (its cuff), m and fraction.
+    pub sleeve_end_progress_m: f64,
+    pub sleeve_end_progress: f64,
     /// The cuff centroid's distance from the arm's axis, m.
     pub off_axis_m: f64,
     /// Force of the garment on the arm (Σ of its contacts' forces), N.
@@ -481,6 +515,14 @@ pub struct DressingReport {
     /// The arm's body vertices.
     pub arm_vertices: usize,
     pub cuff_vertices: usize,
+    /// Which end of the sleeve the gripper held.
+    pub grip: Grip,
+    /// Holding the armhole: the length around of the opening the arm was
+    /// threaded through (a T-shirt's hem), m.
+    pub entry_opening_m: Option<f64>,
+    /// The sleeve's free end (cuff) at the end: its centroid's travel along
+    /// the arm from the wrist, m.
+    pub final_sleeve_end_progress_m: f64,
     pub gripped_vertices: usize,
     /// The gripper's path along the axis, m, and its speed, m/s.
     pub path_length_m: f64,
@@ -551,6 +593,11 @@ pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
              the arm's axis once the garment is sewn on the body"
         );
     }
+    Ok(chain(edges, x))
+}
+
+/// Pattern edges' vertex runs chained end to nearest end into one loop.
+fn chain(mut edges: Vec<Vec<usize>>, x: &[V3]) -> Vec<usize> {
     let mut cuff = edges.remove(0);
     while !edges.is_empty() {
         let end = x[*cuff.last().expect("non-empty")];
@@ -570,7 +617,122 @@ pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
         }
         cuff.extend(e);
     }
-    Ok(cuff)
+    cuff
+}
+
+/// The panels a set of vertices belongs to.
+fn panels_of(g: &Garment, v: &[usize]) -> Vec<bool> {
+    g.panels
+        .iter()
+        .map(|p| v.iter().any(|i| (p.first..p.first + p.count).contains(i)))
+        .collect()
+}
+
+/// The sleeve's armhole, in order around it: the sleeve panels' (the cuff's
+/// panels') vertices on the pattern edges sewn to other panels; and the
+/// same for the other panels' side of those seams.
+pub fn find_armhole(g: &Garment, x: &[V3], cuff: &[usize]) -> Result<(Vec<usize>, Vec<usize>)> {
+    let sleeve = panels_of(g, cuff);
+    let side = |ours: bool| -> Vec<Vec<usize>> {
+        g.seams
+            .iter()
+            .filter(|s| sleeve[s.a.0] != sleeve[s.b.0])
+            .map(|s| {
+                let (p, e) = if sleeve[s.a.0] == ours { s.a } else { s.b };
+                g.panels[p].edge_vertices[e]
+                    .iter()
+                    .map(|(i, _)| *i)
+                    .collect()
+            })
+            .collect()
+    };
+    let edges = side(true);
+    if edges.iter().map(Vec::len).sum::<usize>() < 3 {
+        bail!(
+            "the sleeve ({}) is sewn to no other panel: no armhole to hold",
+            g.panels
+                .iter()
+                .zip(&sleeve)
+                .filter(|(_, s)| **s)
+                .map(|(p, _)| p.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    Ok((chain(edges, x), chain(side(false), x)))
+}
+
+/// The garment's openings as sewn: its unsewn pattern edges grouped where
+/// their ends meet (within `tol`, m), each with its vertices and length
+/// around, m; the widest first.
+pub fn openings(g: &Garment, x: &[V3], tol: f64) -> Vec<(Vec<usize>, f64)> {
+    let sewn: std::collections::HashSet<(usize, usize)> =
+        g.seams.iter().flat_map(|s| [s.a, s.b]).collect();
+    let edges: Vec<(Vec<usize>, f64)> = g
+        .panels
+        .iter()
+        .enumerate()
+        .flat_map(|(p, panel)| {
+            let sewn = &sewn;
+            panel
+                .edge_vertices
+                .iter()
+                .enumerate()
+                .filter(move |(e, v)| !sewn.contains(&(p, *e)) && v.len() >= 2)
+                .map(|(_, v)| {
+                    let v: Vec<usize> = v.iter().map(|(i, _)| *i).collect();
+                    let l = v.windows(2).map(|w| (x[w[1]] - x[w[0]]).norm()).sum();
+                    (v, l)
+                })
+        })
+        .collect();
+    let n = edges.len();
+    let mut group: Vec<usize> = (0..n).collect();
+    fn root(g: &mut [usize], mut i: usize) -> usize {
+        while g[i] != i {
+            g[i] = g[g[i]];
+            i = g[i];
+        }
+        i
+    }
+    let ends = |k: usize| {
+        let v = &edges[k].0;
+        [x[v[0]], x[v[v.len() - 1]]]
+    };
+    for a in 0..n {
+        for b in a + 1..n {
+            let near = ends(a)
+                .iter()
+                .any(|p| ends(b).iter().any(|q| (p - q).norm() <= tol));
+            if near {
+                let (ra, rb) = (root(&mut group, a), root(&mut group, b));
+                group[ra] = rb;
+            }
+        }
+    }
+    let mut out: Vec<(Vec<usize>, f64)> = Vec::new();
+    let mut of_root = std::collections::HashMap::new();
+    for k in 0..n {
+        let r = root(&mut group, k);
+        let slot = *of_root.entry(r).or_insert_with(|| {
+            out.push((Vec::new(), 0.0));
+            out.len() - 1
+        });
+        out[slot].0.extend(&edges[k].0);
+        out[slot].1 += edges[k].1;
+    }
+    out.sort_by(|a, b| b.1.total_cmp(&a.1));
+    out
+}
+
+/// A ring of garment vertices the gripper holds: its length around as
+/// sewn, each vertex's fraction of it, which way it turns about the axis
+/// as placed (±1) and where its first vertex is in the axis' frame.
+struct HeldRing {
+    perimeter: f64,
+    fractions: Vec<f64>,
+    turn: f64,
+    first: (f64, f64),
 }
 
 /// A hoop at an axis point (its index), and the tilt of its plane from
@@ -695,24 +857,56 @@ impl Dressing {
         let ob = sim.obstacles().get(body).context("no body")?.clone();
         let (bv, bt) = body_forces::world_mesh(&ob).context("the body is not a triangle mesh")?;
         let arm = Arm::of(&bv, &bt, d.arm, d.beyond)?;
-        let cuff = find_cuff(g, &sim.cloth.x, &arm)?;
+        let sleeve_end = find_cuff(g, &sim.cloth.x, &arm)?;
+        let sleeve_end_out = sleeve_end.clone();
         let x0 = sim.cloth.x.clone();
+        // the held ring (called the cuff below whichever it is)
+        // and, holding a seam, the other side of it
+        let (cuff, seam_side) = match d.grip {
+            Grip::Cuff => (sleeve_end.clone(), Vec::new()),
+            Grip::Armhole => find_armhole(g, &x0, &sleeve_end)?,
+        };
         let c = cuff.iter().map(|&i| x0[i]).sum::<V3>() / cuff.len() as f64;
-        let gc = x0.iter().sum::<V3>() / x0.len() as f64;
-        // the cuff's plane: its normal is the covariance's weakest direction
-        let mut cov = Matrix3::zeros();
-        for &i in &cuff {
-            let r = x0[i] - c;
-            cov += r * r.transpose();
-        }
-        let eig = cov.symmetric_eigen();
-        let k = eig.eigenvalues.imin();
-        let mut n: V3 = eig.eigenvectors.column(k).into();
-        if n.dot(&(gc - c)) < 0.0 {
-            n = -n;
-        }
         let start = arm.axis[0];
         let out = (arm.axis[0] - arm.axis[1]).normalize();
+        // the direction of the garment from the held ring that is turned
+        // away from the body along the axis (`out`)
+        let mut entry_opening_m = None;
+        let n: V3 = match d.grip {
+            Grip::Cuff => {
+                // the cuff's plane (normal: the covariance's weakest
+                // direction), toward the garment's centroid
+                let gc = x0.iter().sum::<V3>() / x0.len() as f64;
+                let mut cov = Matrix3::zeros();
+                for &i in &cuff {
+                    let r = x0[i] - c;
+                    cov += r * r.transpose();
+                }
+                let eig = cov.symmetric_eigen();
+                let k = eig.eigenvalues.imin();
+                let n: V3 = eig.eigenvectors.column(k).into();
+                if n.dot(&(gc - c)) < 0.0 {
+                    -n
+                } else {
+                    n
+                }
+            }
+            Grip::Armhole => {
+                // the garment's widest opening other than the sleeve's
+                // (a T-shirt's hem) toward the shoulder: the arm goes in
+                // there and out through the armhole
+                let sleeve = panels_of(g, &sleeve_end);
+                let entry = openings(g, &x0, 0.03)
+                    .into_iter()
+                    .find(|(v, _)| !panels_of(g, v).iter().zip(&sleeve).any(|(a, b)| *a && *b))
+                    .context(
+                        "the garment has no opening besides the sleeve's to thread the arm through",
+                    )?;
+                let e = entry.0.iter().map(|&i| x0[i]).sum::<V3>() / entry.0.len() as f64;
+                entry_opening_m = Some(entry.1);
+                (c - e).normalize()
+            }
+        };
         let base = UnitQuaternion::rotation_between(&n, &out).unwrap_or_else(|| {
             UnitQuaternion::from_axis_angle(
                 &nalgebra::Unit::new_normalize(up_across(&out)),
@@ -749,14 +943,6 @@ impl Dressing {
         sim.cloth.x = placed;
         sim.cloth.v.iter_mut().for_each(|v| *v = V3::zeros());
         let x = sim.cloth.x.clone();
-        // the cuff's length around, as sewn: the hoop's perimeter
-        let nc = cuff.len();
-        let mut s_of = vec![0.0; nc];
-        for k in 1..nc {
-            s_of[k] = s_of[k - 1] + (x0[cuff[k]] - x0[cuff[k - 1]]).norm();
-        }
-        let perimeter = s_of[nc - 1] + (x0[cuff[0]] - x0[cuff[nc - 1]]).norm();
-        let fractions: Vec<f64> = s_of.iter().map(|s| s / perimeter).collect();
         // frames carried along the axis without turning about it
         let m = arm.axis.len();
         let mut e1 = vec![up_across(&(-out)); m];
@@ -769,27 +955,63 @@ impl Dressing {
                 up_across(&t)
             };
         }
-        // which way the placed cuff turns about the axis, and where it begins
         let t0v = -out;
-        let turn = {
-            let w: f64 = (0..nc)
-                .map(|k| {
-                    (x[cuff[k]] - start)
-                        .cross(&(x[cuff[(k + 1) % nc]] - start))
-                        .dot(&t0v)
-                })
-                .sum();
-            if w >= 0.0 {
-                1.0
-            } else {
-                -1.0
+        // a held ring: its length around as sewn (the hoop's perimeter),
+        // each vertex's fraction of it, which way the placed ring turns
+        // about the axis and where it begins
+        // `toward`: holding a seam, each ring is read in its own plane
+        // (normal turned toward `toward`, then onto the axis), so that rings
+        // placed askew keep their twist; holding the cuff (placed across the
+        // axis), about the axis
+        let toward: Option<V3> = match d.grip {
+            Grip::Cuff => None,
+            Grip::Armhole => {
+                let centroid = |r: &[usize]| r.iter().map(|&i| x[i]).sum::<V3>() / r.len() as f64;
+                Some(centroid(&cuff) - centroid(&sleeve_end))
             }
         };
-        let first = {
-            let r = x[cuff[0]] - start;
+        let ring_of = |ring: &[usize]| -> HeldRing {
+            let nc = ring.len();
+            let mut s_of = vec![0.0; nc];
+            for k in 1..nc {
+                s_of[k] = s_of[k - 1] + (x0[ring[k]] - x0[ring[k - 1]]).norm();
+            }
+            let perimeter = s_of[nc - 1] + (x0[ring[0]] - x0[ring[nc - 1]]).norm();
+            let (c, q) = match toward {
+                None => (start, UnitQuaternion::identity()),
+                Some(dir) => {
+                    let c = ring.iter().map(|&i| x[i]).sum::<V3>() / nc as f64;
+                    let mut cov = Matrix3::zeros();
+                    for &i in ring {
+                        let r = x[i] - c;
+                        cov += r * r.transpose();
+                    }
+                    let eig = cov.symmetric_eigen();
+                    let mut n: V3 = eig.eigenvectors.column(eig.eigenvalues.imin()).into();
+                    if n.dot(&dir) < 0.0 {
+                        n = -n;
+                    }
+                    let q = UnitQuaternion::rotation_between(&n, &t0v)
+                        .unwrap_or_else(UnitQuaternion::identity);
+                    (c, q)
+                }
+            };
+            let at = |i: usize| q * (x[ring[i]] - c);
+            let w: f64 = (0..nc)
+                .map(|k| at(k).cross(&at((k + 1) % nc)).dot(&t0v))
+                .sum();
+            let r = at(0);
             let r = r - t0v * r.dot(&t0v);
-            (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0])))
+            HeldRing {
+                perimeter,
+                fractions: s_of.iter().map(|s| s / perimeter).collect(),
+                turn: if w >= 0.0 { 1.0 } else { -1.0 },
+                first: (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0]))),
+            }
         };
+        let held = ring_of(&cuff);
+        let nc = cuff.len();
+        let perimeter = held.perimeter;
         // the hoop at each axis point: round where nothing of the body is
         // near (past the fingertips), else around the arm's section: where
         // the plane across the axis cuts the edges of the hand's (before the
@@ -801,67 +1023,68 @@ impl Dressing {
         let lim_hand = arm.rings[arm.wrist_ring].level;
         let lim_arm = arm.rings[arm.shoulder_ring].level;
         let bedges = mesh_edges(&bt);
-        let hoop_at = |k: usize, tilt: &UnitQuaternion<f64>| -> Result<Option<Hoop>> {
-            let t = tilt * if k == 0 { t0v } else { arm.tangent(k) };
-            let a3 = arm.axis[k];
-            let u1 = tilt * e1[k];
-            let u2 = t.cross(&u1);
-            let (lim, reach) = if k < arm.wrist_at {
-                (lim_hand, 0.15)
-            } else {
-                (lim_arm, 0.10)
-            };
-            let pts: Vec<[f64; 2]> = bedges
-                .iter()
-                .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
-                .filter_map(|&(i, j)| {
-                    let (di, dj) = ((bv[i] - a3).dot(&t), (bv[j] - a3).dot(&t));
-                    if di * dj > 0.0 || di == dj {
-                        return None;
-                    }
-                    let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
-                    (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
-                })
-                .chain(
-                    // and the vertices within a centimetre of the plane
-                    (0..bv.len())
-                        .filter(|&i| arm.geodesic[i] <= lim)
-                        .map(|i| bv[i] - a3)
-                        .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
-                        .map(|p| [p.dot(&u1), p.dot(&u2)]),
-                )
-                .collect();
-            if pts.len() < 3 {
-                return Ok(Some(Hoop::circle(a3, t, u1, perimeter)));
-            }
-            // the section's convex hull grown as far as the cuff's length
-            // allows (the same gap all round), at least by the clearance
-            let (_, p0) = grown_hull(&pts, 0.0);
-            let grow = (perimeter - p0) / std::f64::consts::TAU;
-            if grow < d.clearance && k > arm.wrist_at + 5 {
-                return Ok(None);
-            }
-            if grow < d.clearance {
-                bail!(
-                    "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
+        let hoop_at =
+            |k: usize, tilt: &UnitQuaternion<f64>, perimeter: f64| -> Result<Option<Hoop>> {
+                let t = tilt * if k == 0 { t0v } else { arm.tangent(k) };
+                let a3 = arm.axis[k];
+                let u1 = tilt * e1[k];
+                let u2 = t.cross(&u1);
+                let (lim, reach) = if k < arm.wrist_at {
+                    (lim_hand, 0.15)
+                } else {
+                    (lim_arm, 0.10)
+                };
+                let pts: Vec<[f64; 2]> = bedges
+                    .iter()
+                    .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
+                    .filter_map(|&(i, j)| {
+                        let (di, dj) = ((bv[i] - a3).dot(&t), (bv[j] - a3).dot(&t));
+                        if di * dj > 0.0 || di == dj {
+                            return None;
+                        }
+                        let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
+                        (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
+                    })
+                    .chain(
+                        // and the vertices within a centimetre of the plane
+                        (0..bv.len())
+                            .filter(|&i| arm.geodesic[i] <= lim)
+                            .map(|i| bv[i] - a3)
+                            .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
+                            .map(|p| [p.dot(&u1), p.dot(&u2)]),
+                    )
+                    .collect();
+                if pts.len() < 3 {
+                    return Ok(Some(Hoop::circle(a3, t, u1, perimeter)));
+                }
+                // the section's convex hull grown as far as the cuff's length
+                // allows (the same gap all round), at least by the clearance
+                let (_, p0) = grown_hull(&pts, 0.0);
+                let grow = (perimeter - p0) / std::f64::consts::TAU;
+                if grow < d.clearance && k > arm.wrist_at + 5 {
+                    return Ok(None);
+                }
+                if grow < d.clearance {
+                    bail!(
+                        "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
                      from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
                      is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
                      dressing.clearance",
-                    100.0 * perimeter,
-                    100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
-                    a3.x,
-                    a3.y,
-                    a3.z,
-                    100.0 * p0,
-                    100.0 * (p0 + std::f64::consts::TAU * d.clearance)
-                );
-            }
-            let (curve, _) = grown_hull(&pts, grow);
-            let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
-            let centre = curve.iter().sum::<V3>() / curve.len() as f64;
-            Ok(Some(Hoop { centre, curve }))
-        };
-        let from = |k: usize, tilt: &UnitQuaternion<f64>| {
+                        100.0 * perimeter,
+                        100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
+                        a3.x,
+                        a3.y,
+                        a3.z,
+                        100.0 * p0,
+                        100.0 * (p0 + std::f64::consts::TAU * d.clearance)
+                    );
+                }
+                let (curve, _) = grown_hull(&pts, grow);
+                let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
+                let centre = curve.iter().sum::<V3>() / curve.len() as f64;
+                Ok(Some(Hoop { centre, curve }))
+            };
+        let from = |k: usize, tilt: &UnitQuaternion<f64>, first: (f64, f64)| {
             let (u1, u2) = (
                 e1[k],
                 if k == 0 { t0v } else { arm.tangent(k) }.cross(&e1[k]),
@@ -872,7 +1095,7 @@ impl Dressing {
         let rings_of = |hoops: &[PlacedHoop]| -> Vec<Vec<V3>> {
             hoops
                 .iter()
-                .map(|(k, h, q)| h.points(&fractions, &from(*k, q), turn))
+                .map(|(k, h, q)| h.points(&held.fractions, &from(*k, q, held.first), held.turn))
                 .collect()
         };
         // how many legs of a path (the cuff as placed, then its rings)
@@ -909,7 +1132,7 @@ impl Dressing {
         let level = UnitQuaternion::identity();
         let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
         for k in 0..m {
-            match hoop_at(k, &level)? {
+            match hoop_at(k, &level, perimeter)? {
                 Some(h) => hoops.push((k, h, level)),
                 None => break,
             }
@@ -945,7 +1168,7 @@ impl Dressing {
                         let line = nalgebra::Unit::new_normalize(u1 * phi.cos() + u2 * phi.sin());
                         let f = ((arm.s[k] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
                         let q = UnitQuaternion::from_axis_angle(&line, (deg * f).to_radians());
-                        match hoop_at(k, &q)? {
+                        match hoop_at(k, &q, perimeter)? {
                             Some(h) => run.push((k, h, q)),
                             None => break,
                         }
@@ -974,19 +1197,83 @@ impl Dressing {
         let t_start = sim.time;
         let t_move = t_start + d.hang;
         let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
-        let pins = (0..nc)
+        let mut pins: Vec<Pin> = (0..nc)
             .map(|j| {
                 let mut w = vec![(t_start, x[cuff[j]])];
                 w.extend((0..m).map(|k| (times[k], rings[k][j])));
                 Pin::new(cuff[j], PinPath::Waypoints(w))
             })
             .collect();
+        let mut gripped = cuff.clone();
+        if !seam_side.is_empty() {
+            // the seam's other side on the same hoops
+            let other = ring_of(&seam_side);
+            let on: Vec<Vec<V3>> = hoops[..m]
+                .iter()
+                .map(|(k, h, q)| h.points(&other.fractions, &from(*k, q, other.first), other.turn))
+                .collect();
+            for (j, &v) in seam_side.iter().enumerate() {
+                let mut w = vec![(t_start, x[v])];
+                w.extend((0..m).map(|k| (times[k], on[k][j])));
+                pins.push(Pin::new(v, PinPath::Waypoints(w)));
+            }
+            gripped.extend(&seam_side);
+        }
+        // holding the armhole, the gripper also holds the sleeve's cuff open
+        // a sleeve's length ahead of it on the axis, until the cuff has
+        // passed the hand (as a carer slips a sleeve over the hand before
+        // drawing it up the arm); then lets it go
+        let mut release = None;
+        if d.grip == Grip::Armhole {
+            let ends: Vec<usize> = sleeve_end_out
+                .iter()
+                .copied()
+                .filter(|v| !cuff.contains(v))
+                .collect();
+            let end = ring_of(&ends);
+            let centroid = |r: &[usize]| r.iter().map(|&i| x0[i]).sum::<V3>() / r.len() as f64;
+            let step = arm.s[1] - arm.s[0];
+            let lag = ((centroid(&ends) - centroid(&cuff)).norm() / step).round() as usize;
+            let k_rel = arm.wrist_at + 2 + lag;
+            if k_rel >= m {
+                bail!(
+                    "the gripper's path ends {:.0} cm past the wrist, before the sleeve's cuff \
+                     ({:.0} cm from the armhole) has passed the hand",
+                    100.0 * (arm.s[m - 1] - arm.s[arm.wrist_at]),
+                    100.0 * lag as f64 * step
+                );
+            }
+            let mut legs = vec![ends.iter().map(|&i| x[i]).collect::<Vec<V3>>()];
+            for k in 0..=k_rel {
+                let (at, hoop) = if k >= lag {
+                    let h = hoop_at(k - lag, &level, end.perimeter)?.with_context(|| {
+                        format!(
+                            "the sleeve's cuff ({:.1} cm around) is too small to pass the arm \
+                             near the wrist",
+                            100.0 * end.perimeter
+                        )
+                    })?;
+                    (k - lag, h)
+                } else {
+                    let c = arm.axis[0] + out * ((lag - k) as f64 * step);
+                    (0, Hoop::circle(c, t0v, e1[0], end.perimeter))
+                };
+                legs.push(hoop.points(&end.fractions, &from(at, &level, end.first), end.turn));
+            }
+            clear_legs(&legs, 0)?;
+            for (j, &v) in ends.iter().enumerate() {
+                let mut w = vec![(t_start, x[v])];
+                w.extend((0..=k_rel).map(|k| (times[k], legs[k + 1][j])));
+                pins.push(Pin::new(v, PinPath::Waypoints(w)));
+            }
+            gripped.extend(&ends);
+            release = Some((times[k_rel], ends));
+        }
         sim.set_pins(pins)?;
         let gripper_path = std::iter::once((t_start, x[cuff[0]]))
             .chain((0..m).map(|k| (times[k], hoops[k].1.centre)))
             .collect();
         let t_arrive = times[m - 1];
-        let mut gripped = cuff.clone();
         gripped.sort_unstable();
         gripped.dedup();
         let mut sleeve = vec![false; x.len()];
@@ -999,10 +1286,13 @@ impl Dressing {
         Ok(Dressing {
             arm,
             cuff,
+            sleeve_end: sleeve_end_out,
             gripped,
             sleeve,
             t_move,
             t_arrive,
+            release,
+            entry_opening_m,
             t_end: t_arrive + d.hold,
             gripper_path,
             path_end: m - 1,
@@ -1018,6 +1308,8 @@ impl Dressing {
         let x = &sim.cloth.x;
         let ring: Vec<V3> = self.cuff.iter().map(|&i| x[i]).collect();
         let (p, off) = progress(&self.arm.axis, self.arm.s[self.arm.wrist_at], &ring);
+        let end: Vec<V3> = self.sleeve_end.iter().map(|&i| x[i]).collect();
+        let (p_end, _) = progress(&self.arm.axis, self.arm.s[self.arm.wrist_at], &end);
         let contacts = body_forces::contacts_with(sim, self.body).unwrap_or_default();
         let ob = sim.obstacles().get(self.body);
         let (mut fa, mut na, mut ca, mut fb) = (V3::zeros(), 0.0, 0, V3::zeros());
@@ -1062,6 +1354,8 @@ impl Dressing {
             gripper: gr.into(),
             progress_m: p,
             progress: p / self.arm.length(),
+            sleeve_end_progress_m: p_end,
+            sleeve_end_progress: p_end / self.arm.length(),
             off_axis_m: off,
             arm_force: fa.into(),
             arm_force_n: fa.norm(),
@@ -1093,7 +1387,21 @@ impl Dressing {
         let mut rows = Vec::new();
         let mut t_end = self.t_end;
         let mut stopped = false;
+        let mut released = false;
         while sim.time < t_end - 1e-9 && !stop() {
+            if let Some((t, ends)) = &self.release {
+                if !released && sim.time >= t - 1e-9 {
+                    let kept: Vec<Pin> = sim
+                        .pins()
+                        .as_slice()
+                        .iter()
+                        .filter(|p| !ends.contains(&p.vertex))
+                        .cloned()
+                        .collect();
+                    sim.set_pins(kept)?;
+                    released = true;
+                }
+            }
             sim.step()
                 .with_context(|| format!("dressing, t = {:.4} s", sim.time))?;
             let r = self.row(sim);
@@ -1157,6 +1465,9 @@ impl Dressing {
             arm_length_m: self.arm.length(),
             arm_vertices: self.arm.vertices.iter().filter(|b| **b).count(),
             cuff_vertices: self.cuff.len(),
+            grip: d.grip,
+            entry_opening_m: self.entry_opening_m,
+            final_sleeve_end_progress_m: last.map_or(f64::NAN, |r| r.sleeve_end_progress_m),
             gripped_vertices: self.gripped.len(),
             path_length_m: self.arm.s[self.path_end],
             path_end_progress_m: self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at],
@@ -1260,14 +1571,14 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
              arm_force_x_n,arm_force_y_n,arm_force_z_n,arm_force_n,arm_normal_force_n,\
              arm_contacts,body_force_n,body_contacts,gripper_force_x_n,gripper_force_y_n,\
              gripper_force_z_n,gripper_force_n,hand_force_n,wrist_to_shoulder_force_n,\
-             sleeve_force_n,wrist_to_shoulder_force_at_m"
+             sleeve_force_n,wrist_to_shoulder_force_at_m,sleeve_end_progress_m"
         )?;
         for r in rows {
             let (g, a, f) = (r.gripper, r.arm_force, r.gripper_force);
             writeln!(
                 w,
                 "{:.4},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{},\
-                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6}",
+                 {:.6e},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{:.6},{:.6}",
                 r.time_s,
                 g[0],
                 g[1],
@@ -1290,7 +1601,8 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
                 r.hand_force_n,
                 r.wrist_to_shoulder_force_n,
                 r.sleeve_force_n,
-                r.wrist_to_shoulder_force_at_m
+                r.wrist_to_shoulder_force_at_m,
+                r.sleeve_end_progress_m
             )?;
         }
         Ok(())
@@ -1304,12 +1616,16 @@ pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
     let t: Vec<f64> = rows.iter().map(|r| r.time_s).collect();
     let col = |f: fn(&DressingRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
     let prog = col(|r| r.progress);
+    let end = col(|r| r.sleeve_end_progress);
     let mut top = LinePlot::columns(
         &format!("{title}: the sleeve's opening along the arm"),
         "time (s)",
         "progress (wrist 0, shoulder 1)",
         &t,
-        &[("cuff centroid", &prog)],
+        &[
+            ("held opening's centroid", &prog),
+            ("the sleeve's cuff", &end),
+        ],
     );
     top.size = (900, 400);
     let (arm, hand, body, grip) = (
