@@ -429,7 +429,8 @@ pub struct Dressing {
     pub cuff: Vec<usize>,
     /// The sleeve's free end (its cuff) vertices, in order around it.
     pub sleeve_end: Vec<usize>,
-    /// The vertices the gripper holds (the cuff's, each once).
+    /// The vertices the gripper holds (the held opening's, and holding the
+    /// armhole the seam's other side and the cuff's; each once).
     pub gripped: Vec<usize>,
     /// The cloth vertices of the sleeve: the panels the cuff's edges belong
     /// to.
@@ -438,13 +439,13 @@ pub struct Dressing {
     /// end of its path, and the run ends, s.
     pub t_move: f64,
     pub t_arrive: f64,
+    pub t_end: f64,
     /// When the gripper lets the sleeve's cuff go, s, and its vertices
     /// (holding the armhole, it holds the cuff open over the hand first).
     pub release: Option<(f64, Vec<usize>)>,
     /// Holding the armhole: the length around of the opening the garment
     /// was threaded on the arm through, m.
     pub entry_opening_m: Option<f64>,
-    pub t_end: f64,
     /// The gripper's path: the ring's centre at each waypoint (at the
     /// start, the first cuff vertex), m.
     pub gripper_path: Vec<(f64, V3)>,
@@ -466,14 +467,15 @@ pub struct DressingRow {
     pub time_s: f64,
     /// The held vertices' mean (the ring's centre), m.
     pub gripper: [f64; 3],
-    /// The cuff centroid's travel along the arm from the wrist, m (negative:
-    /// not yet at the wrist), and as a fraction of wrist → shoulder.
+    /// The held opening's centroid's travel along the arm from the wrist, m
+    /// (negative: not yet at the wrist), and as a fraction of wrist →
+    /// shoulder.
     pub progress_m: f64,
     pub progress: f64,
     /// The same for the sleeve's free end (its cuff), m and fraction.
     pub sleeve_end_progress_m: f64,
     pub sleeve_end_progress: f64,
-    /// The cuff centroid's distance from the arm's axis, m.
+    /// The held opening's centroid's distance from the arm's axis, m.
     pub off_axis_m: f64,
     /// Force of the garment on the arm (Σ of its contacts' forces), N.
     pub arm_force: [f64; 3],
