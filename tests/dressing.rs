@@ -174,33 +174,27 @@ fn the_ray_parity_test_sees_the_inside_of_a_box() {
     }
 }
 
-/// The shipped dressing trial at its 1 cm grid: runs to the end, no cloth
-/// vertex inside the body at any step (ray parity), one row per step, no
-/// force on the arm while the garment hangs past the fingertips, a bounded
-/// peak; then from the command line at 3 cm, the force curve and its plot
-/// written.
-#[test]
-fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
-    let path = root().join("config/trials/tshirt_dressing.yaml");
-    let t = Trial::load(&path).unwrap();
-    let ov = TrialOverrides {
-        threads: Some(1),
-        ..Default::default()
-    };
+/// Runs a dressing trial and asserts that no cloth vertex is inside the
+/// body (the test's own ray-parity check) after any step; `on_step` after
+/// every step.
+fn run_with_no_vertex_inside(
+    t: &Trial,
+    ov: &TrialOverrides,
+    on_step: &mut dyn FnMut(),
+) -> dressing::DressingRun {
     let (bv, bt) = t.body.local_triangles();
     let v: Vec<Vector3<f64>> = bv
         .iter()
         .map(|p| (t.body.pose * nalgebra::Point3::from(Vector3::from(*p))).coords)
         .collect();
     let mesh = Mesh::new(v, bt.iter().map(|t| t.map(|k| k as usize)).collect());
-    let mut steps = 0usize;
     let mut worst: Option<(f64, usize, [f64; 3])> = None;
     let run = dressing::run_trial(
-        &t,
-        &ov,
+        t,
+        ov,
         &mut |_, _, _, _| {},
         &mut |sim, _, row| {
-            steps += 1;
+            on_step();
             for (i, p) in sim.cloth.x.iter().enumerate() {
                 if mesh.inside(p) && worst.is_none() {
                     worst = Some((row.time_s, i, [p.x, p.y, p.z]));
@@ -214,6 +208,24 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
         worst, None,
         "a cloth vertex inside the body (time, vertex, where)"
     );
+    run
+}
+
+/// The shipped dressing trial at its 1 cm grid: runs to the end, no cloth
+/// vertex inside the body at any step (ray parity), one row per step, no
+/// force on the arm while the garment hangs past the fingertips, a bounded
+/// peak; then from the command line at 3 cm, the force curve and its plot
+/// written.
+#[test]
+fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
+    let path = root().join("config/trials/tshirt_dressing.yaml");
+    let t = Trial::load(&path).unwrap();
+    let ov = TrialOverrides {
+        threads: Some(1),
+        ..Default::default()
+    };
+    let mut steps = 0usize;
+    let run = run_with_no_vertex_inside(&t, &ov, &mut || steps += 1);
     let r = &run.report;
     let rows = &run.rows;
     assert_eq!(rows.len(), steps);
@@ -468,31 +480,7 @@ fn holding_the_armhole_puts_the_sleeve_on_the_right_way_round() {
         threads: Some(1),
         ..Default::default()
     };
-    let (bv, bt) = t.body.local_triangles();
-    let v: Vec<Vector3<f64>> = bv
-        .iter()
-        .map(|p| (t.body.pose * nalgebra::Point3::from(Vector3::from(*p))).coords)
-        .collect();
-    let mesh = Mesh::new(v, bt.iter().map(|t| t.map(|k| k as usize)).collect());
-    let mut worst: Option<(f64, usize, [f64; 3])> = None;
-    let run = dressing::run_trial(
-        &t,
-        &ov,
-        &mut |_, _, _, _| {},
-        &mut |sim, _, row| {
-            for (i, p) in sim.cloth.x.iter().enumerate() {
-                if mesh.inside(p) && worst.is_none() {
-                    worst = Some((row.time_s, i, [p.x, p.y, p.z]));
-                }
-            }
-        },
-        &|| false,
-    )
-    .unwrap();
-    assert_eq!(
-        worst, None,
-        "a cloth vertex inside the body (time, vertex, where)"
-    );
+    let run = run_with_no_vertex_inside(&t, &ov, &mut || {});
     let (r, dr, rows) = (&run.report, &run.dressing, &run.rows);
     // threaded through the hem, not the neck (about 50 cm) or a cuff (41 cm)
     let entry = r.entry_opening_m.expect("an entry opening");
