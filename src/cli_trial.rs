@@ -301,9 +301,6 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         }
     };
     dress(1.0, 1.0);
-    if let Some(e) = shot_err {
-        return Err(e.context("writing the dressing's pictures"));
-    }
     let wall_s = wall.elapsed().as_secs_f64();
     let (sim, g, rows) = (&run.sim, &run.garment, &run.rows);
     let mut stats = run.sewing.clone();
@@ -377,5 +374,10 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     println!("wrote {}", a.out.display());
-    Ok(())
+    // a picture that could not be written fails the command, once every
+    // other output is written
+    match shot_err {
+        Some(e) => Err(e.context("writing the dressing's pictures")),
+        None => Ok(()),
+    }
 }

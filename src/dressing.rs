@@ -574,8 +574,7 @@ pub struct DressingReport {
 /// chained end to nearest end (a vertex where two panels meet comes twice,
 /// once from each).
 pub fn find_cuff(g: &Garment, x: &[V3], arm: &Arm) -> Result<Vec<usize>> {
-    let sewn: std::collections::HashSet<(usize, usize)> =
-        g.seams.iter().flat_map(|s| [s.a, s.b]).collect();
+    let sewn = sewn_edges(g);
     let upper = &arm.axis[arm.wrist_at..];
     let mut edges: Vec<Vec<usize>> = Vec::new();
     for (p, panel) in g.panels.iter().enumerate() {
@@ -620,6 +619,42 @@ fn chain(mut edges: Vec<Vec<usize>>, x: &[V3]) -> Vec<usize> {
         cuff.extend(e);
     }
     cuff
+}
+
+/// The mean of some of the positions `x`.
+fn centroid(x: &[V3], ring: &[usize]) -> V3 {
+    ring.iter().map(|&i| x[i]).sum::<V3>() / ring.len() as f64
+}
+
+/// The normal of the plane that best fits some of the positions `x` about
+/// `c` (their covariance's weakest direction), either sign.
+fn plane_normal(x: &[V3], ring: &[usize], c: &V3) -> V3 {
+    let mut cov = Matrix3::zeros();
+    for &i in ring {
+        let r = x[i] - c;
+        cov += r * r.transpose();
+    }
+    let eig = cov.symmetric_eigen();
+    eig.eigenvectors.column(eig.eigenvalues.imin()).into()
+}
+
+/// The garment's pattern edges that a seam joins, as (panel, edge).
+fn sewn_edges(g: &Garment) -> std::collections::HashSet<(usize, usize)> {
+    g.seams.iter().flat_map(|s| [s.a, s.b]).collect()
+}
+
+/// Pins for `verts`, each from its place `x` at `t0` along its points of
+/// `rings` (one per vertex, in `verts`' order) at `times`.
+fn ring_pins(verts: &[usize], x: &[V3], t0: f64, times: &[f64], rings: &[Vec<V3>]) -> Vec<Pin> {
+    verts
+        .iter()
+        .enumerate()
+        .map(|(j, &v)| {
+            let mut w = vec![(t0, x[v])];
+            w.extend(times.iter().zip(rings).map(|(t, r)| (*t, r[j])));
+            Pin::new(v, PinPath::Waypoints(w))
+        })
+        .collect()
 }
 
 /// The panels a set of vertices belongs to.
@@ -668,8 +703,7 @@ pub fn find_armhole(g: &Garment, x: &[V3], cuff: &[usize]) -> Result<(Vec<usize>
 /// their ends meet (within `tol`, m), each with its vertices and length
 /// around, m; the widest first.
 pub fn openings(g: &Garment, x: &[V3], tol: f64) -> Vec<(Vec<usize>, f64)> {
-    let sewn: std::collections::HashSet<(usize, usize)> =
-        g.seams.iter().flat_map(|s| [s.a, s.b]).collect();
+    let sewn = sewn_edges(g);
     let edges: Vec<(Vec<usize>, f64)> = g
         .panels
         .iter()
@@ -860,7 +894,6 @@ impl Dressing {
         let (bv, bt) = body_forces::world_mesh(&ob).context("the body is not a triangle mesh")?;
         let arm = Arm::of(&bv, &bt, d.arm, d.beyond)?;
         let sleeve_end = find_cuff(g, &sim.cloth.x, &arm)?;
-        let sleeve_end_out = sleeve_end.clone();
         let x0 = sim.cloth.x.clone();
         // the held ring (called the cuff below whichever it is)
         // and, holding a seam, the other side of it
@@ -868,7 +901,7 @@ impl Dressing {
             Grip::Cuff => (sleeve_end.clone(), Vec::new()),
             Grip::Armhole => find_armhole(g, &x0, &sleeve_end)?,
         };
-        let c = cuff.iter().map(|&i| x0[i]).sum::<V3>() / cuff.len() as f64;
+        let c = centroid(&x0, &cuff);
         let start = arm.axis[0];
         let out = (arm.axis[0] - arm.axis[1]).normalize();
         // the direction of the garment from the held ring that is turned
@@ -879,14 +912,7 @@ impl Dressing {
                 // the cuff's plane (normal: the covariance's weakest
                 // direction), toward the garment's centroid
                 let gc = x0.iter().sum::<V3>() / x0.len() as f64;
-                let mut cov = Matrix3::zeros();
-                for &i in &cuff {
-                    let r = x0[i] - c;
-                    cov += r * r.transpose();
-                }
-                let eig = cov.symmetric_eigen();
-                let k = eig.eigenvalues.imin();
-                let n: V3 = eig.eigenvectors.column(k).into();
+                let n = plane_normal(&x0, &cuff, &c);
                 if n.dot(&(gc - c)) < 0.0 {
                     -n
                 } else {
@@ -904,7 +930,7 @@ impl Dressing {
                     .context(
                         "the garment has no opening besides the sleeve's to thread the arm through",
                     )?;
-                let e = entry.0.iter().map(|&i| x0[i]).sum::<V3>() / entry.0.len() as f64;
+                let e = centroid(&x0, &entry.0);
                 entry_opening_m = Some(entry.1);
                 (c - e).normalize()
             }
@@ -967,10 +993,7 @@ impl Dressing {
         // axis), about the axis
         let toward: Option<V3> = match d.grip {
             Grip::Cuff => None,
-            Grip::Armhole => {
-                let centroid = |r: &[usize]| r.iter().map(|&i| x[i]).sum::<V3>() / r.len() as f64;
-                Some(centroid(&cuff) - centroid(&sleeve_end))
-            }
+            Grip::Armhole => Some(centroid(&x, &cuff) - centroid(&x, &sleeve_end)),
         };
         let ring_of = |ring: &[usize]| -> HeldRing {
             let nc = ring.len();
@@ -982,14 +1005,8 @@ impl Dressing {
             let (c, q) = match toward {
                 None => (start, UnitQuaternion::identity()),
                 Some(dir) => {
-                    let c = ring.iter().map(|&i| x[i]).sum::<V3>() / nc as f64;
-                    let mut cov = Matrix3::zeros();
-                    for &i in ring {
-                        let r = x[i] - c;
-                        cov += r * r.transpose();
-                    }
-                    let eig = cov.symmetric_eigen();
-                    let mut n: V3 = eig.eigenvectors.column(eig.eigenvalues.imin()).into();
+                    let c = centroid(&x, ring);
+                    let mut n = plane_normal(&x, ring, &c);
                     if n.dot(&dir) < 0.0 {
                         n = -n;
                     }
@@ -1199,13 +1216,7 @@ impl Dressing {
         let t_start = sim.time;
         let t_move = t_start + d.hang;
         let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
-        let mut pins: Vec<Pin> = (0..nc)
-            .map(|j| {
-                let mut w = vec![(t_start, x[cuff[j]])];
-                w.extend((0..m).map(|k| (times[k], rings[k][j])));
-                Pin::new(cuff[j], PinPath::Waypoints(w))
-            })
-            .collect();
+        let mut pins = ring_pins(&cuff, &x, t_start, &times, &rings[..m]);
         let mut gripped = cuff.clone();
         if !seam_side.is_empty() {
             // the seam's other side on the same hoops
@@ -1214,11 +1225,7 @@ impl Dressing {
                 .iter()
                 .map(|(k, h, q)| h.points(&other.fractions, &from(*k, q, other.first), other.turn))
                 .collect();
-            for (j, &v) in seam_side.iter().enumerate() {
-                let mut w = vec![(t_start, x[v])];
-                w.extend((0..m).map(|k| (times[k], on[k][j])));
-                pins.push(Pin::new(v, PinPath::Waypoints(w)));
-            }
+            pins.extend(ring_pins(&seam_side, &x, t_start, &times, &on));
             gripped.extend(&seam_side);
         }
         // holding the armhole, the gripper also holds the sleeve's cuff open
@@ -1227,15 +1234,15 @@ impl Dressing {
         // drawing it up the arm); then lets it go
         let mut release = None;
         if d.grip == Grip::Armhole {
-            let ends: Vec<usize> = sleeve_end_out
+            let ends: Vec<usize> = sleeve_end
                 .iter()
                 .copied()
                 .filter(|v| !cuff.contains(v))
                 .collect();
             let end = ring_of(&ends);
-            let centroid = |r: &[usize]| r.iter().map(|&i| x0[i]).sum::<V3>() / r.len() as f64;
             let step = arm.s[1] - arm.s[0];
-            let lag = ((centroid(&ends) - centroid(&cuff)).norm() / step).round() as usize;
+            let lag =
+                ((centroid(&x0, &ends) - centroid(&x0, &cuff)).norm() / step).round() as usize;
             let k_rel = arm.wrist_at + 2 + lag;
             if k_rel >= m {
                 bail!(
@@ -1245,7 +1252,7 @@ impl Dressing {
                     100.0 * lag as f64 * step
                 );
             }
-            let mut legs = vec![ends.iter().map(|&i| x[i]).collect::<Vec<V3>>()];
+            let mut legs = Vec::with_capacity(k_rel + 1);
             for k in 0..=k_rel {
                 let (at, hoop) = if k >= lag {
                     let h = hoop_at(k - lag, &level, end.perimeter)?.with_context(|| {
@@ -1262,12 +1269,12 @@ impl Dressing {
                 };
                 legs.push(hoop.points(&end.fractions, &from(at, &level, end.first), end.turn));
             }
-            clear_legs(&legs, 0)?;
-            for (j, &v) in ends.iter().enumerate() {
-                let mut w = vec![(t_start, x[v])];
-                w.extend((0..=k_rel).map(|k| (times[k], legs[k + 1][j])));
-                pins.push(Pin::new(v, PinPath::Waypoints(w)));
-            }
+            let placed_ends: Vec<V3> = ends.iter().map(|&i| x[i]).collect();
+            let path: Vec<Vec<V3>> = std::iter::once(placed_ends)
+                .chain(legs.iter().cloned())
+                .collect();
+            clear_legs(&path, 0)?;
+            pins.extend(ring_pins(&ends, &x, t_start, &times[..=k_rel], &legs));
             gripped.extend(&ends);
             release = Some((times[k_rel], ends));
         }
@@ -1288,7 +1295,7 @@ impl Dressing {
         Ok(Dressing {
             arm,
             cuff,
-            sleeve_end: sleeve_end_out,
+            sleeve_end,
             gripped,
             sleeve,
             t_move,
@@ -1503,7 +1510,7 @@ impl Dressing {
 
     /// The cuff's centroid now.
     pub fn cuff_centroid(&self, sim: &Simulation) -> V3 {
-        self.cuff.iter().map(|&i| sim.cloth.x[i]).sum::<V3>() / self.cuff.len() as f64
+        centroid(&sim.cloth.x, &self.cuff)
     }
 }
 

@@ -360,6 +360,12 @@ fn the_shipped_dressing_trial_runs_to_the_end_with_no_vertex_inside_the_body() {
     assert!(lines[0].starts_with("time_s,") && lines[0].contains("arm_force_n"));
     let png = std::fs::read(out.join("dressing.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
+    // the stages: the first step and each quarter of the gripper's path
+    for k in 0..5 {
+        let png = std::fs::read(out.join(format!("dressing_{k}.png"))).unwrap();
+        assert_eq!(&png[1..4], b"PNG", "dressing_{k}.png");
+    }
+    assert!(!out.join("dressing_5.png").exists());
     let fit: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("fit.json")).unwrap()).unwrap();
     // one row per step, a step apart, finite; its largest force on the arm
