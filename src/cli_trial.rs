@@ -324,7 +324,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     garment_sim::io::write_atomic(&a.out.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
     let r = &mut run.report;
     println!(
-        "{}: {} arm, wrist to shoulder {:.3} m; {} of {} vertices, {} held by the gripper; \
+        "{}: {} arm, wrist to shoulder {:.3} m{}; {} of {} vertices, {} held by the gripper; \
          {} dressing steps in {:.1} s wall ({:.1} ms/step)",
         t.garment.name,
         match r.arm {
@@ -332,6 +332,10 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
             garment_sim::dressing::Side::Right => "right",
         },
         r.arm_length_m,
+        match r.hand {
+            garment_sim::dressing::Hand::Mesh => "",
+            garment_sim::dressing::Hand::Hull => ", the hand as its convex hull",
+        },
         match r.grip {
             garment_sim::dressing::Grip::Cuff => "cuff",
             garment_sim::dressing::Grip::Armhole => "armhole",

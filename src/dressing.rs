@@ -5,21 +5,27 @@
 //!
 //! Phases:
 //! 1. **Sewing** on the body, as every trial sews ([`crate::trial`]).
-//! 2. **Placement.** The sewn garment is moved as a rigid body so that the
-//!    chosen sleeve's opening (its cuff) is centred on the arm's axis
-//!    `beyond` m past the fingertips, its plane across the axis, the rest
-//!    of the garment beyond it (away from the body); of the turns about the
-//!    axis, the one that leaves the garment farthest from the body.
-//! 3. **Dressing.** Gravity on. The gripper holds every cuff vertex (pins):
-//!    for `hang` s it opens the cuff into a ring of its own length and holds
-//!    still while the garment swings down, then moves along the arm at
-//!    `speed` m/s (along the axis), the ring round the arm's section with at
-//!    least `clearance` m to spare, to the shoulder or as far as the cuff
-//!    passes, and holds there for `hold` s. Where a ring across the axis
-//!    would meet the body short of the shoulder, the gripper tilts it like
-//!    an armhole seam over the last 10 cm of the axis (`TILT_RAMP`).
-//!    With a `force_limit`, the gripper stops where it is once the garment
-//!    pulls on it with more than that (a robot's safety stop).
+//! 2. **Placement.** The sewn garment is moved as a rigid body onto the
+//!    arm's axis past the fingertips: holding the armhole (`grip: armhole`,
+//!    the default), threaded on the hand through its widest opening other
+//!    than the sleeve's (a T-shirt's hem), the armhole's centre `beyond` m
+//!    past the fingertips; holding the cuff (`grip: cuff`), the cuff there
+//!    across the axis and the rest of the garment beyond it. Of the turns
+//!    about the axis, the one that leaves the garment farthest from the body.
+//! 3. **Dressing.** Gravity on. The gripper holds the held opening's
+//!    vertices (pins): for `hang` s it opens them into a ring of their own
+//!    length and holds still, then moves along the arm at `speed` m/s
+//!    (along the axis), the ring round the arm's section with at least
+//!    `clearance` m to spare, to the shoulder or as far as it passes, and
+//!    holds there for `hold` s. Holding the armhole, it also holds the
+//!    sleeve's cuff open a sleeve's length ahead and lets it go past the
+//!    wrist. Where a ring across the axis would meet the body short of the
+//!    shoulder, the gripper tilts it like an armhole seam over the last
+//!    10 cm of the axis (`TILT_RAMP`). With a `force_limit`, the gripper
+//!    stops where it is once the garment pulls on it with more than that
+//!    (a robot's safety stop). With `hand: hull` (the default) the cloth
+//!    meets the hand's convex hull (an obstacle of its own, counted as the
+//!    hand in every force) instead of the mesh's fingers and thumb.
 //!
 //! The arm comes from the body mesh alone ([`Arm::of`]).
 
@@ -55,13 +61,28 @@ pub enum Grip {
     /// widest opening (a T-shirt's hem), the hand enters the sleeve from
     /// inside the garment, leaves it at the cuff, and the armhole is drawn
     /// up to the shoulder.
+    #[default]
     Armhole,
     /// The sleeve's free end (its cuff), the garment beyond it, away from
     /// the body: the hand enters the cuff and the sleeve goes on the arm
     /// upside down; once the armhole passes the hand, the garment's body is
     /// dragged over it (docs/bodies.md).
-    #[default]
     Cuff,
+}
+
+/// What the cloth meets at the hand while dressing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Hand {
+    /// The body's mesh as it is (fingers apart, the thumb out).
+    Mesh,
+    /// The hand's convex hull, as a person being dressed holds the hand
+    /// closed: the cloth slides over it and cannot enter the gaps between
+    /// the fingers or round the thumb's web, which at a garment's spacing
+    /// are narrower than a cell (docs/bodies.md). The hull is an obstacle
+    /// of its own; its contacts count as the hand's in every force.
+    #[default]
+    Hull,
 }
 
 /// The `dressing:` section of a trial file.
@@ -69,7 +90,7 @@ pub enum Grip {
 #[serde(deny_unknown_fields)]
 pub struct DressingFile {
     pub arm: Side,
-    /// Which end of the sleeve the gripper holds (`cuff` when absent).
+    /// Which end of the sleeve the gripper holds (`armhole` when absent).
     #[serde(default)]
     pub grip: Grip,
     /// Gripper speed along the arm's axis, m/s.
@@ -100,6 +121,9 @@ pub struct DressingFile {
     /// absent; docs/bodies.md tells what it changes).
     #[serde(default)]
     pub edge_contacts: bool,
+    /// What the cloth meets at the hand (`hull` when absent).
+    #[serde(default)]
+    pub hand: Hand,
 }
 
 impl DressingFile {
@@ -430,7 +454,7 @@ pub struct Dressing {
     /// The sleeve's free end (its cuff) vertices, in order around it.
     pub sleeve_end: Vec<usize>,
     /// The vertices the gripper holds (the held opening's, and holding the
-    /// armhole the seam's other side and the cuff's; each once).
+    /// armhole the cuff's until it is let go; each once).
     pub gripped: Vec<usize>,
     /// The cloth vertices of the sleeve: the panels the cuff's edges belong
     /// to.
@@ -456,6 +480,8 @@ pub struct Dressing {
     /// degrees (0: it reaches its end untilted).
     pub end_tilt_deg: f64,
     pub body: Handle<Obstacle>,
+    /// `hand: hull`: the hand's hull, an obstacle of its own.
+    pub hand: Option<Handle<Obstacle>>,
     /// The body's mesh (world), for the force split.
     body_vertices: Vec<V3>,
     body_triangles: Vec<[u32; 3]>,
@@ -519,6 +545,8 @@ pub struct DressingReport {
     pub cuff_vertices: usize,
     /// Which end of the sleeve the gripper held.
     pub grip: Grip,
+    /// What the cloth met at the hand: the body's mesh or the hand's hull.
+    pub hand: Hand,
     /// Holding the armhole: the length around of the opening the arm was
     /// threaded through (a T-shirt's hem), m.
     pub entry_opening_m: Option<f64>,
@@ -666,24 +694,21 @@ fn panels_of(g: &Garment, v: &[usize]) -> Vec<bool> {
 }
 
 /// The sleeve's armhole, in order around it: the sleeve panels' (the cuff's
-/// panels') vertices on the pattern edges sewn to other panels; and the
-/// same for the other panels' side of those seams.
-pub fn find_armhole(g: &Garment, x: &[V3], cuff: &[usize]) -> Result<(Vec<usize>, Vec<usize>)> {
+/// panels') vertices on the pattern edges sewn to other panels.
+pub fn find_armhole(g: &Garment, x: &[V3], cuff: &[usize]) -> Result<Vec<usize>> {
     let sleeve = panels_of(g, cuff);
-    let side = |ours: bool| -> Vec<Vec<usize>> {
-        g.seams
-            .iter()
-            .filter(|s| sleeve[s.a.0] != sleeve[s.b.0])
-            .map(|s| {
-                let (p, e) = if sleeve[s.a.0] == ours { s.a } else { s.b };
-                g.panels[p].edge_vertices[e]
-                    .iter()
-                    .map(|(i, _)| *i)
-                    .collect()
-            })
-            .collect()
-    };
-    let edges = side(true);
+    let edges: Vec<Vec<usize>> = g
+        .seams
+        .iter()
+        .filter(|s| sleeve[s.a.0] != sleeve[s.b.0])
+        .map(|s| {
+            let (p, e) = if sleeve[s.a.0] { s.a } else { s.b };
+            g.panels[p].edge_vertices[e]
+                .iter()
+                .map(|(i, _)| *i)
+                .collect()
+        })
+        .collect();
     if edges.iter().map(Vec::len).sum::<usize>() < 3 {
         bail!(
             "the sleeve ({}) is sewn to no other panel: no armhole to hold",
@@ -696,7 +721,7 @@ pub fn find_armhole(g: &Garment, x: &[V3], cuff: &[usize]) -> Result<(Vec<usize>
                 .join(", ")
         );
     }
-    Ok((chain(edges, x), chain(side(false), x)))
+    Ok(chain(edges, x))
 }
 
 /// The garment's openings as sewn: its unsewn pattern edges grouped where
@@ -770,6 +795,18 @@ struct HeldRing {
     turn: f64,
     first: (f64, f64),
 }
+
+/// `hand: hull`: the hand's convex hull, as an obstacle and as the vertices
+/// and edges the hoops before the wrist are cut from.
+struct HandHull {
+    obstacle: Obstacle,
+    vertices: Vec<V3>,
+    edges: Vec<(usize, usize)>,
+}
+
+/// Where a hoop's section is cut from: vertices, edges, and which vertices
+/// count.
+type Section<'a> = (&'a [V3], &'a [(usize, usize)], &'a dyn Fn(usize) -> bool);
 
 /// A hoop at an axis point (its index), and the tilt of its plane from
 /// across the axis.
@@ -893,12 +930,56 @@ impl Dressing {
         let ob = sim.obstacles().get(body).context("no body")?.clone();
         let (bv, bt) = body_forces::world_mesh(&ob).context("the body is not a triangle mesh")?;
         let arm = Arm::of(&bv, &bt, d.arm, d.beyond)?;
+        let lim_hand = arm.rings[arm.wrist_ring].level;
+        // `hand: hull`: the hand's convex hull, an obstacle of its own, with
+        // the body's contact layer and friction
+        let hull: Option<HandHull> = match d.hand {
+            Hand::Mesh => None,
+            Hand::Hull => {
+                let pts: Vec<nalgebra::Point3<f64>> = (0..bv.len())
+                    .filter(|&i| arm.vertices[i] && arm.geodesic[i] <= lim_hand)
+                    .map(|i| bv[i].into())
+                    .collect();
+                if pts.len() < 4 {
+                    bail!(
+                        "dressing.hand: hull: the hand has {} body vertices, too few for a hull",
+                        pts.len()
+                    );
+                }
+                let (hv, ht) = parry3d_f64::transformation::convex_hull(&pts);
+                let vertices: Vec<V3> = hv.iter().map(|p| p.coords).collect();
+                let edges = mesh_edges(&ht);
+                let obstacle = Obstacle::new(
+                    &format!("{}_hand_hull", ob.id),
+                    crate::collision::ShapeSpec::Triangles {
+                        vertices: vertices.iter().map(|p| [p.x, p.y, p.z]).collect(),
+                        triangles: ht,
+                    },
+                    nalgebra::Isometry3::identity(),
+                    ob.thickness,
+                    ob.friction,
+                )?;
+                Some(HandHull {
+                    obstacle,
+                    vertices,
+                    edges,
+                })
+            }
+        };
+        // distance from the skin (or the hand's hull), m
+        let skin = |p: &V3| -> f64 {
+            let d = ob.proximity(p).distance;
+            match &hull {
+                Some(h) => d.min(h.obstacle.proximity(p).distance),
+                None => d,
+            }
+        };
         let sleeve_end = find_cuff(g, &sim.cloth.x, &arm)?;
         let x0 = sim.cloth.x.clone();
-        // the held ring (called the cuff below whichever it is)
-        // and, holding a seam, the other side of it
-        let (cuff, seam_side) = match d.grip {
-            Grip::Cuff => (sleeve_end.clone(), Vec::new()),
+        // the held ring (called the cuff below whichever it is): holding the
+        // armhole, the sleeve's side of its seam
+        let cuff = match d.grip {
+            Grip::Cuff => sleeve_end.clone(),
             Grip::Armhole => find_armhole(g, &x0, &sleeve_end)?,
         };
         let c = centroid(&x0, &cuff);
@@ -950,10 +1031,7 @@ impl Dressing {
             );
             let q = roll * base;
             let placed: Vec<V3> = x0.iter().map(|p| start + q * (p - c)).collect();
-            let near = placed
-                .iter()
-                .map(|p| ob.proximity(p).distance)
-                .fold(f64::INFINITY, f64::min);
+            let near = placed.iter().map(&skin).fold(f64::INFINITY, f64::min);
             if best.as_ref().is_none_or(|b| near > b.0) {
                 best = Some((near, placed));
             }
@@ -1039,7 +1117,6 @@ impl Dressing {
         // the torso is left to the check of the whole path below. `tilt`
         // turns the plane (and the frame in it) about the axis point.
         // `None`: past the wrist, the cuff is too short to pass round.
-        let lim_hand = arm.rings[arm.wrist_ring].level;
         let lim_arm = arm.rings[arm.shoulder_ring].level;
         let bedges = mesh_edges(&bt);
         let hoop_at =
@@ -1053,22 +1130,27 @@ impl Dressing {
                 } else {
                     (lim_arm, 0.10)
                 };
-                let pts: Vec<[f64; 2]> = bedges
+                // the hand's hull where there is one, else the body's mesh
+                let (vs, es, keep): Section = match &hull {
+                    Some(h) if k < arm.wrist_at => (&h.vertices, &h.edges, &|_| true),
+                    _ => (&bv, &bedges, &|i| arm.geodesic[i] <= lim),
+                };
+                let pts: Vec<[f64; 2]> = es
                     .iter()
-                    .filter(|&&(i, j)| arm.geodesic[i].min(arm.geodesic[j]) <= lim)
+                    .filter(|&&(i, j)| keep(i) || keep(j))
                     .filter_map(|&(i, j)| {
-                        let (di, dj) = ((bv[i] - a3).dot(&t), (bv[j] - a3).dot(&t));
+                        let (di, dj) = ((vs[i] - a3).dot(&t), (vs[j] - a3).dot(&t));
                         if di * dj > 0.0 || di == dj {
                             return None;
                         }
-                        let p = bv[i] + (bv[j] - bv[i]) * (di / (di - dj)) - a3;
+                        let p = vs[i] + (vs[j] - vs[i]) * (di / (di - dj)) - a3;
                         (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
                     })
                     .chain(
                         // and the vertices within a centimetre of the plane
-                        (0..bv.len())
-                            .filter(|&i| arm.geodesic[i] <= lim)
-                            .map(|i| bv[i] - a3)
+                        (0..vs.len())
+                            .filter(|&i| keep(i))
+                            .map(|i| vs[i] - a3)
                             .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
                             .map(|p| [p.dot(&u1), p.dot(&u2)]),
                     )
@@ -1126,16 +1208,16 @@ impl Dressing {
                 for f in [0.0, 0.5, 1.0] {
                     for j in 0..nc {
                         let p = w[0][j] + (w[1][j] - w[0][j]) * f;
-                        let pr = ob.proximity(&p);
-                        if pr.distance < contact && q > arm.wrist_at + 5 {
+                        let gap = skin(&p);
+                        if gap < contact && q > arm.wrist_at + 5 {
                             return Ok(q);
                         }
-                        if pr.distance < contact {
+                        if gap < contact {
                             bail!(
                                 "the gripper would hold the cuff {:.1} mm from the skin at \
                                  ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
                                  dressing.clearance or start farther (dressing.beyond)",
-                                1e3 * pr.distance,
+                                1e3 * gap,
                                 p.x,
                                 p.y,
                                 p.z,
@@ -1218,16 +1300,6 @@ impl Dressing {
         let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
         let mut pins = ring_pins(&cuff, &x, t_start, &times, &rings[..m]);
         let mut gripped = cuff.clone();
-        if !seam_side.is_empty() {
-            // the seam's other side on the same hoops
-            let other = ring_of(&seam_side);
-            let on: Vec<Vec<V3>> = hoops[..m]
-                .iter()
-                .map(|(k, h, q)| h.points(&other.fractions, &from(*k, q, other.first), other.turn))
-                .collect();
-            pins.extend(ring_pins(&seam_side, &x, t_start, &times, &on));
-            gripped.extend(&seam_side);
-        }
         // holding the armhole, the gripper also holds the sleeve's cuff open
         // a sleeve's length ahead of it on the axis, until the cuff has
         // passed the hand (as a carer slips a sleeve over the hand before
@@ -1279,6 +1351,7 @@ impl Dressing {
             release = Some((times[k_rel], ends));
         }
         sim.set_pins(pins)?;
+        let hand = hull.map(|h| sim.add_obstacle(h.obstacle));
         let gripper_path = std::iter::once((t_start, x[cuff[0]]))
             .chain((0..m).map(|k| (times[k], hoops[k].1.centre)))
             .collect();
@@ -1307,6 +1380,7 @@ impl Dressing {
             path_end: m - 1,
             end_tilt_deg: end_tilt,
             body,
+            hand,
             body_vertices: bv,
             body_triangles: bt,
         })
@@ -1355,6 +1429,21 @@ impl Dressing {
                 }
             }
         }
+        // the hand's hull: all of it the hand
+        let on_hull = self
+            .hand
+            .and_then(|h| body_forces::contacts_with(sim, h))
+            .unwrap_or_default();
+        for c in &on_hull {
+            fb += c.force;
+            fa += c.force;
+            na += c.normal_force();
+            ca += 1;
+            fh += c.force;
+            if self.sleeve[c.vertex] {
+                fs += c.force;
+            }
+        }
         let pf = sim.pin_forces();
         let on_gripper: V3 = -self.gripped.iter().map(|&i| pf[i]).sum::<V3>();
         let gr = self.gripped.iter().map(|&i| x[i]).sum::<V3>() / self.gripped.len() as f64;
@@ -1375,7 +1464,7 @@ impl Dressing {
             sleeve_force_n: fs.norm(),
             wrist_to_shoulder_force_at_m: if nw > 0.0 { at / nw } else { f64::NAN },
             body_force_n: fb.norm(),
-            body_contacts: contacts.len(),
+            body_contacts: contacts.len() + on_hull.len(),
             gripper_force: on_gripper.into(),
             gripper_force_n: on_gripper.norm(),
         }
@@ -1475,6 +1564,7 @@ impl Dressing {
             arm_vertices: self.arm.vertices.iter().filter(|b| **b).count(),
             cuff_vertices: self.cuff.len(),
             grip: d.grip,
+            hand: d.hand,
             entry_opening_m: self.entry_opening_m,
             final_sleeve_end_progress_m: last.map_or(f64::NAN, |r| r.sleeve_end_progress_m),
             gripped_vertices: self.gripped.len(),

@@ -1040,7 +1040,7 @@ fn cloth_body_crossings(x: &[V], tris: &[[usize; 3]], bx: &[V], btris: &[[u32; 3
     count
 }
 
-/// The shipped dressing trial at 2 cm: with the body's edges
+/// The dressing from the cuff (`tshirt_dressing_cuff.yaml`) at 2 cm: with the body's edges
 /// (`dressing.edge_contacts`) no cloth triangle intersects a body triangle
 /// in any checked step (every 5th), the sleeve still reaching the shoulder;
 /// without them the hand's fingers pass through the cloth.
@@ -1048,7 +1048,7 @@ fn cloth_body_crossings(x: &[V], tris: &[[usize; 3]], bx: &[V], btris: &[[u32; 3
 fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
     use garment_sim::trial::{Trial, TrialOverrides};
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let path = root.join("config/trials/tshirt_dressing.yaml");
+    let path = root.join("config/trials/tshirt_dressing_cuff.yaml");
     let ov = TrialOverrides {
         spacing: Some(0.02),
         threads: Some(1),
