@@ -377,6 +377,16 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     for w in &fit.warnings {
         eprintln!("warning: {w}");
     }
+    if r.stopped_early {
+        eprintln!(
+            "stopped by a signal at t = {:.4} s, {:.0} % of the way through the dressing: \
+             the outputs hold the {} steps taken",
+            sim.time,
+            100.0 * (sim.time - run.dressing.t_move).max(0.0)
+                / (run.dressing.t_end - run.dressing.t_move),
+            rows.len()
+        );
+    }
     println!("wrote {}", a.out.display());
     // a picture that could not be written fails the command, once every
     // other output is written

@@ -594,6 +594,9 @@ pub struct DressingReport {
     pub peak_gripper_force_n: f64,
     /// First time the garment touched the arm, s (`null`: never).
     pub first_arm_contact_s: Option<f64>,
+    /// The run was stopped before its end (a signal: Ctrl-C, SIGTERM); the
+    /// rows and the final state are those of the steps taken.
+    pub stopped_early: bool,
 }
 
 /// The garment's cuff on the chosen arm, in order around it: the vertices
@@ -1595,6 +1598,7 @@ impl Dressing {
             peak_body_force_n: peak(|r| r.body_force_n).1,
             peak_gripper_force_n: peak(|r| r.gripper_force_n).1,
             first_arm_contact_s: rows.iter().find(|r| r.arm_contacts > 0).map(|r| r.time_s),
+            stopped_early: false,
         }
     }
 
@@ -1651,6 +1655,7 @@ pub fn run_trial(
     let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());
     report.final_distance_to_shoulder_m =
         (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();
+    report.stopped_early = stop();
     Ok(DressingRun {
         sim,
         garment: g,

@@ -550,6 +550,68 @@ fn the_shipped_dressing_holds_the_armhole_and_puts_the_sleeve_on_the_right_way_r
         r.peak_hand_force_n
     );
     assert_eq!(r.hand, dressing::Hand::Hull);
+    assert!(!r.stopped_early);
     // the command line writes the force curve, its plot and the stages
     the_command_writes_the_force_curve(&path, run.sim.params().dt);
+}
+
+/// Interrupted (SIGINT, as Ctrl-C) once the gripper has passed the first
+/// quarter of its path, the command still writes every output of the steps
+/// it took and says so: one CSV row per step, `fit.json`'s
+/// `stopped_early`, no picture of the stages not reached.
+#[test]
+fn an_interrupted_dressing_writes_the_steps_it_took() {
+    use std::process::Stdio;
+    use std::time::{Duration, Instant};
+    let path = root().join("config/trials/tshirt_dressing.yaml");
+    let out = support::Scratch::new("dressing_interrupted");
+    let mut child = support::garment_sim()
+        .arg("trial")
+        .arg(&path)
+        .arg("--out")
+        .arg(&*out)
+        .args(["--spacing", "0.03", "--threads", "1"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !out.join("dressing_1.png").exists() {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("the trial ended ({status}) before it could be interrupted");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "no dressing_1.png"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // SAFETY: a signal to our own child process
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("stopped by a signal"), "{err}");
+    let fit: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("fit.json")).unwrap()).unwrap();
+    let d = &fit["dressing"];
+    assert_eq!(d["stopped_early"], serde_json::Value::Bool(true));
+    let csv = std::fs::read_to_string(out.join("dressing.csv")).unwrap();
+    let rows = csv.lines().count() - 1;
+    assert_eq!(rows as u64, d["steps"].as_u64().unwrap());
+    // stopped past the first quarter of the path, before the end of it
+    let (end, moved) = (
+        d["final_progress"].as_f64().unwrap(),
+        d["path_end_progress"].as_f64().unwrap(),
+    );
+    assert!(rows > 0 && end < moved - 0.2, "ended at {end} of {moved}");
+    for f in [
+        "dressing.png",
+        "dressing_0.png",
+        "garment.obj",
+        "body_pressure.ply",
+    ] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    assert!(!out.join("dressing_4.png").exists());
 }
