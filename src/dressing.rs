@@ -451,6 +451,9 @@ pub struct Dressing {
     /// The held opening's vertices (the armhole's or the cuff's, as
     /// `DressingFile::grip` says), in order around it.
     pub cuff: Vec<usize>,
+    /// Its length around as the gripper holds it open, m: as cut (the
+    /// pattern's) holding the armhole, as sewn holding the cuff.
+    pub held_opening_m: f64,
     /// The sleeve's free end (its cuff) vertices, in order around it.
     pub sleeve_end: Vec<usize>,
     /// The vertices the gripper holds (the held opening's, and holding the
@@ -554,6 +557,8 @@ pub struct DressingReport {
     /// the arm from the wrist, m.
     pub final_sleeve_end_progress_m: f64,
     pub gripped_vertices: usize,
+    /// The held opening's length around as the gripper holds it, m.
+    pub held_opening_m: f64,
     /// The gripper's path along the axis, m, and its speed, m/s.
     pub path_length_m: f64,
     /// Where the path ends (the hoop's centre), as progress from the wrist,
@@ -650,6 +655,54 @@ fn chain(mut edges: Vec<Vec<usize>>, x: &[V3]) -> Vec<usize> {
         cuff.extend(e);
     }
     cuff
+}
+
+/// The distances as cut between each vertex of a ring of pattern-edge
+/// vertices and the next (the last to the first), m: along a pattern edge
+/// both lie on, their fractions' difference times its length; from one edge
+/// to another, each one's distance from its edge's nearer end (the corner
+/// where the two edges meet once sewn).
+fn cut_gaps(g: &Garment, ring: &[usize]) -> Vec<f64> {
+    let on: std::collections::HashSet<usize> = ring.iter().copied().collect();
+    // each ring vertex's places (edge length, fraction) on the pattern edges
+    // that have two or more of the ring's vertices
+    let mut at: std::collections::HashMap<usize, Vec<((usize, usize), f64, f64)>> =
+        std::collections::HashMap::new();
+    for (p, panel) in g.panels.iter().enumerate() {
+        for (e, ev) in panel.edge_vertices.iter().enumerate() {
+            if ev.iter().filter(|(v, _)| on.contains(v)).count() < 2 {
+                continue;
+            }
+            for &(v, t) in ev.iter().filter(|(v, _)| on.contains(v)) {
+                at.entry(v)
+                    .or_default()
+                    .push(((p, e), panel.edge_lengths[e], t));
+            }
+        }
+    }
+    let n = ring.len();
+    (0..n)
+        .map(|k| {
+            let (a, b) = (ring[k], ring[(k + 1) % n]);
+            let (pa, pb) = (at.get(&a), at.get(&b));
+            let (Some(pa), Some(pb)) = (pa, pb) else {
+                return 0.0;
+            };
+            let shared = pa.iter().find_map(|(ea, l, ta)| {
+                pb.iter()
+                    .find(|(eb, _, _)| eb == ea)
+                    .map(|(_, _, tb)| (ta - tb).abs() * l)
+            });
+            shared.unwrap_or_else(|| {
+                let end = |p: &[((usize, usize), f64, f64)]| {
+                    p.iter()
+                        .map(|(_, l, t)| t.min(1.0 - t) * l)
+                        .fold(f64::INFINITY, f64::min)
+                };
+                end(pa) + end(pb)
+            })
+        })
+        .collect()
 }
 
 /// The mean of some of the positions `x`.
@@ -1076,13 +1129,22 @@ impl Dressing {
             Grip::Cuff => None,
             Grip::Armhole => Some(centroid(&x, &cuff) - centroid(&x, &sleeve_end)),
         };
+        // holding the armhole, the rings open to their lengths as cut (the
+        // pattern's), whatever the sewing left stretched or open; holding the
+        // cuff, to its length as sewn
         let ring_of = |ring: &[usize]| -> HeldRing {
             let nc = ring.len();
+            let gaps: Vec<f64> = match d.grip {
+                Grip::Armhole => cut_gaps(g, ring),
+                Grip::Cuff => (0..nc)
+                    .map(|k| (x0[ring[(k + 1) % nc]] - x0[ring[k]]).norm())
+                    .collect(),
+            };
             let mut s_of = vec![0.0; nc];
             for k in 1..nc {
-                s_of[k] = s_of[k - 1] + (x0[ring[k]] - x0[ring[k - 1]]).norm();
+                s_of[k] = s_of[k - 1] + gaps[k - 1];
             }
-            let perimeter = s_of[nc - 1] + (x0[ring[0]] - x0[ring[nc - 1]]).norm();
+            let perimeter = s_of[nc - 1] + gaps[nc - 1];
             let (c, q) = match toward {
                 None => (start, UnitQuaternion::identity()),
                 Some(dir) => {
@@ -1371,6 +1433,7 @@ impl Dressing {
         Ok(Dressing {
             arm,
             cuff,
+            held_opening_m: perimeter,
             sleeve_end,
             gripped,
             sleeve,
@@ -1571,6 +1634,7 @@ impl Dressing {
             entry_opening_m: self.entry_opening_m,
             final_sleeve_end_progress_m: last.map_or(f64::NAN, |r| r.sleeve_end_progress_m),
             gripped_vertices: self.gripped.len(),
+            held_opening_m: self.held_opening_m,
             path_length_m: self.arm.s[self.path_end],
             path_end_progress_m: self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at],
             path_end_progress: (self.arm.s[self.path_end] - self.arm.s[self.arm.wrist_at])
