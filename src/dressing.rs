@@ -666,8 +666,9 @@ fn cut_gaps(g: &Garment, ring: &[usize]) -> Vec<f64> {
     let on: std::collections::HashSet<usize> = ring.iter().copied().collect();
     // each ring vertex's places (edge length, fraction) on the pattern edges
     // that have two or more of the ring's vertices
-    let mut at: std::collections::HashMap<usize, Vec<((usize, usize), f64, f64)>> =
-        std::collections::HashMap::new();
+    // (panel, edge), its length, the vertex's fraction of it
+    type Place = ((usize, usize), f64, f64);
+    let mut at: std::collections::HashMap<usize, Vec<Place>> = std::collections::HashMap::new();
     for (p, panel) in g.panels.iter().enumerate() {
         for (e, ev) in panel.edge_vertices.iter().enumerate() {
             if ev.iter().filter(|(v, _)| on.contains(v)).count() < 2 {
@@ -694,7 +695,7 @@ fn cut_gaps(g: &Garment, ring: &[usize]) -> Vec<f64> {
                     .map(|(_, _, tb)| (ta - tb).abs() * l)
             });
             shared.unwrap_or_else(|| {
-                let end = |p: &[((usize, usize), f64, f64)]| {
+                let end = |p: &[Place]| {
                     p.iter()
                         .map(|(_, l, t)| t.min(1.0 - t) * l)
                         .fold(f64::INFINITY, f64::min)
