@@ -664,10 +664,11 @@ fn chain(mut edges: Vec<Vec<usize>>, x: &[V3]) -> Vec<usize> {
 /// where the two edges meet once sewn).
 fn cut_gaps(g: &Garment, ring: &[usize]) -> Vec<f64> {
     let on: std::collections::HashSet<usize> = ring.iter().copied().collect();
-    // each ring vertex's places (edge length, fraction) on the pattern edges
-    // that have two or more of the ring's vertices
-    // (panel, edge), its length, the vertex's fraction of it
+    // a vertex's place on a pattern edge: (panel, edge), the edge's length,
+    // the vertex's fraction of it
     type Place = ((usize, usize), f64, f64);
+    // each ring vertex's places on the pattern edges that have two or more
+    // of the ring's vertices
     let mut at: std::collections::HashMap<usize, Vec<Place>> = std::collections::HashMap::new();
     for (p, panel) in g.panels.iter().enumerate() {
         for (e, ev) in panel.edge_vertices.iter().enumerate() {
