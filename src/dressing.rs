@@ -687,8 +687,9 @@ fn cut_gaps(g: &Garment, ring: &[usize]) -> Vec<f64> {
         .map(|k| {
             let (a, b) = (ring[k], ring[(k + 1) % n]);
             let (pa, pb) = (at.get(&a), at.get(&b));
+            // every vertex of a ring of pattern edges has a place
             let (Some(pa), Some(pb)) = (pa, pb) else {
-                return 0.0;
+                unreachable!("vertex {a} or {b} of the ring is on none of its edges")
             };
             let shared = pa.iter().find_map(|(ea, l, ta)| {
                 pb.iter()
@@ -1468,10 +1469,12 @@ impl Dressing {
         let (mut nw, mut at) = (0.0, 0.0);
         let wrist_s = self.arm.s[self.arm.wrist_at];
         let hand_level = self.arm.rings[self.arm.wrist_ring].level;
-        for c in &contacts {
-            fb += c.force;
-            // the corner of largest weight of the body triangle holding the contact
-            let Some(ob) = ob else { break };
+        // where on the body each contact acts: off the arm (None), on the
+        // hand (true) or past the wrist (false), from the corner of largest
+        // weight of the body triangle holding it; every contact with the
+        // hand's hull is the hand's
+        let on_arm = |c: &body_forces::BodyContact| -> Option<bool> {
+            let ob = ob?;
             let (k, w) = body_forces::holding_triangle(
                 ob,
                 &self.body_vertices,
@@ -1480,34 +1483,28 @@ impl Dressing {
             );
             let corner = (0..3).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
             let v = self.body_triangles[k][corner] as usize;
-            if self.arm.vertices[v] {
-                fa += c.force;
-                na += c.normal_force();
-                ca += 1;
-                if self.arm.geodesic[v] < hand_level {
-                    fh += c.force;
-                } else {
-                    fw += c.force;
-                    let f = c.force.norm();
-                    nw += f;
-                    at += f * (project_on_polyline(&self.arm.axis, &c.point).0 - wrist_s);
-                }
-                if self.sleeve[c.vertex] {
-                    fs += c.force;
-                }
-            }
-        }
-        // the hand's hull: all of it the hand
+            self.arm.vertices[v].then(|| self.arm.geodesic[v] < hand_level)
+        };
         let on_hull = self
             .hand
             .and_then(|h| body_forces::contacts_with(sim, h))
             .unwrap_or_default();
-        for c in &on_hull {
+        let all = (contacts.iter().map(|c| (c, on_arm(c))))
+            .chain(on_hull.iter().map(|c| (c, Some(true))));
+        for (c, on) in all {
             fb += c.force;
+            let Some(hand) = on else { continue };
             fa += c.force;
             na += c.normal_force();
             ca += 1;
-            fh += c.force;
+            if hand {
+                fh += c.force;
+            } else {
+                fw += c.force;
+                let f = c.force.norm();
+                nw += f;
+                at += f * (project_on_polyline(&self.arm.axis, &c.point).0 - wrist_s);
+            }
             if self.sleeve[c.vertex] {
                 fs += c.force;
             }
