@@ -124,6 +124,14 @@ pub struct DrapemeterArgs {
     /// (default: the vertices within the disks).
     #[arg(long)]
     pub clamp_area_matched: bool,
+    /// Clamp out to half a spacing beyond the disks' rim, the cantilever's
+    /// discrete clamp (docs/lab.md).
+    #[arg(long, conflicts_with = "clamp_area_matched")]
+    pub clamp_half_spacing_out: bool,
+    /// The laws' elastic parts alone (the middle of each KES loop): the
+    /// fabric's hysteresis off.
+    #[arg(long)]
+    pub no_hysteresis: bool,
     /// Output directory (report.json, top_view.png).
     #[arg(long, default_value = "out/drapemeter")]
     pub out: PathBuf,
@@ -143,6 +151,8 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         self_collision: a.self_collision,
         cell_shear: a.cell_shear,
         clamp_area_matched: a.clamp_area_matched,
+        clamp_half_spacing_out: a.clamp_half_spacing_out,
+        hysteresis: !a.no_hysteresis,
         ..Default::default()
     };
     let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));
@@ -155,8 +165,14 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
     drapemeter::top_view(&shadow, &rep).save_png(&a.out.join("top_view.png"))?;
     println!("fabric             {}", rep.fabric);
     println!(
-        "specimen           {} m on a {} m disk, grid {} m ({} vertices), dt {} s",
-        rep.diameter_m, rep.disk_m, rep.spacing_m, rep.vertices, rep.dt_s
+        "specimen           {} m on a {} m disk, grid {} m ({} vertices), dt {} s, clamped out to {:.2} cm, hysteresis {}",
+        rep.diameter_m,
+        rep.disk_m,
+        rep.spacing_m,
+        rep.vertices,
+        rep.dt_s,
+        100.0 * rep.pin_radius_m,
+        if rep.hysteresis { "on" } else { "off" }
     );
     match rep.settled_at_s {
         Some(t) => println!(

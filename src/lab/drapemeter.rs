@@ -73,6 +73,17 @@ pub struct DrapeOptions {
     /// Clamp the vertices out to the radius whose convex hull has the disks'
     /// area ([`area_matched_pin_radius`]); false: those within the disks.
     pub clamp_area_matched: bool,
+    /// Clamp the vertices out to half a spacing beyond the disks' rim, the
+    /// cantilever's discrete clamp: the hinge of the last pinned vertex
+    /// carries the curvature over half a spacing either side of it, so a
+    /// strip pinned to there hangs like the continuum clamped half a spacing
+    /// inside it (to second order in the spacing: the tip deflection of n
+    /// free rows is `[n(n+1)/(n+½)²]²` of the continuum's, against
+    /// `[(n+1)/n]²` with the clamp at the last pinned vertex).
+    pub clamp_half_spacing_out: bool,
+    /// The fabric's hysteresis ([`Params::hysteresis`]); false: the laws'
+    /// elastic parts alone (the middle of each KES loop).
+    pub hysteresis: bool,
     /// Keep the folds from passing through each other.
     pub self_collision: bool,
     /// The cells' shear measure with the egg-crate guards
@@ -94,6 +105,8 @@ impl Default for DrapeOptions {
             border_on_outline: true,
             symmetric_hinges: true,
             clamp_area_matched: false,
+            clamp_half_spacing_out: false,
+            hysteresis: true,
             self_collision: false,
             cell_shear: false,
         }
@@ -132,8 +145,11 @@ pub struct DrapeReport {
     /// Radius of the disk with the area of the clamped vertices' convex hull,
     /// m: where the hanging cloth bends down.
     pub clamp_radius_m: f64,
-    /// Vertices clamped out to this radius, m ([`DrapeOptions::clamp_area_matched`]).
+    /// Vertices clamped out to this radius, m ([`DrapeOptions::clamp_area_matched`],
+    /// [`DrapeOptions::clamp_half_spacing_out`]).
     pub pin_radius_m: f64,
+    /// The fabric's hysteresis was on ([`DrapeOptions::hysteresis`]).
+    pub hysteresis: bool,
     /// Run with self-collision ([`DrapeOptions::self_collision`]; absent when off).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub self_collision: bool,
@@ -267,6 +283,9 @@ pub fn run(
             bail!("drapemeter {n} = {v}: must be > 0");
         }
     }
+    if opt.clamp_area_matched && opt.clamp_half_spacing_out {
+        bail!("drapemeter: choose one clamp edge, area-matched or half a spacing out");
+    }
     if rd >= rs {
         bail!(
             "drapemeter disk {} m must be smaller than the specimen {} m",
@@ -285,6 +304,7 @@ pub fn run(
         dt: opt.dt,
         self_collision: opt.self_collision,
         cell_shear: opt.cell_shear,
+        hysteresis: opt.hysteresis,
         ..Default::default()
     };
     let disk_h = 0.01;
@@ -314,6 +334,8 @@ pub fn run(
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();
     let pin_radius = if opt.clamp_area_matched {
         area_matched_pin_radius(&cloth, rd)
+    } else if opt.clamp_half_spacing_out {
+        rd + 0.5 * opt.spacing
     } else {
         rd
     };
@@ -397,6 +419,7 @@ pub fn run(
         drop_m: drop,
         clamp_radius_m: clamp_radius,
         pin_radius_m: pin_radius,
+        hysteresis: opt.hysteresis,
         self_collision: opt.self_collision,
     };
     Ok((rep, sim.cloth, shadow))
