@@ -244,7 +244,10 @@ fn cantilever_converges_to_the_fabric_b_without_hysteresis() {
 /// The bound: B within 5 % at 1 cm, hysteresis on. Not met (see
 /// docs/lab.md, cantilever): at 1 cm the 41.5° overhang of these fabrics
 /// (2.4–4.2 cm) spans 2–4 rows, and the discrete strip reads B 5–18 % high
-/// without hysteresis (0.1–0.7 % at 0.25 cm); the KES loop's half width
+/// without hysteresis (0.1–0.7 % at 0.25 cm): a strip of n free rows deflects
+/// `[n(n+1)/(n+½)²]²` of the continuum (the discrete clamp's test above), so
+/// meeting the bound needs a bending element of higher order along the
+/// thread, not a different reading; the KES loop's half width
 /// 2HB/2 adds to the moment of a strip loaded from flat (the loading branch
 /// Bκ + 2HB/2), +14 … +74 % at 1 cm, +0.6 … +50 % at 0.25 cm (cotton
 /// broadcloth, whose 2HB exceeds its B).
