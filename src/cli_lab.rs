@@ -138,7 +138,7 @@ pub struct DrapemeterArgs {
 }
 
 pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
-    use garment_sim::lab::drapemeter::{self, DrapeOptions};
+    use garment_sim::lab::drapemeter::{self, ClampEdge, DrapeOptions};
     let fabric = garment_sim::io::load_fabric(&a.fabric)?;
     let opt = DrapeOptions {
         diameter: a.diameter,
@@ -150,8 +150,11 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         border_on_outline: !a.staircase_border,
         self_collision: a.self_collision,
         cell_shear: a.cell_shear,
-        clamp_area_matched: a.clamp_area_matched,
-        clamp_half_spacing_out: a.clamp_half_spacing_out,
+        clamp: match (a.clamp_area_matched, a.clamp_half_spacing_out) {
+            (true, _) => ClampEdge::AreaMatched,
+            (_, true) => ClampEdge::HalfSpacingOut,
+            _ => ClampEdge::Rim,
+        },
         hysteresis: !a.no_hysteresis,
         ..Default::default()
     };

@@ -169,13 +169,7 @@ fn single_skewed_hinges_make_the_strip_droop() {
 #[test]
 fn the_discrete_clamp_is_half_a_spacing_inside_the_last_pinned_row() {
     let path = std::path::Path::new("config/fabrics/wool_tropical.yaml");
-    let wool = garment_sim::io::load_fabric(path).unwrap();
-    let mut file = wool.file.clone();
-    for d in [&mut file.warp, &mut file.weft] {
-        d.bending.b = d.bending.b.map(|b| b * 700.0);
-    }
-    let f =
-        garment_sim::io::fabric_from_file(file, std::path::Path::new("config/fabrics")).unwrap();
+    let f = support::with_bending_scaled(&garment_sim::io::load_fabric(path).unwrap(), 700.0);
     let (b, _) = fabric_bending(&f, Direction::Warp).unwrap();
     let (w, b_si) = (f.areal_mass * 9.81, b * GF_CM2_PER_CM);
     let h = 0.01;

@@ -3,18 +3,9 @@
 mod support;
 use garment_sim::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec, REMOVED};
 use garment_sim::fabric::Fabric;
-use garment_sim::lab::drapemeter::{run, DrapeOptions};
+use garment_sim::lab::drapemeter::{run, ClampEdge, DrapeOptions};
 use nalgebra::Isometry3;
 use std::path::Path;
-
-fn with_bending_scaled(f: &Fabric, k: f64) -> Fabric {
-    let mut file = f.file.clone();
-    for d in [&mut file.warp, &mut file.weft] {
-        d.bending.b = d.bending.b.map(|b| b * k);
-        d.bending.hb = d.bending.hb.map(|b| b * k);
-    }
-    garment_sim::io::fabric_from_file(file, Path::new("config/fabrics")).unwrap()
-}
 
 #[test]
 fn drape_coefficient_falls_with_softer_bending() {
@@ -23,7 +14,7 @@ fn drape_coefficient_falls_with_softer_bending() {
     let opt = DrapeOptions::default(); // 30 cm on 18 cm, 1 cm grid
     let mut dcs = Vec::new();
     for k in [10.0, 1.0, 0.25] {
-        let f = with_bending_scaled(&wool, k);
+        let f = support::with_bending_scaled(&wool, k);
         let (rep, cloth, _) = run(&f, &opt, &mut |_, _| {}).unwrap();
         println!(
             "B × {k}: DC {:.1} % (flat-normalised {:.1} %), {} nodes at {:?}, settled at {:?} s",
@@ -129,7 +120,7 @@ fn drape_coefficient_falls_with_weight() {
 ///   and drapes more. With the shear law / 10 (bending and weight only) the
 ///   coefficient reads 39.9 % at 1 cm and 43.5 % at 0.5 cm; clamping out to
 ///   9.22 and 9.12 cm instead (hulls of 9.06 and 8.98 cm, the option
-///   `clamp_area_matched`) it reads 42.9 and 43.8 % (last test).
+///   `ClampEdge::AreaMatched`) it reads 42.9 and 43.8 % (last test).
 /// - the shear springs: a cell folding across one diagonal shortens the other,
 ///   which the diagonal springs read as shear (eq. 4.34/4.35 take the angle from
 ///   each diagonal's length alone); the strain grows as (κ·h)², so the coarse
@@ -539,7 +530,11 @@ fn area_matched_clamp_converges_under_refinement_with_soft_shear() {
         for matched in [true, false] {
             let opt = DrapeOptions {
                 spacing,
-                clamp_area_matched: matched,
+                clamp: if matched {
+                    ClampEdge::AreaMatched
+                } else {
+                    ClampEdge::Rim
+                },
                 ..Default::default()
             };
             if !matched && spacing < 0.01 {
@@ -776,7 +771,11 @@ fn without_hysteresis_the_half_spacing_clamp_converges_from_1_cm() {
             let opt = DrapeOptions {
                 spacing,
                 hysteresis: false,
-                clamp_half_spacing_out: out,
+                clamp: if out {
+                    ClampEdge::HalfSpacingOut
+                } else {
+                    ClampEdge::Rim
+                },
                 ..Default::default()
             };
             let (rep, _, _) = run(&cotton, &opt, &mut |_, _| {}).unwrap();
@@ -826,7 +825,7 @@ fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command
     let opt = DrapeOptions {
         spacing: 0.02,
         hysteresis: false,
-        clamp_half_spacing_out: true,
+        clamp: ClampEdge::HalfSpacingOut,
         ..Default::default()
     };
     let (lib, _, _) = run(&wool, &opt, &mut |_, _| {}).unwrap();

@@ -46,6 +46,25 @@ use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
 
+/// Where the clamp's pinned vertices end.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClampEdge {
+    /// The vertices within the disks.
+    Rim,
+    /// Out to the radius whose pinned region's convex hull has the disks'
+    /// area ([`area_matched_pin_radius`]).
+    AreaMatched,
+    /// Out to half a spacing beyond the disks' rim, the cantilever's
+    /// discrete clamp: the hinge of the last pinned vertex carries the
+    /// curvature over half a spacing either side of it, so a strip pinned to
+    /// there hangs like the continuum clamped half a spacing inside it (to
+    /// second order in the spacing: the tip deflection of n free rows is
+    /// `[n(n+1)/(n+½)²]²` of the continuum's, against `[(n+1)/n]²` with the
+    /// clamp at the last pinned vertex).
+    HalfSpacingOut,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct DrapeOptions {
     /// Specimen diameter, m.
@@ -70,17 +89,8 @@ pub struct DrapeOptions {
     /// Mirror-symmetric hinge pairs ([`HingeLayout::MirrorSymmetric`]); false:
     /// the grid's single skewed hinge per edge.
     pub symmetric_hinges: bool,
-    /// Clamp the vertices out to the radius whose convex hull has the disks'
-    /// area ([`area_matched_pin_radius`]); false: those within the disks.
-    pub clamp_area_matched: bool,
-    /// Clamp the vertices out to half a spacing beyond the disks' rim, the
-    /// cantilever's discrete clamp: the hinge of the last pinned vertex
-    /// carries the curvature over half a spacing either side of it, so a
-    /// strip pinned to there hangs like the continuum clamped half a spacing
-    /// inside it (to second order in the spacing: the tip deflection of n
-    /// free rows is `[n(n+1)/(n+½)²]²` of the continuum's, against
-    /// `[(n+1)/n]²` with the clamp at the last pinned vertex).
-    pub clamp_half_spacing_out: bool,
+    /// Where the pinned vertices end.
+    pub clamp: ClampEdge,
     /// The fabric's hysteresis ([`Params::hysteresis`]); false: the laws'
     /// elastic parts alone (the middle of each KES loop).
     pub hysteresis: bool,
@@ -104,8 +114,7 @@ impl Default for DrapeOptions {
             pixel: 5e-4,
             border_on_outline: true,
             symmetric_hinges: true,
-            clamp_area_matched: false,
-            clamp_half_spacing_out: false,
+            clamp: ClampEdge::Rim,
             hysteresis: true,
             self_collision: false,
             cell_shear: false,
@@ -145,8 +154,7 @@ pub struct DrapeReport {
     /// Radius of the disk with the area of the clamped vertices' convex hull,
     /// m: where the hanging cloth bends down.
     pub clamp_radius_m: f64,
-    /// Vertices clamped out to this radius, m ([`DrapeOptions::clamp_area_matched`],
-    /// [`DrapeOptions::clamp_half_spacing_out`]).
+    /// Vertices clamped out to this radius, m ([`DrapeOptions::clamp`]).
     pub pin_radius_m: f64,
     /// The fabric's hysteresis was on ([`DrapeOptions::hysteresis`]).
     pub hysteresis: bool,
@@ -283,9 +291,6 @@ pub fn run(
             bail!("drapemeter {n} = {v}: must be > 0");
         }
     }
-    if opt.clamp_area_matched && opt.clamp_half_spacing_out {
-        bail!("drapemeter: choose one clamp edge, area-matched or half a spacing out");
-    }
     if rd >= rs {
         bail!(
             "drapemeter disk {} m must be smaller than the specimen {} m",
@@ -332,12 +337,10 @@ pub fn run(
     })?;
     let flat: Vec<Vector3<f64>> = cloth.x.clone();
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();
-    let pin_radius = if opt.clamp_area_matched {
-        area_matched_pin_radius(&cloth, rd)
-    } else if opt.clamp_half_spacing_out {
-        rd + 0.5 * opt.spacing
-    } else {
-        rd
+    let pin_radius = match opt.clamp {
+        ClampEdge::Rim => rd,
+        ClampEdge::AreaMatched => area_matched_pin_radius(&cloth, rd),
+        ClampEdge::HalfSpacingOut => rd + 0.5 * opt.spacing,
     };
     let clamped: Vec<usize> = (0..cloth.len())
         .filter(|&i| radius(&cloth.x[i]) <= pin_radius + 1e-9)

@@ -155,6 +155,17 @@ pub fn shipped_fabrics() -> Vec<PathBuf> {
     v
 }
 
+/// A copy of a fabric with its bending rigidity B and hysteresis 2HB, warp
+/// and weft, times `k`.
+pub fn with_bending_scaled(f: &garment_sim::fabric::Fabric, k: f64) -> garment_sim::fabric::Fabric {
+    let mut file = f.file.clone();
+    for d in [&mut file.warp, &mut file.weft] {
+        d.bending.b = d.bending.b.map(|b| b * k);
+        d.bending.hb = d.bending.hb.map(|b| b * k);
+    }
+    garment_sim::io::fabric_from_file(file, Path::new("config/fabrics")).unwrap()
+}
+
 /// Whether the ray from `p` along `d` crosses the triangle `t` in front of
 /// `p` (Möller–Trumbore): for inside tests by ray parity that share no code
 /// with the solver's contacts.
