@@ -110,6 +110,11 @@ pub struct DrapemeterArgs {
     /// Seed of the initial out-of-plane perturbation.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Specimens to drape, with seeds seed, seed + 1, …: each is written to
+    /// OUT/specimen_<seed>/ and OUT/specimens.json gives their mean drape
+    /// coefficient, its standard deviation and standard error, and the nodes.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub specimens: u64,
     /// Keep the grid's staircase border instead of moving border nodes onto the circle.
     #[arg(long)]
     pub staircase_border: bool,
@@ -132,7 +137,8 @@ pub struct DrapemeterArgs {
     /// fabric's hysteresis off.
     #[arg(long)]
     pub no_hysteresis: bool,
-    /// Output directory (report.json, top_view.png).
+    /// Output directory (report.json, top_view.png; with several specimens
+    /// specimens.json and a directory per specimen).
     #[arg(long, default_value = "out/drapemeter")]
     pub out: PathBuf,
 }
@@ -158,14 +164,87 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
         hysteresis: !a.no_hysteresis,
         ..Default::default()
     };
+    let seeds: Vec<u64> = (0..a.specimens)
+        .map(|k| a.seed.checked_add(k))
+        .collect::<Option<_>>()
+        .with_context(|| {
+            format!(
+                "--seed {} with --specimens {}: the last seed is beyond {}",
+                a.seed,
+                a.specimens,
+                u64::MAX
+            )
+        })?;
+    if seeds.len() == 1 {
+        return drape_specimen(&a, &fabric, &opt, &a.out).map(|_| ());
+    }
+    let mut reports = Vec::with_capacity(seeds.len());
+    for &seed in &seeds {
+        let out = a.out.join(format!("specimen_{seed}"));
+        println!("== specimen seed {seed}");
+        reports.push(drape_specimen(
+            &a,
+            &fabric,
+            &DrapeOptions {
+                seed,
+                ..opt.clone()
+            },
+            &out,
+        )?);
+    }
+    let sp = drapemeter::Specimens::of(&reports, &seeds)?;
+    let path = a.out.join("specimens.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&sp)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let each: Vec<String> = sp
+        .drape_coefficients
+        .iter()
+        .zip(&sp.nodes)
+        .map(|(d, n)| format!("{:.2} ({n})", 100.0 * d))
+        .collect();
+    println!(
+        "== {} specimens, seeds {} … {}",
+        seeds.len(),
+        seeds[0],
+        seeds[seeds.len() - 1]
+    );
+    println!("drape coefficients {} %", each.join(", "));
+    println!(
+        "mean               {:.2} %, standard deviation {:.2} points, standard error {:.2} points",
+        100.0 * sp.mean_drape_coefficient,
+        100.0 * sp.sd_drape_coefficient,
+        100.0 * sp.standard_error
+    );
+    println!(
+        "nodes              mean {:.1}, {} … {}",
+        sp.mean_nodes, sp.nodes_range[0], sp.nodes_range[1]
+    );
+    if sp.unsettled > 0 {
+        println!(
+            "not settled        {} of {} specimens (see their report.json)",
+            sp.unsettled,
+            seeds.len()
+        );
+    }
+    println!("wrote              {}", path.display());
+    Ok(())
+}
+
+/// Drapes one specimen, writes its report and top view to `out` and prints it.
+fn drape_specimen(
+    a: &DrapemeterArgs,
+    fabric: &garment_sim::fabric::Fabric,
+    opt: &garment_sim::lab::drapemeter::DrapeOptions,
+    out: &std::path::Path,
+) -> Result<garment_sim::lab::drapemeter::DrapeReport> {
+    use garment_sim::lab::drapemeter;
     let mut pr = crate::progress_printer(format!("drapemeter {}", a.fabric.display()));
-    let (rep, _, shadow) = drapemeter::run(&fabric, &opt, &mut pr)?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("cannot create {}", a.out.display()))?;
-    let rp = a.out.join("report.json");
+    let (rep, _, shadow) = drapemeter::run(fabric, opt, &mut pr)?;
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let rp = out.join("report.json");
     std::fs::write(&rp, serde_json::to_string_pretty(&rep)?)
         .with_context(|| format!("cannot write {}", rp.display()))?;
-    drapemeter::top_view(&shadow, &rep).save_png(&a.out.join("top_view.png"))?;
+    drapemeter::top_view(&shadow, &rep).save_png(&out.join("top_view.png"))?;
     println!("fabric             {}", rep.fabric);
     println!(
         "specimen           {} m on a {} m disk, grid {} m ({} vertices), dt {} s, clamped out to {:.2} cm, hysteresis {}",
@@ -208,9 +287,9 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
     );
     println!(
         "wrote              {}/report.json, top_view.png",
-        a.out.display()
+        out.display()
     );
-    Ok(())
+    Ok(rep)
 }
 
 /// `garment_sim cantilever`: Peirce's cantilever bending test on a strip.

@@ -845,3 +845,89 @@ fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("clamp"));
 }
+
+/// `--specimens N` drapes N specimens with seeds seed … seed + N − 1, each
+/// exactly as a single run with its seed, and `specimens.json` gives their
+/// mean, sample standard deviation and standard error (computed here from the
+/// specimens' own reports).
+#[test]
+fn drapemeter_averages_specimens_over_seeds() {
+    let out = support::Scratch::new("drapemeter_specimens");
+    let args = [
+        "drapemeter",
+        "config/fabrics/wool_tropical.yaml",
+        "--spacing",
+        "0.02",
+    ];
+    let o = support::garment_sim()
+        .args(args)
+        .args(["--seed", "4", "--specimens", "3", "--out"])
+        .arg(&*out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        o.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let sp = read(&out.join("specimens.json"));
+    let seeds: Vec<u64> = sp["seeds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_u64().unwrap())
+        .collect();
+    assert_eq!(seeds, [4, 5, 6]);
+    let reps: Vec<serde_json::Value> = seeds
+        .iter()
+        .map(|s| read(&out.join(format!("specimen_{s}")).join("report.json")))
+        .collect();
+    let dc: Vec<f64> = reps
+        .iter()
+        .map(|r| r["drape_coefficient"].as_f64().unwrap())
+        .collect();
+    let listed: Vec<f64> = sp["drape_coefficients"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d.as_f64().unwrap())
+        .collect();
+    assert_eq!(listed, dc);
+    let mean = dc.iter().sum::<f64>() / 3.0;
+    let sd = (dc.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
+    let close = |k: &str, v: f64| {
+        let got = sp[k].as_f64().unwrap();
+        assert!((got - v).abs() < 1e-12, "{k}: {got} against {v}");
+    };
+    close("mean_drape_coefficient", mean);
+    close("sd_drape_coefficient", sd);
+    close("standard_error", sd / 3f64.sqrt());
+    // at 2 cm the seed picks among resting shapes: the specimens differ
+    assert!(sd > 0.01, "{dc:?}");
+    let nodes: Vec<u64> = reps.iter().map(|r| r["nodes"].as_u64().unwrap()).collect();
+    close(
+        "mean_nodes",
+        nodes.iter().sum::<u64>() as f64 / nodes.len() as f64,
+    );
+    assert!(
+        stdout.contains(&format!("mean               {:.2} %", 100.0 * mean)),
+        "{stdout}"
+    );
+    // specimen 5 is the single run with seed 5, bit for bit
+    let single = support::Scratch::new("drapemeter_specimen_5");
+    let (_, rep5) = drapemeter_command(&[args[1], args[2], args[3], "--seed", "5"], &single);
+    assert_eq!(rep5["drape_coefficient"].as_f64().unwrap(), dc[1]);
+    assert_eq!(rep5["node_angles_deg"], reps[1]["node_angles_deg"]);
+    // no specimen at all is refused
+    let o = support::garment_sim()
+        .args(args)
+        .args(["--specimens", "0"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("specimens"));
+}

@@ -30,16 +30,13 @@ pub enum LinearSolverKind {
     /// Sparse Cholesky (faer), symbolic factorisation reused.
     Cholesky,
     /// The default: the block-Jacobi PCG while it converges within the
-    /// iterations that cost as much as the alternative (from operation
-    /// counts); else the multigrid PCG while it converges within the
-    /// iterations that cost as much as the Cholesky; else the Cholesky
-    /// factor. By benchmark (docs/benchmarks.md) the block-Jacobi PCG wins
-    /// at small steps (dt = 1e-4 s: 7–25 iterations), the multigrid at large
-    /// ones on the table drape (15–21 iterations at dt = 1/300 s on the 1
-    /// and 0.5 cm grids, where block-Jacobi needs hundreds), and the
-    /// Cholesky where the multigrid converges slowly (the garment trials).
-    /// Decided on iteration counts, never on measured time: runs are
-    /// reproducible.
+    /// iterations that cost as much as the Cholesky (from operation counts),
+    /// else the Cholesky factor (single precision, refined by the PCG). By
+    /// benchmark (docs/benchmarks.md) the block-Jacobi PCG wins at small
+    /// steps (dt = 1e-4 s: 7–25 iterations), the Cholesky at large ones and
+    /// on the garment trials. The multigrid PCG (`amg`) is not among its
+    /// choices (see `Simulation::solve_auto`). Decided on iteration counts,
+    /// never on measured time: runs are reproducible.
     #[default]
     Auto,
     /// The filtered PCG preconditioned by smoothed-aggregation multigrid
