@@ -395,8 +395,8 @@ fn clipped_disc_for_the_drapemeter() {
 }
 
 /// Runs `garment_sim drapemeter ARGS --out OUT`, which must succeed;
-/// returns its standard output and report.json.
-fn drapemeter_command(args: &[&str], out: &Path) -> (String, serde_json::Value) {
+/// returns its standard output.
+fn drapemeter_stdout(args: &[&str], out: &Path) -> String {
     let o = support::garment_sim()
         .arg("drapemeter")
         .args(args)
@@ -410,6 +410,12 @@ fn drapemeter_command(args: &[&str], out: &Path) -> (String, serde_json::Value) 
         "{stdout}{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    stdout
+}
+
+/// [`drapemeter_stdout`] and the run's report.json.
+fn drapemeter_command(args: &[&str], out: &Path) -> (String, serde_json::Value) {
+    let stdout = drapemeter_stdout(args, out);
     let rep = std::fs::read_to_string(out.join("report.json")).unwrap();
     (stdout, serde_json::from_str(&rep).unwrap())
 }
@@ -853,23 +859,10 @@ fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command
 #[test]
 fn drapemeter_averages_specimens_over_seeds() {
     let out = support::Scratch::new("drapemeter_specimens");
-    let args = [
-        "drapemeter",
-        "config/fabrics/wool_tropical.yaml",
-        "--spacing",
-        "0.02",
-    ];
-    let o = support::garment_sim()
-        .args(args)
-        .args(["--seed", "4", "--specimens", "3", "--out"])
-        .arg(&*out)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(
-        o.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&o.stderr)
+    let args = ["config/fabrics/wool_tropical.yaml", "--spacing", "0.02"];
+    let stdout = drapemeter_stdout(
+        &[&args[..], &["--seed", "4", "--specimens", "3"]].concat(),
+        &out,
     );
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
@@ -919,11 +912,12 @@ fn drapemeter_averages_specimens_over_seeds() {
     );
     // specimen 5 is the single run with seed 5, bit for bit
     let single = support::Scratch::new("drapemeter_specimen_5");
-    let (_, rep5) = drapemeter_command(&[args[1], args[2], args[3], "--seed", "5"], &single);
+    let (_, rep5) = drapemeter_command(&[&args[..], &["--seed", "5"]].concat(), &single);
     assert_eq!(rep5["drape_coefficient"].as_f64().unwrap(), dc[1]);
     assert_eq!(rep5["node_angles_deg"], reps[1]["node_angles_deg"]);
     // no specimen at all is refused
     let o = support::garment_sim()
+        .arg("drapemeter")
         .args(args)
         .args(["--specimens", "0"])
         .output()
