@@ -192,7 +192,7 @@ pub fn drapemeter(a: DrapemeterArgs) -> Result<()> {
             &out,
         )?);
     }
-    let sp = drapemeter::Specimens::of(&reports, &seeds)?;
+    let sp = drapemeter::Specimens::of(&reports)?;
     let path = a.out.join("specimens.json");
     std::fs::write(&path, serde_json::to_string_pretty(&sp)?)
         .with_context(|| format!("cannot write {}", path.display()))?;

@@ -867,13 +867,15 @@ fn drapemeter_averages_specimens_over_seeds() {
     let read = |p: &Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
     };
+    let numbers = |v: &serde_json::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
     let sp = read(&out.join("specimens.json"));
-    let seeds: Vec<u64> = sp["seeds"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s.as_u64().unwrap())
-        .collect();
+    let seeds: Vec<u64> = numbers(&sp["seeds"]).iter().map(|&s| s as u64).collect();
     assert_eq!(seeds, [4, 5, 6]);
     let reps: Vec<serde_json::Value> = seeds
         .iter()
@@ -883,13 +885,11 @@ fn drapemeter_averages_specimens_over_seeds() {
         .iter()
         .map(|r| r["drape_coefficient"].as_f64().unwrap())
         .collect();
-    let listed: Vec<f64> = sp["drape_coefficients"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|d| d.as_f64().unwrap())
-        .collect();
-    assert_eq!(listed, dc);
+    assert_eq!(numbers(&sp["drape_coefficients"]), dc);
+    // each specimen's report names its seed
+    for (r, s) in reps.iter().zip(&seeds) {
+        assert_eq!(r["seed"].as_u64(), Some(*s));
+    }
     let mean = dc.iter().sum::<f64>() / 3.0;
     let sd = (dc.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / 2.0).sqrt();
     let close = |k: &str, v: f64| {

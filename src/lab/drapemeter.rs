@@ -133,6 +133,8 @@ pub struct DrapeReport {
     pub disk_m: f64,
     pub spacing_m: f64,
     pub dt_s: f64,
+    /// Seed of the start perturbation ([`DrapeOptions::seed`]).
+    pub seed: u64,
     pub vertices: usize,
     pub simulated_s: f64,
     /// Time after which the RMS speed stayed below [`SETTLE_SPEED`], s.
@@ -410,6 +412,7 @@ pub fn run(
         disk_m: opt.disk,
         spacing_m: opt.spacing,
         dt_s: opt.dt,
+        seed: opt.seed,
         vertices: sim.cloth.len(),
         simulated_s: sim.time,
         settled_at_s: settled,
@@ -454,14 +457,10 @@ pub struct Specimens {
 }
 
 impl Specimens {
-    /// The statistics of the reports, specimen `k` run with `seeds[k]`.
-    pub fn of(reports: &[DrapeReport], seeds: &[u64]) -> Result<Specimens> {
-        if reports.is_empty() || reports.len() != seeds.len() {
-            bail!(
-                "{} specimen reports for {} seeds: need one report per seed, at least one",
-                reports.len(),
-                seeds.len()
-            );
+    /// The statistics of the reports (at least one).
+    pub fn of(reports: &[DrapeReport]) -> Result<Specimens> {
+        if reports.is_empty() {
+            bail!("no specimen report: need at least one");
         }
         let n = reports.len() as f64;
         let dc: Vec<f64> = reports.iter().map(|r| r.drape_coefficient).collect();
@@ -475,7 +474,7 @@ impl Specimens {
         Ok(Specimens {
             fabric: reports[0].fabric.clone(),
             spacing_m: reports[0].spacing_m,
-            seeds: seeds.to_vec(),
+            seeds: reports.iter().map(|r| r.seed).collect(),
             mean_drape_coefficient: mean,
             sd_drape_coefficient: sd,
             standard_error: sd / n.sqrt(),
@@ -690,13 +689,14 @@ pub fn top_view(shadow: &Shadow, rep: &DrapeReport) -> Image {
 mod tests {
     use super::*;
 
-    fn report(dc: f64, nodes: usize, settled: bool) -> DrapeReport {
+    fn report(seed: u64, dc: f64, nodes: usize, settled: bool) -> DrapeReport {
         DrapeReport {
             fabric: "f".into(),
             diameter_m: 0.3,
             disk_m: 0.18,
             spacing_m: 0.01,
             dt_s: 1e-3,
+            seed,
             vertices: 1,
             simulated_s: 1.0,
             settled_at_s: settled.then_some(0.5),
@@ -718,23 +718,23 @@ mod tests {
     fn specimens_give_the_mean_and_the_sample_deviation() {
         // 0.50, 0.54, 0.58: mean 0.54, sample sd 0.04, standard error 0.04/√3
         let reps = [
-            report(0.50, 8, true),
-            report(0.54, 10, false),
-            report(0.58, 9, true),
+            report(4, 0.50, 8, true),
+            report(5, 0.54, 10, false),
+            report(6, 0.58, 9, true),
         ];
-        let s = Specimens::of(&reps, &[4, 5, 6]).unwrap();
+        let s = Specimens::of(&reps).unwrap();
         assert!((s.mean_drape_coefficient - 0.54).abs() < 1e-12);
         assert!((s.sd_drape_coefficient - 0.04).abs() < 1e-12);
         assert!((s.standard_error - 0.04 / 3f64.sqrt()).abs() < 1e-12);
         assert_eq!((s.mean_nodes, s.nodes_range), (9.0, [8, 10]));
         assert_eq!((s.seeds, s.unsettled), (vec![4, 5, 6], 1));
         // one specimen: no spread
-        let one = Specimens::of(&reps[..1], &[1]).unwrap();
+        let one = Specimens::of(&reps[..1]).unwrap();
         assert_eq!((one.sd_drape_coefficient, one.standard_error), (0.0, 0.0));
-        // a report without its seed is refused
-        let err = Specimens::of(&reps, &[1, 2]).unwrap_err().to_string();
-        assert!(err.contains("3 specimen reports for 2 seeds"), "{err}");
-        assert!(Specimens::of(&[], &[]).is_err());
+        assert_eq!(one.seeds, [4]);
+        // no report at all is refused
+        let err = Specimens::of(&[]).unwrap_err().to_string();
+        assert!(err.contains("no specimen report"), "{err}");
     }
 
     #[test]
