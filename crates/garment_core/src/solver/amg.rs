@@ -34,8 +34,10 @@
 //!   residual, stopping test) stays in double precision.
 //! - The prolongators, coarse matrices and coarsest factor are kept from
 //!   step to step (up to [`KEEP_MAX`] steps) until the PCG's iterations
-//!   beyond those of the first solve with them add up to more than
-//!   [`KEEP_EXTRA`] ([`Amg::record`]); the finest level's `S D̂⁻¹ S` follows every step's
+//!   beyond those of the first solve with them add up to more than a
+//!   setup costs, counted in cycles by the operation counts of
+//!   [`Amg::cost`] (about ten at 1 and 0.5 cm; [`Amg::record`]); the
+//!   finest level's `S D̂⁻¹ S` follows every step's
 //!   matrix and filter. A kept hierarchy is an older approximation of the
 //!   coarse problem: the cycle stays symmetric positive definite on the
 //!   free directions (the smoother is this step's, and `S P` on the way up
@@ -65,10 +67,6 @@ const POWER_FIRST: usize = 12;
 const POWER_AGAIN: usize = 3;
 /// Steps the coarse levels are kept at most.
 const KEEP_MAX: u32 = 8;
-/// Iterations beyond those of the first solve with a kept hierarchy, summed
-/// over the later ones, beyond which it is filled again (a setup costs a
-/// few cycles: keeping it longer than that costs more than it saves).
-const KEEP_EXTRA: usize = 2;
 
 /// Block CSR with `n` rows of 3 × 3 blocks (rectangular).
 #[derive(Debug, Clone, Default)]
@@ -169,6 +167,9 @@ pub struct Amg {
     stale: bool,
     /// Iterations beyond `fresh` summed over the solves since.
     extra: usize,
+    /// A setup's cost in cycles ([`Amg::cost`]): the extra iterations
+    /// beyond which the coarse levels are filled again.
+    keep_extra: f64,
     /// Blocks of the finest matrix.
     blocks0: usize,
 }
@@ -306,7 +307,7 @@ impl Amg {
                 dinv: vec![Matrix3::zeros(); m],
             })
             .collect();
-        Ok(Amg {
+        let mut amg = Amg {
             bottom_filter: vec![Filter::Free; level_n],
             bottom_mass: vec![0.0; level_n],
             coarse,
@@ -321,8 +322,12 @@ impl Amg {
             fresh: 0,
             stale: false,
             extra: 0,
+            keep_extra: 0.0,
             blocks0: a.col.len(),
-        })
+        };
+        let (setup, cycle) = amg.cost();
+        amg.keep_extra = setup / cycle.max(1.0);
+        Ok(amg)
     }
 
     /// The cost of a setup and of a cycle, in products with the finest
@@ -521,16 +526,17 @@ impl Amg {
 
     /// Takes the iterations of the solve preconditioned since the last
     /// [`Amg::setup`]: the first after the coarse levels were filled sets
-    /// the reference; once the later ones have needed more than
-    /// [`KEEP_EXTRA`] iterations beyond it in all, the next setup fills
-    /// them again.
+    /// the reference; once the later ones have needed more iterations
+    /// beyond it in all than a setup costs in cycles ([`Amg::cost`]), the
+    /// next setup fills them again (rent or buy: the extra cycles paid for
+    /// keeping an aged hierarchy never exceed the price of a new one).
     pub fn record(&mut self, iterations: usize) {
         if self.age == 0 {
             self.fresh = iterations;
             self.extra = 0;
         } else {
             self.extra += iterations.saturating_sub(self.fresh);
-            if self.extra > KEEP_EXTRA {
+            if self.extra as f64 > self.keep_extra {
                 self.stale = true;
             }
         }
@@ -1418,6 +1424,49 @@ mod tests {
         for i in 0..n {
             assert!((got[i] - exact[i]).amax() <= 1e-7 * scale, "vertex {i}");
         }
+    }
+
+    /// The coarse levels are filled again once the iterations beyond the
+    /// first solve's, summed over the solves with the kept hierarchy, cost
+    /// more than a setup (both counted in products with the finest matrix
+    /// by [`Amg::cost`]), and at the latest after [`KEEP_MAX`] steps.
+    #[test]
+    fn the_hierarchy_is_refilled_when_its_extra_cycles_cost_a_setup() {
+        let (nx, ny) = (40, 36);
+        let (a, mass, edges, filter) = grid(nx, ny);
+        let x: Vec<Vector3<f64>> = (0..a.n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        let (setup, cycle) = amg.cost();
+        assert!(setup > cycle && cycle > 1.0, "setup {setup}, cycle {cycle}");
+        let budget = setup / cycle;
+        assert_eq!(amg.keep_extra, budget);
+        // iterations beyond the first solve's (10): up to the budget in all
+        // keeps the levels, one more fills them at the next setup
+        let within = budget.floor() as usize;
+        let step = |amg: &mut Amg, extra: usize| {
+            amg.setup(&a, &filter, &mass, &x).unwrap();
+            amg.record(10 + extra);
+            (amg.age, amg.stale)
+        };
+        assert_eq!(step(&mut amg, 0), (0, false), "the first setup fills");
+        assert_eq!(step(&mut amg, within), (1, false), "{within} extra: kept");
+        assert_eq!(step(&mut amg, 0), (2, false), "no more extra: kept");
+        assert_eq!(
+            step(&mut amg, 1),
+            (3, true),
+            "{} extra > {budget}",
+            within + 1
+        );
+        assert_eq!(step(&mut amg, 0), (0, false), "filled again");
+        // without extra iterations, KEEP_MAX bounds the age
+        let ages: Vec<u32> = (0..2 * KEEP_MAX).map(|_| step(&mut amg, 0).0).collect();
+        assert!(ages.iter().all(|&g| g < KEEP_MAX), "{ages:?}");
+        assert!(
+            ages.contains(&(KEEP_MAX - 1)) && ages[1..].contains(&0),
+            "{ages:?}"
+        );
     }
 
     /// The fused 3 × 3 kernels agree with nalgebra's products to rounding.
