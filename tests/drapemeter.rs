@@ -950,19 +950,20 @@ fn the_hinge_chain_bends_a_wave_softer_by_its_dispersion() {
     let continuum = 0.5 * b * a * a * k.powi(4) * (length / 2.0) * width;
     let mut report = String::new();
     for h in [0.01, 0.005, 0.0025] {
-        let c = Cloth::panel(&PanelSpec {
-            outline: Outline::Rectangle {
-                size: [length, width],
-            },
-            spacing: [h, h],
-            origin: [0.0, 0.0],
-            pose: Isometry3::identity(),
-            areal_mass: wool.areal_mass,
-            border: Border::Staircase,
+        let strip = Outline::Rectangle {
+            size: [length, width],
+        };
+        let mut c = Cloth::panel(&PanelSpec {
             hinges: HingeLayout::MirrorSymmetric,
+            ..PanelSpec::new(
+                &strip,
+                [h, h],
+                [0.0, 0.0],
+                &Isometry3::identity(),
+                wool.areal_mass,
+            )
         })
         .unwrap();
-        let mut c = c.clone();
         for i in 0..c.len() {
             let [u, v] = c.material[i];
             c.x[i] = Vector3::new(u, v, a * (k * u).sin());
