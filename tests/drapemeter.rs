@@ -413,6 +413,18 @@ fn drapemeter_stdout(args: &[&str], out: &Path) -> String {
     stdout
 }
 
+/// `drapemeter ARGS` fails, and its error names `word`.
+fn drapemeter_refused(args: &[&str], word: &str) {
+    let o = support::garment_sim()
+        .arg("drapemeter")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "drapemeter {args:?} succeeded");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains(word), "{stderr}");
+}
+
 /// [`drapemeter_stdout`] and the run's report.json.
 fn drapemeter_command(args: &[&str], out: &Path) -> (String, serde_json::Value) {
     let stdout = drapemeter_stdout(args, out);
@@ -437,19 +449,16 @@ fn drapemeter_command_writes_report_and_top_view() {
     let png = std::fs::read(out.join("top_view.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     // a bad geometry is an error naming it
-    let o = support::garment_sim()
-        .args([
-            "drapemeter",
+    drapemeter_refused(
+        &[
             "config/fabrics/polyester_faille.yaml",
             "--disk",
             "0.4",
             "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("disk"));
+            out.to_str().unwrap(),
+        ],
+        "disk",
+    );
 }
 
 /// A square of side `size` on a grid of `spacing`: with the grid's single
@@ -839,17 +848,14 @@ fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command
         rep["drape_coefficient"].as_f64().unwrap(),
         lib.drape_coefficient
     );
-    let o = support::garment_sim()
-        .args([
-            "drapemeter",
+    drapemeter_refused(
+        &[
             "config/fabrics/wool_tropical.yaml",
             "--clamp-half-spacing-out",
             "--clamp-area-matched",
-        ])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("clamp"));
+        ],
+        "clamp",
+    );
 }
 
 /// `--specimens N` drapes N specimens with seeds seed … seed + N − 1, each
@@ -916,14 +922,7 @@ fn drapemeter_averages_specimens_over_seeds() {
     assert_eq!(rep5["drape_coefficient"].as_f64().unwrap(), dc[1]);
     assert_eq!(rep5["node_angles_deg"], reps[1]["node_angles_deg"]);
     // no specimen at all is refused
-    let o = support::garment_sim()
-        .arg("drapemeter")
-        .args(args)
-        .args(["--specimens", "0"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("specimens"));
+    drapemeter_refused(&[&args[..], &["--specimens", "0"]].concat(), "specimens");
 }
 
 /// The hinge chain's dispersion, one likely cause of the coarse grids'
