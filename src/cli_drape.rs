@@ -3,6 +3,7 @@
 
 use crate::progress_printer;
 use anyhow::Result;
+use garment_sim::pattern::HingesFile;
 use garment_sim::run;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
@@ -54,6 +55,11 @@ pub struct DrapeArgs {
     /// absent; docs/lab.md).
     #[arg(long)]
     pub cell_shear: Option<bool>,
+    /// The bending hinges: skewed (one per grid edge) or mirror_symmetric
+    /// (pairs that bend alike in every direction) (default: the scene
+    /// file's `cloth.hinges`, skewed when absent; docs/drape.md).
+    #[arg(long)]
+    pub hinges: Option<HingesFile>,
     #[command(flatten)]
     pub bag: BagArgs,
     #[command(flatten)]
@@ -161,6 +167,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         self_collision,
         obstacle_edges,
         cell_shear,
+        hinges,
         bag,
         live,
     } = a;
@@ -176,6 +183,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         self_collision,
         obstacle_edges,
         cell_shear,
+        hinges,
     };
     let view = live
         .foxglove

@@ -43,6 +43,10 @@ pub struct Summary {
     /// the default) or `cells` (`cell_shear`: both diagonals of each cell,
     /// with the egg-crate guards).
     pub shear_measure: &'static str,
+    /// A scene's hinge layout (`skewed` or `mirror_symmetric`; absent for
+    /// other runs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hinges: Option<&'static str>,
     /// Threads of the assembly, the PCG and the contacts.
     pub threads: usize,
     pub simulated_s: f64,
@@ -200,6 +204,7 @@ pub fn run_with(
         } else {
             "diagonals"
         },
+        hinges: None,
         threads: sim.threads(),
         simulated_s: sim.time,
         steps,
@@ -280,6 +285,7 @@ pub fn drape_with(
         observer,
     )?;
     summary.scene = scene.path.display().to_string();
+    summary.hinges = Some(ov.hinges.unwrap_or(scene.file.cloth.hinges).name());
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create output directory {}", out.display()))?;
     write_ply(&sim, &out.join("final.ply"))?;

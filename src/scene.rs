@@ -2,12 +2,13 @@
 //! pose), obstacles, pins, gravity, time step, duration and output rate.
 //! Errors name the file, the field and what is wrong.
 
-use crate::cloth::{Cloth, GridSpec};
+use crate::cloth::{Cloth, GridSpec, PanelSpec};
 use crate::collision::{
     Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS,
 };
 use crate::fabric::Fabric;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
+use crate::pattern::HingesFile;
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -92,6 +93,11 @@ pub struct ClothSpec {
     /// Use the hysteretic parts of the laws.
     #[serde(default = "yes")]
     pub hysteresis: bool,
+    /// The bending hinges: `skewed` (one per grid edge, the default) or
+    /// `mirror_symmetric` (pairs that bend alike in every direction;
+    /// docs/drape.md).
+    #[serde(default, skip_serializing_if = "HingesFile::is_skewed")]
+    pub hinges: HingesFile,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -393,6 +399,9 @@ pub struct Overrides {
     /// The cells' shear measure on or off, whatever the scene file says.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cell_shear: Option<bool>,
+    /// The hinge layout, whatever the scene file says.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hinges: Option<HingesFile>,
 }
 
 impl Overrides {
@@ -596,7 +605,11 @@ impl Scene {
             let (nx, ny) = grid.dims();
             limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
         }
-        let cloth = Cloth::grid(&grid, self.fabric.areal_mass).with_context(ctx)?;
+        let cloth = Cloth::panel(&PanelSpec {
+            hinges: ov.hinges.unwrap_or(f.cloth.hinges).layout(),
+            ..PanelSpec::rectangle(&grid, self.fabric.areal_mass)
+        })
+        .with_context(ctx)?;
         // the obstacles lie within reach of the cloth (as a message's must),
         // and the cloth starts outside them (meshes may be open, with no
         // inside: not checked)

@@ -53,6 +53,12 @@ fn implausible_scene_fields_are_refused_with_the_field_named() {
     let out = out.to_str().unwrap();
     let cases: Vec<(&str, &str, &str, Vec<&str>)> = vec![
         (
+            "bad_hinges",
+            "  hinges: sideways\n",
+            "",
+            vec!["hinges", "sideways", "mirror_symmetric"],
+        ),
+        (
             "nan_target",
             "",
             "pins: [ { grid: [0, 0], target: [.nan, 0, 1] } ]\n",
@@ -181,6 +187,10 @@ fn implausible_command_line_values_are_refused() {
         ),
         (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.05"]),
         (drape(&["--spacing", "-0.1"]), vec!["--spacing = -0.1"]),
+        (
+            drape(&["--hinges", "diagonal"]),
+            vec!["--hinges", "diagonal", "skewed or mirror_symmetric"],
+        ),
         (
             [
                 "kes", fabric, "--test", "tensile", "--dt", "1000", "--out", out,

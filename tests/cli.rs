@@ -66,6 +66,52 @@ fn drape_writes_ply_energy_and_summary() {
     assert!(last[1] > 0.0);
 }
 
+/// `drape --hinges` and the scene's `cloth.hinges` choose the hinge layout
+/// (the flag over the key); `summary.json` names it, and the pairs make a
+/// different drape from the single hinges.
+#[test]
+fn drape_takes_the_hinge_layout_from_the_flag_and_the_scene_file() {
+    let out = tmp("hinges");
+    std::fs::create_dir_all(&out).unwrap();
+    let text = std::fs::read_to_string("config/scenes/free_fall.yaml").unwrap();
+    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/config/fabrics/");
+    let text = text.replace("../fabrics/", fabric);
+    let with_key = text.replacen("cloth:\n", "cloth:\n  hinges: mirror_symmetric\n", 1);
+    assert_ne!(with_key, text, "free_fall.yaml has a cloth section");
+    let (plain, keyed) = (out.join("plain.yaml"), out.join("keyed.yaml"));
+    std::fs::write(&plain, &text).unwrap();
+    std::fs::write(&keyed, &with_key).unwrap();
+    let run = |scene: &std::path::Path, flag: Option<&str>, name: &str| {
+        let dir = out.join(name);
+        let mut cmd = support::garment_sim();
+        cmd.arg("drape")
+            .arg(scene)
+            .args(["--duration", "0.1", "--out"])
+            .arg(&dir);
+        if let Some(f) = flag {
+            cmd.args(["--hinges", f]);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())
+                .unwrap();
+        let ply = std::fs::read_to_string(dir.join("final.ply")).unwrap();
+        (s["hinges"].as_str().unwrap().to_string(), ply)
+    };
+    let (h_default, p_default) = run(&plain, None, "default");
+    let (h_flag, p_flag) = run(&plain, Some("mirror_symmetric"), "flag");
+    let (h_key, p_key) = run(&keyed, None, "key");
+    let (h_over, p_over) = run(&keyed, Some("skewed"), "over");
+    assert_eq!(
+        [&h_default, &h_flag, &h_key, &h_over],
+        ["skewed", "mirror_symmetric", "mirror_symmetric", "skewed"]
+    );
+    assert_eq!(p_flag, p_key, "the flag and the key make the same cloth");
+    assert_eq!(p_default, p_over, "so do the default and --hinges skewed");
+    assert_ne!(p_default, p_flag, "the pairs drape differently");
+}
+
 #[test]
 fn a_bad_scene_is_a_clear_error_not_a_panic() {
     let dir = tmp("bad");

@@ -4,6 +4,7 @@
 
 use garment_sim::cloth::{Cloth, GridSpec};
 use garment_sim::fabric::Fabric;
+use garment_sim::pattern::HingesFile;
 use garment_sim::run;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
@@ -264,6 +265,67 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
         "settle time spread {:.2}",
         (hi - lo) / hi
     );
+}
+
+/// The scene's `cloth.hinges` (and `--hinges`) lays the hinges of a scene's
+/// cloth out in mirror-symmetric pairs (issue 24: bending that costs the same
+/// for a fold in any direction on every cloth, not only in the drapemeter).
+/// The hanging-corners scene is its own mirror image about the plane half way
+/// between its pins (grid column i ↔ nx − 1 − i: warp and weft keep their
+/// directions, the pins swap); with the pairs the cloth hangs as its own
+/// mirror image to round-off, with the single skewed hinge per edge it does
+/// not (its wings sit on one diagonal, which the mirror turns into the other).
+#[test]
+fn mirror_symmetric_hinges_hang_a_scene_as_its_own_mirror_image() {
+    let sc = scene("hanging_corners.yaml");
+    assert_eq!(sc.file.cloth.hinges, HingesFile::Skewed, "the default");
+    let asymmetry = |hinges: HingesFile| {
+        let ov = Overrides {
+            duration: Some(1.0),
+            hinges: Some(hinges),
+            ..Default::default()
+        };
+        let mut sim = sc.build(&ov).unwrap();
+        let hinges_of = sim.cloth.hinges.len();
+        let start = sim.cloth.x.clone();
+        run::run(&mut sim, 1.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
+        let c = &sim.cloth;
+        let (nx, ny) = (c.nx, c.ny);
+        // the mirror plane: half way between the two pins' start positions
+        let (a, b) = (c.index(0, 0).unwrap(), c.index(nx - 1, 0).unwrap());
+        let mid = 0.5 * (c.x[a] + c.x[b]);
+        let normal = (c.x[b] - c.x[a]).normalize();
+        let mirror = |p: Vector3<f64>| p - 2.0 * (p - mid).dot(&normal) * normal;
+        let mut worst: f64 = 0.0;
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = c.x[c.index(i, j).unwrap()];
+                let q = c.x[c.index(nx - 1 - i, j).unwrap()];
+                worst = worst.max((p - mirror(q)).norm());
+            }
+        }
+        // how far the cloth moved: its sag, not its start, is compared
+        let travel =
+            c.x.iter()
+                .zip(&start)
+                .map(|(p, s)| (p - s).norm())
+                .fold(0.0, f64::max);
+        (worst, hinges_of, travel)
+    };
+    let (skewed, n_skewed, t_skewed) = asymmetry(HingesFile::Skewed);
+    let (pairs, n_pairs, t_pairs) = asymmetry(HingesFile::MirrorSymmetric);
+    println!(
+        "largest distance from the mirror image after 1 s: skewed {:.3} mm ({n_skewed} hinges), \
+         pairs {:.2e} m ({n_pairs} hinges); largest displacement {:.3} / {:.3} m",
+        skewed * 1e3,
+        pairs,
+        t_skewed,
+        t_pairs
+    );
+    assert!(n_pairs > n_skewed, "the pairs are more hinges");
+    assert!(t_skewed > 0.01 && t_pairs > 0.01, "the cloth sagged");
+    assert!(pairs < 1e-7, "pairs: {pairs} m from the mirror image");
+    assert!(skewed > 1e-3, "skewed: {skewed} m from the mirror image");
 }
 
 #[test]

@@ -9,7 +9,7 @@ use crate::cloth::HingeLayout;
 use crate::garment::{PanelCut, SeamSpec};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -89,13 +89,48 @@ pub struct GarmentFile {
     pub hinges: HingesFile,
 }
 
-/// `hinges:` of a garment file.
-#[derive(Debug, Clone, Copy, Deserialize, Default, PartialEq, Eq)]
+/// `hinges:` of a garment or scene file, `--hinges` of `drape`: how each
+/// panel's bending hinges are laid out ([`HingeLayout`]).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, Default, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum HingesFile {
     #[default]
     Skewed,
     MirrorSymmetric,
+}
+
+impl HingesFile {
+    /// As written in a file: `skewed` or `mirror_symmetric`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HingesFile::Skewed => "skewed",
+            HingesFile::MirrorSymmetric => "mirror_symmetric",
+        }
+    }
+
+    pub fn is_skewed(&self) -> bool {
+        *self == HingesFile::Skewed
+    }
+
+    pub fn layout(self) -> HingeLayout {
+        match self {
+            HingesFile::Skewed => HingeLayout::Skewed,
+            HingesFile::MirrorSymmetric => HingeLayout::MirrorSymmetric,
+        }
+    }
+}
+
+impl std::str::FromStr for HingesFile {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "skewed" => Ok(HingesFile::Skewed),
+            "mirror_symmetric" | "mirror-symmetric" => Ok(HingesFile::MirrorSymmetric),
+            _ => Err(format!(
+                "unknown hinge layout {s:?}: expected skewed or mirror_symmetric"
+            )),
+        }
+    }
 }
 
 /// A garment as read: its panels cut in the world, its seams, its fabric.
@@ -138,10 +173,7 @@ impl GarmentDef {
     pub fn from_file(file: GarmentFile, path: &Path) -> Result<GarmentDef> {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let default_grain = file.grain_deg.unwrap_or(90.0);
-        let hinges = match file.hinges {
-            HingesFile::Skewed => HingeLayout::Skewed,
-            HingesFile::MirrorSymmetric => HingeLayout::MirrorSymmetric,
-        };
+        let hinges = file.hinges.layout();
         let grain = |deg: f64| [deg.to_radians().cos(), deg.to_radians().sin()];
         let mut cuts: Vec<PanelCut> = Vec::new();
         let mut pending: Vec<(String, usize, String, usize)> = Vec::new();
