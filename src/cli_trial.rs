@@ -37,6 +37,10 @@ pub struct TrialArgs {
     /// (default: the trial's `cell_shear`, off when absent; docs/lab.md).
     #[arg(long)]
     cell_shear: Option<bool>,
+    /// Relative tolerance of the PCG, in (0, 1) (default: the trial's `cg_tolerance`,
+    /// 1e-6 when absent).
+    #[arg(long, allow_negative_numbers = true)]
+    cg_tolerance: Option<f64>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -49,6 +53,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         self_collision: a.self_collision,
         obstacle_edges: a.obstacle_edges,
         cell_shear: a.cell_shear,
+        cg_tolerance: a.cg_tolerance,
     };
     if t.file.dressing.is_some() {
         return dress(&t, &ov, &a);

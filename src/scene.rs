@@ -343,6 +343,10 @@ pub struct SceneFile {
     pub output_rate: f64,
     #[serde(default)]
     pub solver: Option<LinearSolverKind>,
+    /// The PCG's relative tolerance, in (0, 1) (default 1e-6; docs/benchmarks.md,
+    /// "The stopping test and the final shape").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cg_tolerance: Option<f64>,
     /// A run counts as settled once the rms speed stays below this, m/s.
     #[serde(default = "default_settle_speed")]
     pub settle_speed: f64,
@@ -472,6 +476,9 @@ impl Scene {
         };
         pos("dt", f.dt)?;
         limits::check_dt("dt", f.dt)?;
+        if let Some(t) = f.cg_tolerance {
+            limits::check_cg_tolerance("cg_tolerance", t)?;
+        }
         if !(f.duration.is_finite() && f.duration >= 0.0) {
             bail!("duration = {}: must be ≥ 0 s", f.duration);
         }
@@ -636,7 +643,10 @@ impl Scene {
             ..Params::default()
         };
         let params = Params {
-            cg_tolerance: ov.cg_tolerance.unwrap_or(params.cg_tolerance),
+            cg_tolerance: ov
+                .cg_tolerance
+                .or(f.cg_tolerance)
+                .unwrap_or(params.cg_tolerance),
             threads: ov.threads.unwrap_or(0),
             ..params
         };

@@ -170,6 +170,9 @@ pub struct TrialFile {
     pub settle: SettleFile,
     #[serde(default)]
     pub linear_solver: Option<LinearSolverKind>,
+    /// The PCG's relative tolerance, in (0, 1) (default 1e-6).
+    #[serde(default)]
+    pub cg_tolerance: Option<f64>,
     #[serde(default)]
     pub threads: Option<usize>,
     /// Keep the garment from passing through itself (docs/self_collision.md;
@@ -218,6 +221,8 @@ pub struct TrialOverrides {
     pub obstacle_edges: Option<bool>,
     /// The cells' shear measure with the egg-crate guards.
     pub cell_shear: Option<bool>,
+    /// The PCG's relative tolerance.
+    pub cg_tolerance: Option<f64>,
 }
 
 /// What the body mesh check found and repaired.
@@ -423,6 +428,9 @@ impl Trial {
         )?;
         let dt = ov.dt.unwrap_or(self.file.dt);
         crate::limits::check_dt("dt", dt)?;
+        if let Some(t) = ov.cg_tolerance.or(self.file.cg_tolerance) {
+            crate::limits::check_cg_tolerance("cg_tolerance", t)?;
+        }
         let masses: Vec<f64> = self.fabrics.iter().map(|f| f.areal_mass).collect();
         let g = Garment::build_with_fabrics(
             &self.garment.cuts,
@@ -466,6 +474,13 @@ impl Trial {
             obstacle_edges: ov.obstacle_edges.unwrap_or(self.file.obstacle_edges),
             cell_shear: ov.cell_shear.unwrap_or(self.file.cell_shear),
             ..Params::default()
+        };
+        let params = Params {
+            cg_tolerance: ov
+                .cg_tolerance
+                .or(self.file.cg_tolerance)
+                .unwrap_or(params.cg_tolerance),
+            ..params
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
         sim.add_obstacle(self.body.clone());

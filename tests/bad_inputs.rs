@@ -53,6 +53,12 @@ fn implausible_scene_fields_are_refused_with_the_field_named() {
     let out = out.to_str().unwrap();
     let cases: Vec<(&str, &str, &str, Vec<&str>)> = vec![
         (
+            "bad_cg_tolerance",
+            "",
+            "cg_tolerance: 2.0\n",
+            vec!["cg_tolerance = 2", "(0, 1)"],
+        ),
+        (
             "bad_hinges",
             "  hinges: sideways\n",
             "",
@@ -187,6 +193,22 @@ fn implausible_command_line_values_are_refused() {
         ),
         (drape(&["--dt", "1000"]), vec!["--dt = 1000", "0.05"]),
         (drape(&["--spacing", "-0.1"]), vec!["--spacing = -0.1"]),
+        (
+            [
+                "trial",
+                concat!(
+                    env!("CARGO_MANIFEST_DIR"),
+                    "/config/trials/skirt_on_anny.yaml"
+                ),
+                "--cg-tolerance",
+                "2",
+                "--out",
+                out,
+            ]
+            .map(String::from)
+            .to_vec(),
+            vec!["cg_tolerance = 2", "(0, 1)"],
+        ),
         (
             drape(&["--hinges", "diagonal"]),
             vec!["--hinges", "diagonal", "skewed or mirror_symmetric"],

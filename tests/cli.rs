@@ -112,6 +112,39 @@ fn drape_takes_the_hinge_layout_from_the_flag_and_the_scene_file() {
     assert_ne!(p_default, p_flag, "the pairs drape differently");
 }
 
+/// The scene's `cg_tolerance` sets the PCG's relative tolerance; `--cg-tolerance`
+/// wins over it (Blender's own tolerance is 1e-2, docs/benchmarks.md).
+#[test]
+fn the_scene_file_sets_the_pcg_tolerance() {
+    use garment_sim::scene::{Overrides, Scene};
+    let out = tmp("cg_tolerance");
+    std::fs::create_dir_all(&out).unwrap();
+    let text = std::fs::read_to_string("config/scenes/free_fall.yaml").unwrap();
+    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/config/fabrics/");
+    let path = out.join("loose.yaml");
+    std::fs::write(
+        &path,
+        format!(
+            "{}cg_tolerance: 0.01\n",
+            text.replace("../fabrics/", fabric)
+        ),
+    )
+    .unwrap();
+    let sc = Scene::load(&path).unwrap();
+    let sim = sc.build(&Overrides::default()).unwrap();
+    assert_eq!(sim.params().cg_tolerance, 0.01);
+    let sim = sc
+        .build(&Overrides {
+            cg_tolerance: Some(1e-4),
+            ..Default::default()
+        })
+        .unwrap();
+    assert_eq!(sim.params().cg_tolerance, 1e-4);
+    let plain = Scene::load(std::path::Path::new("config/scenes/free_fall.yaml")).unwrap();
+    let sim = plain.build(&Overrides::default()).unwrap();
+    assert_eq!(sim.params().cg_tolerance, 1e-6, "the default");
+}
+
 #[test]
 fn a_bad_scene_is_a_clear_error_not_a_panic() {
     let dir = tmp("bad");

@@ -165,6 +165,7 @@ fn load(s: &Settings) -> Result<Loaded> {
             self_collision: ov.self_collision,
             obstacle_edges: ov.obstacle_edges,
             cell_shear: ov.cell_shear,
+            cg_tolerance: ov.cg_tolerance,
         })?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;

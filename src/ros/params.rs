@@ -23,6 +23,8 @@ pub struct Settings {
     pub dt: f64,
     pub spacing: f64,
     pub solver: String,
+    /// The PCG's relative tolerance (0: the scene's or trial's, else 1e-6).
+    pub cg_tolerance: f64,
     pub threads: i64,
     pub record_bag: String,
     pub foxglove: String,
@@ -49,6 +51,7 @@ impl Default for Settings {
             dt: 0.0,
             spacing: 0.0,
             solver: String::new(),
+            cg_tolerance: 0.0,
             threads: 0,
             record_bag: String::new(),
             foxglove: String::new(),
@@ -316,7 +319,8 @@ pub const PARAMETERS: &[Parameter] = &[
         name: "solver",
         kind: Kind::String,
         runtime: false,
-        description: "linear solver override: `auto`, `pcg` or `cholesky` (empty: the scene's)",
+        description: "linear solver override: `auto`, `pcg`, `amg` or `cholesky` (empty: the \
+                      scene's)",
         get: |s| Value::Str(s.solver.clone()),
         put: |s, v| {
             let k = text(v);
@@ -324,6 +328,22 @@ pub const PARAMETERS: &[Parameter] = &[
                 k.parse::<LinearSolverKind>()?;
             }
             s.solver = k;
+            Ok(())
+        },
+    },
+    Parameter {
+        name: "cg_tolerance",
+        kind: Kind::Double,
+        runtime: false,
+        description: "the PCG's relative tolerance override, in (0, 1) (0: the scene's or \
+                      trial's, else 1e-6; 1e-2 is Blender's own, docs/benchmarks.md)",
+        get: |s| Value::Double(s.cg_tolerance),
+        put: |s, v| {
+            let d = nonneg(v, false, "must be in (0, 1) (0: the scene's)")?;
+            if d >= 1.0 {
+                return Err("must be in (0, 1) (0: the scene's)".into());
+            }
+            s.cg_tolerance = d;
             Ok(())
         },
     },
@@ -514,6 +534,7 @@ impl Settings {
                 "" => None,
                 k => Some(k.parse::<LinearSolverKind>().map_err(anyhow::Error::msg)?),
             },
+            cg_tolerance: (self.cg_tolerance > 0.0).then_some(self.cg_tolerance),
             threads: (self.threads > 0).then_some(self.threads as usize),
             self_collision: self.self_collision,
             obstacle_edges: self.obstacle_edges,
@@ -653,6 +674,34 @@ mod tests {
             s.max_mesh_triangles,
             crate::collision::MAX_MESH_TRIANGLES as i64
         );
+    }
+
+    #[test]
+    fn cg_tolerance_is_set_by_p_or_left_to_the_scene() {
+        let s = |a: &[&str]| a.iter().map(|t| t.to_string()).collect::<Vec<_>>();
+        let of = |a: &[&str]| {
+            let (_, ra) = args::parse(&s(a)).unwrap();
+            settings_from_args(&ra, "/garment_sim")
+                .map(|st| st.overrides().unwrap().cg_tolerance)
+                .map_err(|e| format!("{e:#}"))
+        };
+        assert_eq!(of(&["--ros-args"]), Ok(None), "unset: the scene's");
+        assert_eq!(
+            of(&["--ros-args", "-p", "cg_tolerance:=0.01"]),
+            Ok(Some(0.01))
+        );
+        assert_eq!(of(&["--ros-args", "-p", "cg_tolerance:=0.0"]), Ok(None));
+        for bad in [
+            "cg_tolerance:=1.0",
+            "cg_tolerance:=-0.1",
+            "cg_tolerance:=.nan",
+        ] {
+            let e = of(&["--ros-args", "-p", bad]).unwrap_err();
+            assert!(
+                e.contains("cg_tolerance") && e.contains("(0, 1)"),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]
