@@ -66,16 +66,22 @@ fn drape_writes_ply_energy_and_summary() {
     assert!(last[1] > 0.0);
 }
 
+/// The text of `free_fall.yaml` with its fabric's path made absolute, for a
+/// variant written to `dir` (created).
+fn free_fall_elsewhere(dir: &std::path::Path) -> String {
+    std::fs::create_dir_all(dir).unwrap();
+    let text = std::fs::read_to_string("config/scenes/free_fall.yaml").unwrap();
+    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/config/fabrics/");
+    text.replace("../fabrics/", fabric)
+}
+
 /// `drape --hinges` and the scene's `cloth.hinges` choose the hinge layout
 /// (the flag over the key); `summary.json` names it, and the pairs make a
 /// different drape from the single hinges.
 #[test]
 fn drape_takes_the_hinge_layout_from_the_flag_and_the_scene_file() {
     let out = tmp("hinges");
-    std::fs::create_dir_all(&out).unwrap();
-    let text = std::fs::read_to_string("config/scenes/free_fall.yaml").unwrap();
-    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/config/fabrics/");
-    let text = text.replace("../fabrics/", fabric);
+    let text = free_fall_elsewhere(&out);
     let with_key = text.replacen("cloth:\n", "cloth:\n  hinges: mirror_symmetric\n", 1);
     assert_ne!(with_key, text, "free_fall.yaml has a cloth section");
     let (plain, keyed) = (out.join("plain.yaml"), out.join("keyed.yaml"));
@@ -118,18 +124,8 @@ fn drape_takes_the_hinge_layout_from_the_flag_and_the_scene_file() {
 fn the_scene_file_sets_the_pcg_tolerance() {
     use garment_sim::scene::{Overrides, Scene};
     let out = tmp("cg_tolerance");
-    std::fs::create_dir_all(&out).unwrap();
-    let text = std::fs::read_to_string("config/scenes/free_fall.yaml").unwrap();
-    let fabric = concat!(env!("CARGO_MANIFEST_DIR"), "/config/fabrics/");
     let path = out.join("loose.yaml");
-    std::fs::write(
-        &path,
-        format!(
-            "{}cg_tolerance: 0.01\n",
-            text.replace("../fabrics/", fabric)
-        ),
-    )
-    .unwrap();
+    std::fs::write(&path, free_fall_elsewhere(&out) + "cg_tolerance: 0.01\n").unwrap();
     let sc = Scene::load(&path).unwrap();
     let sim = sc.build(&Overrides::default()).unwrap();
     assert_eq!(sim.params().cg_tolerance, 0.01);
