@@ -691,6 +691,12 @@ mod tests {
             Ok(Some(0.01))
         );
         assert_eq!(of(&["--ros-args", "-p", "cg_tolerance:=0.0"]), Ok(None));
+        // as a ROS user writes it: exponent form, and an integer zero
+        assert_eq!(
+            of(&["--ros-args", "-p", "cg_tolerance:=1e-2"]),
+            Ok(Some(0.01))
+        );
+        assert_eq!(of(&["--ros-args", "-p", "cg_tolerance:=0"]), Ok(None));
         for bad in [
             "cg_tolerance:=1.0",
             "cg_tolerance:=-0.1",
