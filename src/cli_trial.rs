@@ -2,6 +2,7 @@
 
 use anyhow::Result;
 use garment_sim::render::{full_scale, FieldPicture, Surface};
+use garment_sim::solver::LinearSolverKind;
 use garment_sim::trial::{self, Trial, TrialOverrides};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -41,6 +42,10 @@ pub struct TrialArgs {
     /// 1e-6 when absent).
     #[arg(long, allow_negative_numbers = true)]
     cg_tolerance: Option<f64>,
+    /// Linear solver: auto, pcg, amg or cholesky (default: the trial's `linear_solver`,
+    /// auto when absent; docs/drape.md).
+    #[arg(long)]
+    solver: Option<LinearSolverKind>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -54,6 +59,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         obstacle_edges: a.obstacle_edges,
         cell_shear: a.cell_shear,
         cg_tolerance: a.cg_tolerance,
+        solver: a.solver,
     };
     if t.file.dressing.is_some() {
         return dress(&t, &ov, &a);

@@ -223,6 +223,8 @@ pub struct TrialOverrides {
     pub cell_shear: Option<bool>,
     /// The PCG's relative tolerance.
     pub cg_tolerance: Option<f64>,
+    /// The linear solver, whatever the trial file's `linear_solver` says.
+    pub solver: Option<LinearSolverKind>,
 }
 
 /// What the body mesh check found and repaired.
@@ -466,7 +468,7 @@ impl Trial {
         }
         let params = Params {
             dt,
-            linear_solver: self.file.linear_solver.unwrap_or_default(),
+            linear_solver: ov.solver.or(self.file.linear_solver).unwrap_or_default(),
             threads: ov.threads.or(self.file.threads).unwrap_or(0),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,

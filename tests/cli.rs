@@ -141,6 +141,35 @@ fn the_scene_file_sets_the_pcg_tolerance() {
     assert_eq!(sim.params().cg_tolerance, 1e-6, "the default");
 }
 
+/// A trial's solver and PCG tolerance come from its file unless overridden
+/// (`trial --solver`, `--cg-tolerance`; the node's `solver` and
+/// `cg_tolerance` parameters pass the same overrides).
+#[test]
+fn a_trial_takes_the_solver_and_tolerance_overrides() {
+    use garment_sim::solver::LinearSolverKind;
+    use garment_sim::trial::{Trial, TrialOverrides};
+    let t = Trial::load(std::path::Path::new("config/trials/skirt_on_anny.yaml")).unwrap();
+    let coarse = TrialOverrides {
+        spacing: Some(0.02),
+        ..Default::default()
+    };
+    let (sim, _) = t.build(&coarse).unwrap();
+    assert_eq!(
+        sim.params().linear_solver,
+        t.file.linear_solver.unwrap_or_default()
+    );
+    assert_eq!(sim.params().cg_tolerance, 1e-6);
+    let (sim, _) = t
+        .build(&TrialOverrides {
+            solver: Some(LinearSolverKind::Amg),
+            cg_tolerance: Some(1e-3),
+            ..coarse
+        })
+        .unwrap();
+    assert_eq!(sim.params().linear_solver, LinearSolverKind::Amg);
+    assert_eq!(sim.params().cg_tolerance, 1e-3);
+}
+
 #[test]
 fn a_bad_scene_is_a_clear_error_not_a_panic() {
     let dir = tmp("bad");

@@ -166,6 +166,7 @@ fn load(s: &Settings) -> Result<Loaded> {
             obstacle_edges: ov.obstacle_edges,
             cell_shear: ov.cell_shear,
             cg_tolerance: ov.cg_tolerance,
+            solver: ov.solver,
         })?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;

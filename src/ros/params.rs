@@ -320,7 +320,7 @@ pub const PARAMETERS: &[Parameter] = &[
         kind: Kind::String,
         runtime: false,
         description: "linear solver override: `auto`, `pcg`, `amg` or `cholesky` (empty: the \
-                      scene's)",
+                      scene's or trial's)",
         get: |s| Value::Str(s.solver.clone()),
         put: |s, v| {
             let k = text(v);
