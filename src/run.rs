@@ -285,7 +285,7 @@ pub fn drape_with(
         observer,
     )?;
     summary.scene = scene.path.display().to_string();
-    summary.hinges = Some(ov.hinges.unwrap_or(scene.file.cloth.hinges).name());
+    summary.hinges = Some(scene.hinges(ov).name());
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create output directory {}", out.display()))?;
     write_ply(&sim, &out.join("final.ply"))?;

@@ -613,7 +613,7 @@ impl Scene {
             limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
         }
         let cloth = Cloth::panel(&PanelSpec {
-            hinges: ov.hinges.unwrap_or(f.cloth.hinges).layout(),
+            hinges: self.hinges(ov).layout(),
             ..PanelSpec::rectangle(&grid, self.fabric.areal_mass)
         })
         .with_context(ctx)?;
@@ -742,5 +742,10 @@ impl Scene {
 
     pub fn duration(&self, ov: &Overrides) -> f64 {
         ov.duration.unwrap_or(self.file.duration)
+    }
+
+    /// The hinge layout of a run with `ov`.
+    pub fn hinges(&self, ov: &Overrides) -> HingesFile {
+        ov.hinges.unwrap_or(self.file.cloth.hinges)
     }
 }

@@ -430,7 +430,9 @@ impl Trial {
         )?;
         let dt = ov.dt.unwrap_or(self.file.dt);
         crate::limits::check_dt("dt", dt)?;
-        if let Some(t) = ov.cg_tolerance.or(self.file.cg_tolerance) {
+        // checked before the garment is cut, as dt is (the simulation checks both again)
+        let cg_tolerance = ov.cg_tolerance.or(self.file.cg_tolerance);
+        if let Some(t) = cg_tolerance {
             crate::limits::check_cg_tolerance("cg_tolerance", t)?;
         }
         let masses: Vec<f64> = self.fabrics.iter().map(|f| f.areal_mass).collect();
@@ -475,14 +477,8 @@ impl Trial {
             self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
             obstacle_edges: ov.obstacle_edges.unwrap_or(self.file.obstacle_edges),
             cell_shear: ov.cell_shear.unwrap_or(self.file.cell_shear),
+            cg_tolerance: cg_tolerance.unwrap_or(Params::default().cg_tolerance),
             ..Params::default()
-        };
-        let params = Params {
-            cg_tolerance: ov
-                .cg_tolerance
-                .or(self.file.cg_tolerance)
-                .unwrap_or(params.cg_tolerance),
-            ..params
         };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
         sim.add_obstacle(self.body.clone());

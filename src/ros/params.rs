@@ -339,9 +339,10 @@ pub const PARAMETERS: &[Parameter] = &[
                       trial's, else 1e-6; 1e-2 is Blender's own, docs/benchmarks.md)",
         get: |s| Value::Double(s.cg_tolerance),
         put: |s, v| {
-            let d = nonneg(v, false, "must be in (0, 1) (0: the scene's)")?;
+            const RULE: &str = "must be in (0, 1) (0: the scene's)";
+            let d = nonneg(v, false, RULE)?;
             if d >= 1.0 {
-                return Err("must be in (0, 1) (0: the scene's)".into());
+                return Err(RULE.into());
             }
             s.cg_tolerance = d;
             Ok(())
