@@ -321,6 +321,12 @@ pub struct CantileverArgs {
     /// The grid's single skewed hinge per edge instead of mirror-symmetric pairs.
     #[arg(long)]
     pub single_hinges: bool,
+    /// Keep the fabric's own bending damping: each row's release then swings the
+    /// overhang, the swings wear the hysteretic memories down, and the reading
+    /// depends on the step and the damping (by default the bending damping is
+    /// raised to damp the overhang critically, a quasi-static slide).
+    #[arg(long)]
+    pub fabric_damping: bool,
     /// Output directory (report.json, strip.png, readings.png).
     #[arg(long, default_value = "out/cantilever")]
     pub out: PathBuf,
@@ -337,6 +343,7 @@ pub fn cantilever(a: CantileverArgs) -> Result<()> {
         slide_speed: a.speed,
         hysteresis: !a.no_hysteresis,
         symmetric_hinges: !a.single_hinges,
+        quasi_static: !a.fabric_damping,
         ..Default::default()
     };
     let mut pr = crate::progress_printer(format!(
@@ -363,6 +370,16 @@ pub fn cantilever(a: CantileverArgs) -> Result<()> {
         rep.vertices,
         opt.dt,
         if opt.hysteresis { "on" } else { "off" }
+    );
+    println!(
+        "slide              {} m/s, bending damping {:.3} s ({})",
+        opt.slide_speed,
+        rep.beta_bend_s,
+        if opt.quasi_static && rep.beta_bend_s != fabric.damping.beta_bend {
+            "quasi-static: the overhang's lowest mode critically damped"
+        } else {
+            "the fabric's"
+        }
     );
     println!("readings at rest   overhang (cm)  tip angle (°)  elastica c (cm)  Peirce c (cm)");
     for r in &rep.readings {

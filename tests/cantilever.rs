@@ -4,6 +4,7 @@
 
 mod support;
 use garment_sim::fabric::kes::GF_CM2_PER_CM;
+use garment_sim::fabric::law::{Law, LawState};
 use garment_sim::lab::cantilever::*;
 use garment_sim::lab::kes_lab::Direction;
 
@@ -235,18 +236,18 @@ fn cantilever_converges_to_the_fabric_b_without_hysteresis() {
     assert!(worst < 0.01, "{report}");
 }
 
-/// The bound: B within 5 % at 1 cm, hysteresis on. Not met (see
-/// docs/lab.md, cantilever): at 1 cm the 41.5° overhang of these fabrics
-/// (2.4–4.2 cm) spans 2–4 rows, and the discrete strip reads B 5–18 % high
-/// without hysteresis (0.1–0.7 % at 0.25 cm): a strip of n free rows deflects
-/// `[n(n+1)/(n+½)²]²` of the continuum (the discrete clamp's test above), so
-/// meeting the bound needs a bending element of higher order along the
-/// thread, not a different reading; the KES loop's half width
-/// 2HB/2 adds to the moment of a strip loaded from flat (the loading branch
-/// Bκ + 2HB/2), +14 … +74 % at 1 cm, +0.6 … +50 % at 0.25 cm (cotton
-/// broadcloth, whose 2HB exceeds its B).
+/// The bound: B within 5 % at 1 cm, hysteresis on. Not met, and
+/// not reachable by the model's laws (docs/lab.md, cantilever): the
+/// continuum slide of each fabric's hysteretic law reads 7 … 95 % above its
+/// KES B (the test above; a strip loaded from flat follows the loading
+/// branch, up to 2HB/2 above Bκ in moment), and the simulated slide
+/// converges to that, not to B. At 1 cm the grid adds its own error: the
+/// 41.5° overhang (2.4–4.2 cm) spans 2–4 rows, the elastic strip reads 5–18 %
+/// high (a strip of n free rows deflects `[n(n+1)/(n+½)²]²` of the continuum,
+/// the discrete clamp's test above) and the hysteretic one 20–36 points above
+/// the continuum slide (wool tropical +48.8 % against +22.8 %).
 #[test]
-#[ignore = "fails: B +14 … +74 % at 1 cm (discretisation and the KES loop's 2HB), see docs/lab.md"]
+#[ignore = "fails: B +40 … +126 % at 1 cm; the hysteretic laws' own continuum slide reads +7 … +95 % (docs/lab.md)"]
 fn every_shipped_fabric_gives_back_its_b_at_1_cm() {
     let mut report = String::new();
     let mut worst = 0.0f64;
@@ -269,4 +270,378 @@ fn every_shipped_fabric_gives_back_its_b_at_1_cm() {
     }
     println!("{report}");
     assert!(worst < 0.05, "{report}");
+}
+
+/// κ at which the law, from memory `st`, gives the moment `m` (the law is
+/// increasing in κ): Newton safeguarded by a bracket grown from `guess`.
+fn curvature_for_moment(law: &Law, st: &LawState, m: f64, guess: f64, scale: f64) -> f64 {
+    let f = |k: f64| law.eval(st, k).0 - m;
+    let (mut lo, mut hi) = (guess - scale, guess + scale);
+    while f(lo) > 0.0 {
+        lo -= 2.0 * (hi - lo);
+    }
+    while f(hi) < 0.0 {
+        hi += 2.0 * (hi - lo);
+    }
+    let mut k = guess.clamp(lo, hi);
+    for _ in 0..100 {
+        let (v, d) = law.eval(st, k);
+        let r = v - m;
+        if r.abs() <= 1e-13 * (m.abs() + 1e-9) {
+            return k;
+        }
+        if r > 0.0 {
+            hi = k;
+        } else {
+            lo = k;
+        }
+        let newton = k - r / d;
+        k = if d > 0.0 && newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if hi - lo < 1e-14 * scale {
+            break;
+        }
+    }
+    k
+}
+
+/// Peirce's cantilever as a continuum: an inextensible strip whose bending
+/// moment per width follows `law` (with its hysteretic memory, one per
+/// material point, flat and unloaded on the platform) slid quasi-statically
+/// over the edge in steps of `du`. At every overhang the strip is at rest:
+/// `M' = −w (l − s) cos θ`, `θ' = κ` with `law(κ; memory) = M`, `θ(0) = 0`,
+/// `M(l) = 0` (Heun's rule on the material points, bisection on the clamp
+/// moment), then each point's memory is advanced to its curvature (the point
+/// just past the edge in small increments from flat: the Dahl operator's
+/// monotone path). Returns the overhang at which the tip line falls 41.5°
+/// below the horizontal.
+fn continuous_slide_overhang(law: &Law, w: f64, du: f64) -> f64 {
+    let mut st = vec![LawState::at(0.0)];
+    let mut kappa = vec![0.0];
+    let scale = 100.0; // 1/m: a curvature of 1 cm⁻¹
+    let mut prev_angle = 0.0;
+    for k in 1.. {
+        // material point i from the tip (u = i du); overhang l = k du; node
+        // j along the overhang from the edge is material point k − j
+        st.push(LawState::at(0.0));
+        kappa.push(0.0);
+        let l = k as f64 * du;
+        let profile = |m0: f64, kap: &mut Vec<f64>| -> (f64, f64, f64) {
+            let (mut th, mut m, mut x, mut z) = (0.0f64, m0, 0.0f64, 0.0f64);
+            let mut kj = curvature_for_moment(law, &st[k], m, kap[k], scale);
+            kap[k] = kj;
+            for j in 0..k {
+                let (s0, s1) = (j as f64 * du, (j + 1) as f64 * du);
+                let i1 = k - j - 1;
+                let th_p = th + du * kj;
+                let m_p = m - du * w * (l - s0) * th.cos();
+                let k_p = curvature_for_moment(law, &st[i1], m_p, kap[i1], scale);
+                let th1 = th + 0.5 * du * (kj + k_p);
+                let m1 = m - 0.5 * du * w * ((l - s0) * th.cos() + (l - s1) * th_p.cos());
+                let k1 = curvature_for_moment(law, &st[i1], m1, k_p, scale);
+                x += 0.5 * du * (th.cos() + th1.cos());
+                z -= 0.5 * du * (th.sin() + th1.sin());
+                th = th1;
+                m = m1;
+                kj = k1;
+                kap[i1] = k1;
+            }
+            (m, x, z)
+        };
+        let (mut lo, mut hi) = (0.0, w * l * l / 2.0);
+        let mut kap = kappa.clone();
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if profile(mid, &mut kap).0 < 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let (_, x, z) = profile(0.5 * (lo + hi), &mut kap);
+        // advance the memories: the edge's point from flat in small steps
+        for n in 1..=64 {
+            law.commit(&mut st[k], kap[k] * n as f64 / 64.0);
+        }
+        for i in 0..k {
+            law.commit(&mut st[i], kap[i]);
+        }
+        kappa = kap;
+        let angle = (-z).atan2(x).to_degrees();
+        if angle >= PEIRCE_ANGLE_DEG {
+            let t = (PEIRCE_ANGLE_DEG - prev_angle) / (angle - prev_angle);
+            return (k as f64 - 1.0 + t) * du;
+        }
+        prev_angle = angle;
+    }
+    unreachable!()
+}
+
+/// The continuum slide's reading of B, relative to the fabric's B, for the
+/// law of one direction with or without its hysteresis.
+fn continuum_reading(
+    f: &garment_sim::fabric::Fabric,
+    dir: Direction,
+    hysteresis: bool,
+    du: f64,
+) -> f64 {
+    let (b, _) = fabric_bending(f, dir).unwrap();
+    let law = f.dir(dir == Direction::Weft).bending;
+    let law = if hysteresis {
+        law
+    } else {
+        law.without_hysteresis()
+    };
+    let w = f.areal_mass * 9.81;
+    let l = continuous_slide_overhang(&law, w, du);
+    w * (l / 2.0).powi(3) / (b * GF_CM2_PER_CM) - 1.0
+}
+
+/// The continuum slide above reads back B for the elastic law (the elastica
+/// puts the tip line of an overhang 2c at 41.49°), which checks the
+/// integrator and its path; with the fabric's hysteresis it reads the
+/// model's own quasi-static cantilever B, 7 … 95 % above the KES B: a strip
+/// loaded from flat follows the loading branch, stiffer than B by up to
+/// 2HB/2 in moment. These are the figures the simulated slide converges to
+/// with hysteresis (next tests), so no grid can bring a hysteretic strip
+/// within 5 % of the KES B where 2HB is large against the clamp's moment.
+#[test]
+fn the_continuum_slide_reads_b_for_the_elastic_law_and_more_with_hysteresis() {
+    let mut report = String::new();
+    for path in support::shipped_fabrics() {
+        let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+        let f = garment_sim::io::load_fabric(&path).unwrap();
+        for dir in Direction::ALL {
+            let (b, hb) = fabric_bending(&f, dir).unwrap();
+            let elastic = continuum_reading(&f, dir, false, 2e-4);
+            let hyst = continuum_reading(&f, dir, true, 2e-4);
+            report.push_str(&format!(
+                "{stem} {} (B {b:.4}, 2HB {hb:.4}): elastic law {:+.3} %, with hysteresis {:+.2} %\n",
+                dir.name(),
+                100.0 * elastic,
+                100.0 * hyst
+            ));
+            assert!(elastic.abs() < 1e-3, "{report}");
+            // the loading branch is stiffer: more so the larger 2HB against B
+            assert!(hyst > 0.05 && hyst < 1.0, "{report}");
+        }
+    }
+    // the material step: halving it moves the hysteretic reading by < 0.05 %
+    let f = garment_sim::io::load_fabric(std::path::Path::new(
+        "config/fabrics/cotton_broadcloth.yaml",
+    ))
+    .unwrap();
+    let (a, b) = (
+        continuum_reading(&f, Direction::Warp, true, 2e-4),
+        continuum_reading(&f, Direction::Warp, true, 1e-4),
+    );
+    assert!((a - b).abs() < 5e-4, "{a} vs {b}");
+    println!("{report}");
+}
+
+fn slide(f: &garment_sim::fabric::Fabric, opt: &CantileverOptions) -> f64 {
+    run(f, Direction::Warp, opt, &mut |_, _| {})
+        .unwrap()
+        .relative_error
+}
+
+/// A row's release is a step load; with the fabric's own damping the
+/// overhang swings, each swing wears the hysteretic memories down, and the
+/// reading depends on the step (wool tropical at 1 cm: +20.6 % at 2 ms,
+/// +45.6 % at 10 ms). Run quasi-statically (the default: the overhang's
+/// lowest mode critically damped in bending) the reading at rest is the same
+/// for any step, slide speed and air damping, and the elastic strip's is
+/// unchanged.
+#[test]
+fn the_quasi_static_slide_reads_the_same_for_any_step_speed_and_air_damping() {
+    let path = std::path::Path::new("config/fabrics/wool_tropical.yaml");
+    let f = garment_sim::io::load_fabric(path).unwrap();
+    let base = CantileverOptions::default();
+    let mut windy = f.clone();
+    windy.damping.alpha *= 4.0;
+    let reference = slide(&f, &base);
+    let mut report = format!(
+        "quasi-static, dt 2 ms, 2 mm/s: {:+.2} %\n",
+        100.0 * reference
+    );
+    for (name, fabric, opt) in [
+        (
+            "dt 10 ms",
+            &f,
+            CantileverOptions {
+                dt: 0.01,
+                ..base.clone()
+            },
+        ),
+        (
+            "dt 0.5 ms",
+            &f,
+            CantileverOptions {
+                dt: 5e-4,
+                ..base.clone()
+            },
+        ),
+        (
+            "5 mm/s",
+            &f,
+            CantileverOptions {
+                slide_speed: 5e-3,
+                ..base.clone()
+            },
+        ),
+        ("air damping × 4", &windy, base.clone()),
+    ] {
+        let e = slide(fabric, &opt);
+        report.push_str(&format!("quasi-static, {name}: {:+.2} %\n", 100.0 * e));
+        assert!((e - reference).abs() < 0.01, "{report}");
+    }
+    // the fabric's own damping: the swings make the step matter
+    let own = CantileverOptions {
+        quasi_static: false,
+        ..base.clone()
+    };
+    let (a, b) = (
+        slide(&f, &own),
+        slide(
+            &f,
+            &CantileverOptions {
+                dt: 0.01,
+                ..own.clone()
+            },
+        ),
+    );
+    report.push_str(&format!(
+        "fabric's damping: dt 2 ms {:+.2} %, dt 10 ms {:+.2} %\n",
+        100.0 * a,
+        100.0 * b
+    ));
+    assert!((a - b).abs() > 0.1, "{report}");
+    // without hysteresis the damping changes nothing at rest
+    let elastic = CantileverOptions {
+        hysteresis: false,
+        ..base.clone()
+    };
+    let (c, d) = (
+        slide(&f, &elastic),
+        slide(
+            &f,
+            &CantileverOptions {
+                quasi_static: false,
+                ..elastic
+            },
+        ),
+    );
+    report.push_str(&format!(
+        "no hysteresis: quasi-static {:+.3} %, fabric's damping {:+.3} %\n",
+        100.0 * c,
+        100.0 * d
+    ));
+    assert!((c - d).abs() < 2e-3, "{report}");
+    println!("{report}");
+}
+
+/// With hysteresis the simulated quasi-static slide converges, as the grid is
+/// refined, to the continuum slide of the same law (solved above, with a
+/// memory per material point): for every shipped fabric the gap at least
+/// halves from 1 to 0.5 cm, and wool tropical's goes on to 0.25 cm, where it
+/// is under 5 points (docs/lab.md has every fabric's sequence).
+#[test]
+fn the_hysteretic_slide_converges_to_the_continuum_slide() {
+    let mut report = String::new();
+    for path in support::shipped_fabrics() {
+        let stem = path.file_stem().unwrap().to_string_lossy().to_string();
+        let f = garment_sim::io::load_fabric(&path).unwrap();
+        let want = continuum_reading(&f, Direction::Warp, true, 2e-4);
+        report.push_str(&format!(
+            "{stem} warp: continuum slide {:+.2} %;",
+            100.0 * want
+        ));
+        let spacings: &[f64] = if stem == "wool_tropical" {
+            &[0.01, 0.005, 0.0025]
+        } else {
+            &[0.01, 0.005]
+        };
+        let mut gaps = Vec::new();
+        for &spacing in spacings {
+            let e = slide(
+                &f,
+                &CantileverOptions {
+                    spacing,
+                    ..Default::default()
+                },
+            );
+            gaps.push(e - want);
+            report.push_str(&format!(
+                " {} cm {:+.2} % (gap {:+.2})",
+                100.0 * spacing,
+                100.0 * e,
+                100.0 * (e - want)
+            ));
+        }
+        report.push('\n');
+        assert!(gaps.iter().all(|&g| g > 0.0), "{report}");
+        assert!(gaps.windows(2).all(|g| g[1] < 0.5 * g[0]), "{report}");
+        if gaps.len() == 3 {
+            assert!(gaps[2] < 0.05, "{report}");
+        }
+    }
+    println!("{report}");
+}
+
+/// `garment_sim cantilever ARGS --out OUT`: its standard output and report.json.
+fn cantilever_command(args: &[&str], out: &std::path::Path) -> (String, serde_json::Value) {
+    let o = support::garment_sim()
+        .arg("cantilever")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        o.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let rep = std::fs::read_to_string(out.join("report.json")).unwrap();
+    (stdout, serde_json::from_str(&rep).unwrap())
+}
+
+/// The command writes its report and two plots, says which bending damping
+/// it ran with (quasi-static by default, the fabric's with
+/// `--fabric-damping`), and refuses a bad option naming it.
+#[test]
+fn cantilever_command_reports_its_damping_and_writes_its_plots() {
+    let out = support::Scratch::new("cantilever");
+    let faille = "config/fabrics/polyester_faille.yaml";
+    let f = garment_sim::io::load_fabric(std::path::Path::new(faille)).unwrap();
+    let (stdout, rep) = cantilever_command(&[faille, "--dir", "weft"], &out);
+    assert!(stdout.contains("quasi-static"), "{stdout}");
+    let c = rep["fabric_bending_length_m"].as_f64().unwrap();
+    let beta = rep["beta_bend_s"].as_f64().unwrap();
+    assert!(
+        (beta + quasi_static_bend_damping(c, 9.81)).abs() < 1e-12,
+        "{beta}"
+    );
+    // ω₁ = (1.8751²/4) √(g/c): the faille's c = 1.2 cm gives about 0.08 s
+    assert!(beta < -0.07 && beta > -0.09, "{beta}");
+    let b = rep["flexural_rigidity_gf_cm2_cm"].as_f64().unwrap();
+    assert!(b > rep["fabric_b_gf_cm2_cm"].as_f64().unwrap(), "{b}");
+    for png in ["strip.png", "readings.png"] {
+        let bytes = std::fs::read(out.join(png)).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    let (stdout, rep) = cantilever_command(&[faille, "--fabric-damping"], &out);
+    assert!(stdout.contains("the fabric's"), "{stdout}");
+    assert_eq!(rep["beta_bend_s"].as_f64().unwrap(), f.damping.beta_bend);
+    let o = support::garment_sim()
+        .args(["cantilever", faille, "--dt", "0", "--out"])
+        .arg(&*out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("dt"));
 }
