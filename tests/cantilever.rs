@@ -352,7 +352,8 @@ fn continuous_slide_overhang(law: &Law, w: f64, du: f64) -> f64 {
             (m, x, z)
         };
         let (mut lo, mut hi) = (0.0, w * l * l / 2.0);
-        let mut kap = kappa.clone();
+        // κ of the last solve: the starting guesses of the inversions
+        let mut kap = std::mem::take(&mut kappa);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
             if profile(mid, &mut kap).0 < 0.0 {

@@ -371,16 +371,16 @@ pub fn run(
         cloth.x[i] = edge_at(i, n_rows, ys[i]);
     }
     let (b_fabric, hb_fabric) = fabric_bending(fabric, dir)?;
-    let weight = fabric.areal_mass * params(opt).gravity.norm();
+    let g = params(opt).gravity.norm();
+    let weight = fabric.areal_mass * g;
     let c_fabric = (b_fabric * GF_CM2_PER_CM / weight).cbrt();
-    let mut fabric = fabric.clone();
+    let mut run_fabric = fabric.clone();
     if opt.quasi_static {
-        let g = params(opt).gravity.norm();
         let beta = -quasi_static_bend_damping(c_fabric, g);
-        fabric.damping.beta_bend = fabric.damping.beta_bend.min(beta);
+        run_fabric.damping.beta_bend = run_fabric.damping.beta_bend.min(beta);
     }
-    let beta_bend_s = fabric.damping.beta_bend;
-    let mut sim = Simulation::new(cloth, fabric.clone(), params(opt))?;
+    let beta_bend_s = run_fabric.damping.beta_bend;
+    let mut sim = Simulation::new(cloth, run_fabric, params(opt))?;
     let pins_for = |k: usize, path: &dyn Fn(usize) -> PinPath| -> Vec<Pin> {
         (0..row.len())
             .filter(|&i| row[i] <= k)
