@@ -258,9 +258,10 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         s.time_split_ms_per_step.solve,
         s.time_split_ms_per_step.collide
     );
+    let by = s.steps_solved_by;
     println!(
-        "solver iters     mean {:.2}, max {}",
-        s.mean_solver_iterations, s.max_solver_iterations
+        "solver iters     mean {:.2}, max {} (steps solved by the block-Jacobi PCG {}, the multigrid {}, the Cholesky {})",
+        s.mean_solver_iterations, s.max_solver_iterations, by.pcg, by.amg, by.cholesky
     );
     match s.settle_time_s {
         Some(t) => println!(

@@ -3,7 +3,7 @@
 //! state), `energy.csv` and `summary.json`.
 
 use crate::scene::{Overrides, Scene};
-use crate::solver::Simulation;
+use crate::solver::{Simulation, SolvedBy};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
@@ -56,6 +56,8 @@ pub struct Summary {
     pub real_time_factor: f64,
     pub mean_solver_iterations: f64,
     pub max_solver_iterations: usize,
+    /// Steps whose answer each linear solve gave (`auto` chooses per step).
+    pub steps_solved_by: SolvedSteps,
     /// First time after which the rms speed stays below `settle_speed_m_s`;
     /// `null` if it never settles within the run.
     pub settle_time_s: Option<f64>,
@@ -69,6 +71,27 @@ pub struct Summary {
     /// The cloth against itself (absent when self-collision is off).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<SelfSummary>,
+}
+
+/// Steps by the linear solve that gave their answer.
+#[derive(Debug, Clone, Copy, Serialize, Default)]
+pub struct SolvedSteps {
+    /// The block-Jacobi PCG.
+    pub pcg: u64,
+    /// The multigrid PCG.
+    pub amg: u64,
+    /// The Cholesky factor.
+    pub cholesky: u64,
+}
+
+impl SolvedSteps {
+    fn count(&mut self, by: SolvedBy) {
+        match by {
+            SolvedBy::Pcg => self.pcg += 1,
+            SolvedBy::Amg => self.amg += 1,
+            SolvedBy::Cholesky => self.cholesky += 1,
+        }
+    }
 }
 
 /// What the self-collision pass did over a run.
@@ -143,6 +166,7 @@ pub fn run_with(
     };
     let mut iters = 0usize;
     let mut max_iters = 0usize;
+    let mut solved_by = SolvedSteps::default();
     let mut split = TimeSplit::default();
     let mut own = SelfSummary::default();
     let mut own_s = 0.0;
@@ -158,6 +182,7 @@ pub fn run_with(
             .with_context(|| format!("step {k} (t = {:.4} s)", sim.time))?;
         iters += st.iterations;
         max_iters = max_iters.max(st.iterations);
+        solved_by.count(st.solved_by);
         split.assemble += st.assemble_s;
         split.solve += st.solve_s;
         split.collide += st.collide_s;
@@ -217,6 +242,7 @@ pub fn run_with(
         },
         mean_solver_iterations: iters as f64 / n,
         max_solver_iterations: max_iters,
+        steps_solved_by: solved_by,
         settle_time_s: settle,
         settle_speed_m_s: settle_speed,
         final_energies: *rows.last().expect("at least one row"),

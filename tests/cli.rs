@@ -38,6 +38,18 @@ fn drape_writes_ply_energy_and_summary() {
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["steps"], 240); // dt = 1/1200 s
+                                 // which solve gave each step's answer (`auto` chooses per step: on this
+                                 // small cloth the Cholesky is cheap, the block-Jacobi PCG's cap low)
+    let by = &s["steps_solved_by"];
+    let n = |k: &str| by[k].as_u64().unwrap();
+    assert_eq!(n("pcg") + n("amg") + n("cholesky"), 240, "{by}");
+    assert!(n("pcg") > 0 && n("cholesky") > 0 && n("amg") == 0, "{by}");
+    let line = format!(
+        "(steps solved by the block-Jacobi PCG {}, the multigrid 0, the Cholesky {})",
+        n("pcg"),
+        n("cholesky")
+    );
+    assert!(stdout.contains(&line), "{stdout}");
     assert_eq!(s["grid"][0], 11);
     // 121 vertices: below the size from which every core is used
     assert_eq!(s["threads"], 1);

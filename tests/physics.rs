@@ -481,15 +481,23 @@ fn auto_solver_runs_are_reproducible() {
 /// workspace: cloned in the middle of a drape whose `auto` solver uses both
 /// the PCG and the Cholesky, with contacts, it steps bit for bit as the
 /// original, on one thread and on two.
+/// With the multigrid PCG (`amg`) the clone carries the coarse levels the
+/// hierarchy keeps from step to step: a fresh hierarchy would give other
+/// iterates.
 #[test]
 fn a_cloned_simulation_steps_as_the_original() {
-    for threads in [1, 2] {
+    for (threads, solver) in [
+        (1, LinearSolverKind::Auto),
+        (2, LinearSolverKind::Auto),
+        (1, LinearSolverKind::Amg),
+    ] {
         let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
         let mut sim = sc
             .build(&Overrides {
                 spacing: Some(0.01),
                 dt: Some(4e-3),
                 threads: Some(threads),
+                solver: Some(solver),
                 ..Default::default()
             })
             .unwrap();

@@ -174,6 +174,40 @@ pub struct Amg {
     blocks0: usize,
 }
 
+impl Amg {
+    /// A copy of the hierarchy as it stands (its kept coarse levels decide a
+    /// solve's iterates bit for bit), the coarsest factor computed again
+    /// from the same values; `None` for a single level, which keeps nothing
+    /// from step to step (its factor is that of each step's matrix).
+    pub fn try_clone(&self) -> Option<Amg> {
+        let last = self.coarse.last()?;
+        let mut bottom = Direct::new(last).ok()?;
+        if self.set {
+            bottom
+                .factorize(last, &self.bottom_filter, &self.bottom_mass, Precision::F64)
+                .ok()?;
+        }
+        Some(Amg {
+            coarse: self.coarse.clone(),
+            coarse_t: self.coarse_t.clone(),
+            fine32: self.fine32.clone(),
+            coarse32: self.coarse32.clone(),
+            transfers: self.transfers.clone(),
+            work: self.work.clone(),
+            bottom,
+            bottom_filter: self.bottom_filter.clone(),
+            bottom_mass: self.bottom_mass.clone(),
+            set: self.set,
+            age: self.age,
+            fresh: self.fresh,
+            stale: self.stale,
+            extra: self.extra,
+            keep_extra: self.keep_extra,
+            blocks0: self.blocks0,
+        })
+    }
+}
+
 impl std::fmt::Debug for Amg {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Amg")

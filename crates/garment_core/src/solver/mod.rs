@@ -288,10 +288,26 @@ impl Pin {
     }
 }
 
+/// Which linear solve gave a step's velocity change.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolvedBy {
+    /// The block-Jacobi PCG.
+    #[default]
+    Pcg,
+    /// The multigrid PCG.
+    Amg,
+    /// The Cholesky factor (single precision refined by the PCG, or exact).
+    Cholesky,
+}
+
 /// What one step did.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct StepStats {
+    /// Linear-solver iterations, the failed tries of `auto` included.
     pub iterations: usize,
+    /// The solve that gave the step's answer.
+    pub solved_by: SolvedBy,
     /// Vertices in contact with an obstacle this step.
     pub contacts: usize,
     /// Of those, the ones static friction held (moving with the obstacle).
@@ -390,6 +406,8 @@ pub struct Simulation {
     friction: Vec<FrictionState>,
     /// The last step's velocity change: the linear solvers' first guess.
     dv: Vec<Vector3<f64>>,
+    /// The solve that gave the last answer.
+    solved_by: SolvedBy,
     /// The last step's kinetic friction force: the next step's constraint
     /// phase takes it out of the force that drives the sliding.
     friction_force: Vec<Vector3<f64>>,
@@ -494,11 +512,14 @@ impl Workspace {
 }
 
 impl Clone for Simulation {
-    /// The state and parameters, with a fresh [`Workspace`].
+    /// The state and parameters, with a fresh [`Workspace`] (but for the
+    /// multigrid's hierarchy, which carries the coarse levels it keeps).
     fn clone(&self) -> Simulation {
         let mut cloth = self.cloth.clone();
-        let ws = Workspace::new(&mut cloth, &self.params)
+        let mut ws = Workspace::new(&mut cloth, &self.params)
             .expect("a workspace like the one this simulation was built with");
+        // the multigrid's kept coarse levels decide its next solves' iterates
+        ws.amg = self.ws.amg.as_ref().and_then(amg::Amg::try_clone);
         Simulation {
             cloth,
             fabric: self.fabric.clone(),
@@ -513,6 +534,7 @@ impl Clone for Simulation {
             force: self.force.clone(),
             friction: self.friction.clone(),
             dv: self.dv.clone(),
+            solved_by: self.solved_by,
             friction_force: self.friction_force.clone(),
             pinned: self.pinned.clone(),
             auto: self.auto,
@@ -549,6 +571,7 @@ impl Simulation {
             force: vec![Vector3::zeros(); n],
             friction: vec![FrictionState::default(); n],
             dv: vec![Vector3::zeros(); n],
+            solved_by: SolvedBy::Pcg,
             friction_force: vec![Vector3::zeros(); n],
             pinned: vec![None; n],
             auto: AutoChoice {
@@ -864,6 +887,7 @@ impl Simulation {
         let collide_s = t_collide + t_post.elapsed().as_secs_f64() - own.time_s;
         self.last = StepStats {
             iterations,
+            solved_by: self.solved_by,
             contacts,
             stuck,
             assemble_s,
@@ -879,6 +903,7 @@ impl Simulation {
     }
 
     fn solve_pcg(&mut self, cap: linear::Cap) -> Result<usize> {
+        self.solved_by = SolvedBy::Pcg;
         self.ws.pcg.solve(
             &self.ws.a,
             &self.ws.b,
@@ -892,6 +917,7 @@ impl Simulation {
     }
 
     fn solve_direct(&mut self) -> Result<usize> {
+        self.solved_by = SolvedBy::Cholesky;
         self.direct()?;
         let d = self.ws.direct.as_mut().expect("direct solver built");
         d.solve(
@@ -918,6 +944,7 @@ impl Simulation {
     /// The filtered PCG preconditioned by the multigrid hierarchy, refilled
     /// for this step.
     fn solve_amg(&mut self, cap: linear::Cap) -> Result<usize> {
+        self.solved_by = SolvedBy::Amg;
         self.amg()?;
         let m = self.ws.amg.as_mut().expect("multigrid built");
         m.setup(&self.ws.a, &self.ws.filter, &self.cloth.mass, &self.cloth.x)?;
@@ -993,6 +1020,7 @@ impl Simulation {
     /// its exact solve if single precision fails (not positive definite in
     /// f32) or the PCG does not converge in [`F32_REFINE_CAP`] iterations.
     fn solve_factored(&mut self) -> Result<usize> {
+        self.solved_by = SolvedBy::Cholesky;
         self.direct()?;
         let d = self.ws.direct.as_mut().expect("direct solver built");
         if d.factorize(
