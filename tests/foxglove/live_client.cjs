@@ -5,8 +5,13 @@
 // reader, and prints what it saw as JSON on stdout.
 //
 // usage: node client.js URL FINAL_TIME_S TIMEOUT_S
-// It closes the connection after the /clock message stamped FINAL_TIME_S
-// (the last message of the run's last frame), and fails after TIMEOUT_S.
+// It closes the connection once it has both the /clock message stamped
+// FINAL_TIME_S (the last message of the run's last frame) and the server's
+// time broadcast of FINAL_TIME_S, and fails after TIMEOUT_S. (The server
+// broadcasts a frame's time before it logs the frame's messages, but the two
+// reach a client by different queues: under load a frame's messages can
+// arrive before its time: the Foxglove SDK sends the time on each client's
+// control queue, the messages on its data queue.)
 
 "use strict";
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
@@ -82,8 +87,23 @@ client.on("serverInfo", (info) => {
   out.server = { name: info.name, capabilities: info.capabilities };
 });
 
+let finalClock = false;
+let finalTime = false;
+let done = false;
+function finishIfComplete() {
+  if (done || !(finalClock && finalTime)) return;
+  done = true;
+  clearTimeout(timer);
+  client.close();
+  process.stdout.write(JSON.stringify(out) + "\n");
+}
+
 client.on("time", ({ timestamp }) => {
   out.times_ns.push(timestamp.toString());
+  if (BigInt(timestamp) >= finalNs) {
+    finalTime = true;
+    finishIfComplete();
+  }
 });
 
 client.on("advertise", (channels) => {
@@ -157,9 +177,8 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
       const t = stampNs(msg.clock);
       out.clock_ns.push(t.toString());
       if (t >= finalNs) {
-        clearTimeout(timer);
-        client.close();
-        process.stdout.write(JSON.stringify(out) + "\n");
+        finalClock = true;
+        finishIfComplete();
       }
       break;
     }
