@@ -20,4 +20,4 @@ if [ -n "$forbidden" ]; then
     echo "garment_core must not depend on: $forbidden" >&2
     exit 1
 fi
-cargo test --release --workspace
+cargo test --release --workspace --no-fail-fast
