@@ -592,25 +592,6 @@ fn the_hysteretic_slide_converges_to_the_continuum_slide() {
     println!("{report}");
 }
 
-/// `garment_sim cantilever ARGS --out OUT`: its standard output and report.json.
-fn cantilever_command(args: &[&str], out: &std::path::Path) -> (String, serde_json::Value) {
-    let o = support::garment_sim()
-        .arg("cantilever")
-        .args(args)
-        .arg("--out")
-        .arg(out)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(
-        o.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let rep = std::fs::read_to_string(out.join("report.json")).unwrap();
-    (stdout, serde_json::from_str(&rep).unwrap())
-}
-
 /// The command writes its report and two plots, says which bending damping
 /// it ran with (quasi-static by default, the fabric's with
 /// `--fabric-damping`), and refuses a bad option naming it.
@@ -619,7 +600,7 @@ fn cantilever_command_reports_its_damping_and_writes_its_plots() {
     let out = support::Scratch::new("cantilever");
     let faille = "config/fabrics/polyester_faille.yaml";
     let f = garment_sim::io::load_fabric(std::path::Path::new(faille)).unwrap();
-    let (stdout, rep) = cantilever_command(&[faille, "--dir", "weft"], &out);
+    let (stdout, rep) = support::lab_report("cantilever", &[faille, "--dir", "weft"], &out);
     assert!(stdout.contains("quasi-static"), "{stdout}");
     let c = rep["fabric_bending_length_m"].as_f64().unwrap();
     let beta = rep["beta_bend_s"].as_f64().unwrap();
@@ -635,7 +616,7 @@ fn cantilever_command_reports_its_damping_and_writes_its_plots() {
         let bytes = std::fs::read(out.join(png)).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
     }
-    let (stdout, rep) = cantilever_command(&[faille, "--fabric-damping"], &out);
+    let (stdout, rep) = support::lab_report("cantilever", &[faille, "--fabric-damping"], &out);
     assert!(stdout.contains("the fabric's"), "{stdout}");
     assert_eq!(rep["beta_bend_s"].as_f64().unwrap(), f.damping.beta_bend);
     let o = support::garment_sim()

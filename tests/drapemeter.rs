@@ -394,25 +394,6 @@ fn clipped_disc_for_the_drapemeter() {
     assert_eq!(q(1.0, 1.0), q(-1.0, -1.0));
 }
 
-/// Runs `garment_sim drapemeter ARGS --out OUT`, which must succeed;
-/// returns its standard output.
-fn drapemeter_stdout(args: &[&str], out: &Path) -> String {
-    let o = support::garment_sim()
-        .arg("drapemeter")
-        .args(args)
-        .arg("--out")
-        .arg(out)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(
-        o.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    stdout
-}
-
 /// `drapemeter ARGS` fails, and its error names `word`.
 fn drapemeter_refused(args: &[&str], word: &str) {
     let o = support::garment_sim()
@@ -425,17 +406,11 @@ fn drapemeter_refused(args: &[&str], word: &str) {
     assert!(stderr.contains(word), "{stderr}");
 }
 
-/// [`drapemeter_stdout`] and the run's report.json.
-fn drapemeter_command(args: &[&str], out: &Path) -> (String, serde_json::Value) {
-    let stdout = drapemeter_stdout(args, out);
-    let rep = std::fs::read_to_string(out.join("report.json")).unwrap();
-    (stdout, serde_json::from_str(&rep).unwrap())
-}
-
 #[test]
 fn drapemeter_command_writes_report_and_top_view() {
     let out = support::Scratch::new("drapemeter");
-    let (stdout, rep) = drapemeter_command(
+    let (stdout, rep) = support::lab_report(
+        "drapemeter",
         &["config/fabrics/polyester_faille.yaml", "--spacing", "0.015"],
         &out,
     );
@@ -818,7 +793,8 @@ fn without_hysteresis_the_half_spacing_clamp_converges_from_1_cm() {
 #[test]
 fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command_line() {
     let out = support::Scratch::new("drapemeter_opts");
-    let (stdout, rep) = drapemeter_command(
+    let (stdout, rep) = support::lab_report(
+        "drapemeter",
         &[
             "config/fabrics/wool_tropical.yaml",
             "--spacing",
@@ -866,7 +842,8 @@ fn drapemeter_takes_the_elastic_laws_and_the_half_spacing_clamp_from_the_command
 fn drapemeter_averages_specimens_over_seeds() {
     let out = support::Scratch::new("drapemeter_specimens");
     let args = ["config/fabrics/wool_tropical.yaml", "--spacing", "0.02"];
-    let stdout = drapemeter_stdout(
+    let stdout = support::lab_stdout(
+        "drapemeter",
         &[&args[..], &["--seed", "4", "--specimens", "3"]].concat(),
         &out,
     );
@@ -918,7 +895,11 @@ fn drapemeter_averages_specimens_over_seeds() {
     );
     // specimen 5 is the single run with seed 5, bit for bit
     let single = support::Scratch::new("drapemeter_specimen_5");
-    let (_, rep5) = drapemeter_command(&[&args[..], &["--seed", "5"]].concat(), &single);
+    let (_, rep5) = support::lab_report(
+        "drapemeter",
+        &[&args[..], &["--seed", "5"]].concat(),
+        &single,
+    );
     assert_eq!(rep5["drape_coefficient"].as_f64().unwrap(), dc[1]);
     assert_eq!(rep5["node_angles_deg"], reps[1]["node_angles_deg"]);
     // no specimen at all is refused

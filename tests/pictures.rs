@@ -39,18 +39,7 @@ fn write_scene(dir: &Path) -> std::path::PathBuf {
 }
 
 fn run(args: &[&str], extra: &[&Path]) -> String {
-    let o = support::garment_sim()
-        .args(args)
-        .args(extra)
-        .output()
-        .unwrap();
-    let out = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(
-        o.status.success(),
-        "{args:?}: {out}\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out
+    support::stdout_of(support::garment_sim().args(args).args(extra))
 }
 
 /// Width, height and RGB pixels (row-major, top row first) of a PNG.

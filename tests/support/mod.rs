@@ -15,6 +15,33 @@ pub fn garment_sim() -> Command {
     Command::new(env!("CARGO_BIN_EXE_garment_sim"))
 }
 
+/// Runs `cmd`, which must succeed (else fails the test with its arguments,
+/// standard output and error); returns its standard output.
+pub fn stdout_of(cmd: &mut Command) -> String {
+    let o = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "{:?}: {stdout}\n{}",
+        cmd.get_args().collect::<Vec<_>>(),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    stdout
+}
+
+/// `garment_sim COMMAND ARGS --out OUT` (a lab command: `drapemeter`,
+/// `cantilever`), which must succeed: its standard output.
+pub fn lab_stdout(command: &str, args: &[&str], out: &Path) -> String {
+    stdout_of(garment_sim().arg(command).args(args).arg("--out").arg(out))
+}
+
+/// [`lab_stdout`] and the run's `OUT/report.json`.
+pub fn lab_report(command: &str, args: &[&str], out: &Path) -> (String, serde_json::Value) {
+    let stdout = lab_stdout(command, args, out);
+    let rep = std::fs::read_to_string(out.join("report.json")).unwrap();
+    (stdout, serde_json::from_str(&rep).unwrap())
+}
+
 /// The binary's path.
 pub fn garment_sim_path() -> &'static str {
     env!("CARGO_BIN_EXE_garment_sim")
