@@ -57,12 +57,11 @@ os.makedirs(args.out, exist_ok=True)
 pin = ["taskset", "-c", "0"] if args.threads == 1 else []
 
 
-# Blender finds its Python from PATH: keep a Python version manager's (pyenv's)
-# interpreter, which lacks the system's numpy, out of its way
+# Blender takes its Python's prefix from the first python3 on PATH: keep a
+# version manager's interpreter (pyenv's, which lacks the system's numpy) out
+# of its way
 ENV = dict(os.environ, PATH=os.pathsep.join(
     d for d in os.environ.get("PATH", "").split(os.pathsep) if ".pyenv" not in d))
-for k in [k for k in ENV if k.startswith("PYENV")]:
-    del ENV[k]
 
 
 def run(cmd):
