@@ -30,8 +30,11 @@
 //!   coarsest level. Its sweeps and transfers read single-precision copies
 //!   of the matrices and prolongators ([`Blocks32`]; the cycle is bound by
 //!   memory traffic) and compute in double precision; the blocks the sweeps
-//!   invert are the rounded diagonal ones. The PCG around it (product,
-//!   residual, stopping test) stays in double precision.
+//!   invert are the rounded diagonal ones. The sweeps read only the lower
+//!   triangle of each (symmetric) matrix ([`Lower32`]): a block below the
+//!   diagonal serves its row by a gather and its column, transposed, by a
+//!   scatter, so each sweep streams half the matrix. The PCG around it
+//!   (product, residual, stopping test) stays in double precision.
 //! - The prolongators, coarse matrices and coarsest factor are kept from
 //!   step to step (up to [`KEEP_MAX`] steps) until the PCG's iterations
 //!   beyond those of the first solve with them add up to more than a
@@ -113,9 +116,9 @@ struct Transfer {
     p: Csr,
     /// The transpose of each block of P (the restriction's blocks).
     pt: Vec<Matrix3<f64>>,
-    /// P and its transposed blocks in single precision, for the cycle.
+    /// P in single precision, for the cycle (the restriction multiplies by
+    /// its blocks transposed).
     p32: Blocks32,
-    pt32: Blocks32,
     /// For each block of the fine matrix (row i, column j): the position of
     /// `agg[j]` in row i of P.
     p_pos: Vec<u32>,
@@ -140,7 +143,22 @@ struct Work {
     x: Vec<Vector3<f64>>,
     b: Vec<Vector3<f64>>,
     t: Vec<Vector3<f64>>,
+    /// The sweeps' sums scattered from the other rows (see [`Acc4`]).
+    acc: Vec<Acc4>,
     dinv: Vec<Matrix3<f64>>,
+}
+
+/// A vector of three, padded to four and aligned, that a fused kernel adds
+/// into with one aligned load and store.
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(32))]
+struct Acc4([f64; 4]);
+
+impl Acc4 {
+    #[inline(always)]
+    fn vec(&self) -> Vector3<f64> {
+        Vector3::new(self.0[0], self.0[1], self.0[2])
+    }
 }
 
 /// The hierarchy and its work space.
@@ -149,10 +167,10 @@ pub struct Amg {
     coarse: Vec<BlockMatrix>,
     /// Transpose positions of each coarse matrix's blocks.
     coarse_t: Vec<Vec<u32>>,
-    /// The finest matrix's blocks and the coarse ones' in single precision,
-    /// for the cycle's sweeps (see [`Blocks32`]).
-    fine32: Blocks32,
-    coarse32: Vec<Blocks32>,
+    /// The lower triangles of the finest matrix and the coarse ones in
+    /// single precision, for the cycle's sweeps (see [`Lower32`]).
+    fine32: Lower32,
+    coarse32: Vec<Lower32>,
     transfers: Vec<Transfer>,
     work: Vec<Work>,
     bottom: Direct,
@@ -338,6 +356,7 @@ impl Amg {
                 x: vec![Vector3::zeros(); m],
                 b: vec![Vector3::zeros(); m],
                 t: vec![Vector3::zeros(); m],
+                acc: vec![Acc4::default(); m],
                 dinv: vec![Matrix3::zeros(); m],
             })
             .collect();
@@ -345,8 +364,8 @@ impl Amg {
             bottom_filter: vec![Filter::Free; level_n],
             bottom_mass: vec![0.0; level_n],
             coarse,
-            coarse32: vec![Blocks32::default(); coarse_t.len()],
-            fine32: Blocks32::default(),
+            coarse32: vec![Lower32::default(); coarse_t.len()],
+            fine32: Lower32::default(),
             coarse_t,
             transfers,
             work,
@@ -367,8 +386,10 @@ impl Amg {
     /// The cost of a setup and of a cycle, in products with the finest
     /// matrix (one PCG iteration's main cost), by operation counts: a 3 × 3
     /// block product of the setup (P, `Â P`, the Galerkin sums) counts as
-    /// three block-vector products; a cycle makes two passes over every
-    /// level's matrix and prolongator plus the PCG's own product.
+    /// three block-vector products; a cycle multiplies by every block of
+    /// every level's matrix and prolongator twice (the sweeps' gathers and
+    /// scatters of the lower triangle count as the whole matrix's blocks)
+    /// plus the PCG's own product.
     pub fn cost(&self) -> (f64, f64) {
         let blocks0: f64 = self.blocks0 as f64;
         let mut setup = (POWER_AGAIN + 1) as f64 * blocks0;
@@ -490,7 +511,6 @@ impl Amg {
             rot_t: vec![Matrix3::zeros(); if rot { n } else { 0 }],
             pt: vec![Matrix3::zeros(); p.col.len()],
             p32: Blocks32::default(),
-            pt32: Blocks32::default(),
             p,
             p_pos,
             ap,
@@ -514,7 +534,7 @@ impl Amg {
     ) -> Result<()> {
         let levels = self.transfers.len();
         if levels > 0 {
-            self.fine32.fill(&a.val);
+            self.fine32.fill(a);
         }
         if self.set && levels > 0 && !self.stale && self.age + 1 < KEEP_MAX {
             Self::fill_dinv(a, Some(filter), mass, &mut self.work[0]);
@@ -542,7 +562,7 @@ impl Amg {
             );
             // the sweeps' copy (the coarsest level is solved, not swept)
             if l + 1 < levels {
-                self.coarse32[l].fill(&self.coarse[l].val);
+                self.coarse32[l].fill(&self.coarse[l]);
             }
         }
         // diagonal blocks of the coarsest level, for its smoothing-free solve
@@ -668,7 +688,6 @@ impl Amg {
             *pt = p.transpose();
         }
         t.p32.fill(&t.p.val);
-        t.pt32.fill(&t.pt);
         // Â P = S A P
         galerkin(fma, a, filter, t, c);
         // directions constrained over a whole aggregate: the aggregate's
@@ -726,14 +745,14 @@ impl Amg {
         }
         // down: pre-smooth, restrict
         for l in 0..levels {
-            let (m, m32) = if l == 0 {
-                (a, &self.fine32)
+            let m32 = if l == 0 {
+                &self.fine32
             } else {
-                (&self.coarse[l - 1], &self.coarse32[l - 1])
+                &self.coarse32[l - 1]
             };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
             let f = if l == 0 { Some(filter) } else { None };
-            down(fma, m, m32, f, &self.transfers[l], w, &mut rest[0].b);
+            down(fma, m32, f, &self.transfers[l], w, &mut rest[0].b);
         }
         // bottom
         {
@@ -742,14 +761,14 @@ impl Amg {
         }
         // up: prolongate, post-smooth backwards
         for l in (0..levels).rev() {
-            let (m, m32) = if l == 0 {
-                (a, &self.fine32)
+            let m32 = if l == 0 {
+                &self.fine32
             } else {
-                (&self.coarse[l - 1], &self.coarse32[l - 1])
+                &self.coarse32[l - 1]
             };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
             let f = if l == 0 { Some(filter) } else { None };
-            up(fma, m, m32, f, &self.transfers[l], w, &rest[0].x);
+            up(fma, m32, f, &self.transfers[l], w, &rest[0].x);
         }
         for i in 0..a.n {
             out[i] = filter[i].apply(&self.work[0].x[i]);
@@ -972,13 +991,15 @@ fn mat_vec_add<const FMA: bool>(
     acc + m * v
 }
 
-/// The cycle's way down on one level (matrix `m`; `filter` on the finest):
-/// a forward block Gauss–Seidel sweep from zero into `w.x`, and the
-/// restriction of the residual left into the next level's `bc`.
+/// The cycle's way down on one level (matrix `m`, its lower triangle;
+/// `filter` on the finest): a forward block Gauss–Seidel sweep from zero
+/// into `w.x`, and the restriction of the residual left into the next
+/// level's `bc`. Each block below the diagonal is read once: for the sweep
+/// (`A_ij x_j`, j < i) and, transposed, for the residual the sweep leaves in
+/// row j (`−A_ijᵀ x_i = −A_ji x_i` into row j with the new x_i, summed in `w.acc`).
 fn down(
     fma: bool,
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
@@ -987,9 +1008,9 @@ fn down(
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { down_fma(m, m32, filter, t, w, bc) };
+        return unsafe { down_fma(m, filter, t, w, bc) };
     }
-    down_k::<false>(m, m32, filter, t, w, bc);
+    down_k::<false>(m, filter, t, w, bc);
 }
 
 /// [`down`] compiled with AVX2 and FMA.
@@ -999,51 +1020,56 @@ fn down(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn down_fma(
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
     bc: &mut [Vector3<f64>],
 ) {
-    down_k::<true>(m, m32, filter, t, w, bc);
+    down_k::<true>(m, filter, t, w, bc);
 }
 
 #[inline(always)]
 fn down_k<const FMA: bool>(
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
     bc: &mut [Vector3<f64>],
 ) {
-    // from zero: the blocks right of the diagonal multiply zeros
-    for i in 0..m.n {
-        let ri = w.b[i] - row32_k::<FMA>(&m.col, m32, m.row_ptr[i], m.diag[i], &w.x);
-        w.x[i] = mat_vec_add::<FMA>(&w.dinv[i], &ri, &Vector3::zeros());
+    let n = m.ptr.len() - 1;
+    w.acc.iter_mut().for_each(|v| *v = Acc4::default());
+    // from zero: the blocks right of the diagonal multiply zeros; the sweep
+    // zeroes each row's (filtered) residual as it goes, so what is left of
+    // row j is −Σ_{i > j} A_ji x_i, summed as the x_i come
+    for i in 0..n {
+        let (lo, d) = (m.ptr[i], m.ptr[i + 1] - 1);
+        let ri = w.b[i] - row32_k::<FMA>(&m.col, &m.val, lo, d, &w.x);
+        let xi = mat_vec_add::<FMA>(&w.dinv[i], &ri, &Vector3::zeros());
+        w.x[i] = xi;
+        scatter32_t::<FMA>(&m.col, &m.val, lo, d, &-xi, &mut w.acc);
     }
-    // the residual: the sweep zeroed each row's (filtered) residual as it
-    // went, so what is left is the part right of the diagonal
     bc.iter_mut().for_each(|v| *v = Vector3::zeros());
-    for i in 0..m.n {
-        let mut ri = -row32_k::<FMA>(&m.col, m32, m.diag[i] + 1, m.row_ptr[i + 1], &w.x);
-        if let Some(f) = filter {
-            ri = f[i].apply(&ri);
-        }
+    for i in 0..n {
+        let ri = match filter {
+            Some(f) => f[i].apply(&w.acc[i].vec()),
+            None => w.acc[i].vec(),
+        };
         for e in t.p.ptr[i]..t.p.ptr[i + 1] {
             let c = t.p.col[e] as usize;
-            bc[c] = block32_vec_add::<FMA>(&t.pt32, e, &ri, &bc[c]);
+            bc[c] = block32_tvec_add::<FMA>(&t.p32, e, &ri, &bc[c]);
         }
     }
 }
 
 /// The cycle's way up on one level: the prolongation of the next level's
-/// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep.
+/// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep over
+/// the lower triangle `m`: row i gathers its blocks left of the diagonal and
+/// the diagonal with the x not yet updated, and `w.acc[i]`, where the rows
+/// below have scattered `A_ji x_j` (j > i) with their new x_j.
 fn up(
     fma: bool,
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
@@ -1052,9 +1078,9 @@ fn up(
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { up_fma(m, m32, filter, t, w, xc) };
+        return unsafe { up_fma(m, filter, t, w, xc) };
     }
-    up_k::<false>(m, m32, filter, t, w, xc);
+    up_k::<false>(m, filter, t, w, xc);
 }
 
 /// [`up`] compiled with AVX2 and FMA.
@@ -1064,35 +1090,67 @@ fn up(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn up_fma(
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
     xc: &[Vector3<f64>],
 ) {
-    up_k::<true>(m, m32, filter, t, w, xc);
+    up_k::<true>(m, filter, t, w, xc);
 }
 
 #[inline(always)]
 fn up_k<const FMA: bool>(
-    m: &BlockMatrix,
-    m32: &Blocks32,
+    m: &Lower32,
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
     xc: &[Vector3<f64>],
 ) {
-    for i in 0..m.n {
+    let n = m.ptr.len() - 1;
+    for i in 0..n {
         let e = row32_k::<FMA>(&t.p.col, &t.p32, t.p.ptr[i], t.p.ptr[i + 1], xc);
         w.x[i] += match filter {
             Some(f) => f[i].apply(&e),
             None => e,
         };
     }
-    for i in (0..m.n).rev() {
-        let ri = w.b[i] - row32_k::<FMA>(&m.col, m32, m.row_ptr[i], m.row_ptr[i + 1], &w.x);
-        w.x[i] = mat_vec_add::<FMA>(&w.dinv[i], &ri, &w.x[i]);
+    w.acc.iter_mut().for_each(|v| *v = Acc4::default());
+    for i in (0..n).rev() {
+        let (lo, hi) = (m.ptr[i], m.ptr[i + 1]);
+        let ri = w.b[i] - w.acc[i].vec() - row32_k::<FMA>(&m.col, &m.val, lo, hi, &w.x);
+        let xi = mat_vec_add::<FMA>(&w.dinv[i], &ri, &w.x[i]);
+        w.x[i] = xi;
+        scatter32_t::<FMA>(&m.col, &m.val, lo, hi - 1, &xi, &mut w.acc);
+    }
+}
+
+/// The lower triangle of a symmetric block matrix, the diagonal block last
+/// in each row, in single precision ([`Blocks32`]): the cycle's sweeps read
+/// each block below the diagonal once for its row and once, transposed, for
+/// its column (half the memory traffic of the whole matrix).
+#[derive(Debug, Clone, Default)]
+struct Lower32 {
+    ptr: Vec<usize>,
+    col: Vec<u32>,
+    val: Blocks32,
+}
+
+impl Lower32 {
+    fn fill(&mut self, m: &BlockMatrix) {
+        self.ptr.clear();
+        self.col.clear();
+        self.val.0.clear();
+        self.ptr.reserve(m.n + 1);
+        self.ptr.push(0);
+        for i in 0..m.n {
+            for k in m.row_ptr[i]..=m.diag[i] {
+                self.col.push(m.col[k]);
+                self.val.push(&m.val[k]);
+            }
+            self.ptr.push(self.col.len());
+        }
+        self.val.0.extend([0.0; 3]);
     }
 }
 
@@ -1112,9 +1170,14 @@ impl Blocks32 {
         self.0.clear();
         self.0.reserve(9 * val.len() + 3);
         for m in val {
-            self.0.extend(m.as_slice().iter().map(|&v| v as f32));
+            self.push(m);
         }
         self.0.extend([0.0; 3]);
+    }
+
+    #[inline]
+    fn push(&mut self, m: &Matrix3<f64>) {
+        self.0.extend(m.as_slice().iter().map(|&v| v as f32));
     }
 
     /// Block k as f64 (the portable kernels).
@@ -1146,9 +1209,10 @@ fn row32_k<const FMA: bool>(
     s
 }
 
-/// `acc + m_k v` for block k of `val`; with `FMA` one four-wide fused chain.
+/// `acc + m_kᵀ v` for block k of `val`; with `FMA` the block's rows
+/// gathered by permutes and one four-wide fused chain.
 #[inline(always)]
-fn block32_vec_add<const FMA: bool>(
+fn block32_tvec_add<const FMA: bool>(
     val: &Blocks32,
     k: usize,
     v: &Vector3<f64>,
@@ -1156,38 +1220,116 @@ fn block32_vec_add<const FMA: bool>(
 ) -> Vector3<f64> {
     #[cfg(target_arch = "x86_64")]
     if FMA {
-        assert!(9 * k + 12 <= val.0.len());
-        // SAFETY: FMA is only set where the CPU has AVX2 and FMA; the block
-        // and the four-wide read of its last column are in bounds (above)
-        return unsafe { block32_vec_add_fma(val.0.as_ptr().add(9 * k), v, acc) };
+        assert!(9 * k + 9 <= val.0.len());
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA; the
+        // block's nine floats are in bounds (above)
+        return unsafe { block32_tvec_add_fma(val.0.as_ptr().add(9 * k), v, acc) };
     }
-    acc + val.block(k) * v
+    acc + val.block(k).transpose() * v
 }
 
-/// [`block32_vec_add`] with AVX2 and FMA.
+/// [`block32_tvec_add`] with AVX2 and FMA: `mᵀ v = v.x m_0· + v.y m_1· +
+/// v.z m_2·`, the rows `m_r·` (floats r, r + 3, r + 6 of the column-major
+/// block) permuted out of two eight-wide reads.
 ///
 /// # Safety
-/// The CPU must have AVX2 and FMA; `m` must point at 10 readable floats.
+/// The CPU must have AVX2 and FMA; `m` must point at 9 readable floats.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn block32_vec_add_fma(m: *const f32, v: &Vector3<f64>, acc: &Vector3<f64>) -> Vector3<f64> {
+unsafe fn block32_tvec_add_fma(
+    m: *const f32,
+    v: &Vector3<f64>,
+    acc: &Vector3<f64>,
+) -> Vector3<f64> {
     use std::arch::x86_64::*;
+    let lo = _mm256_loadu_ps(m);
+    let hi = _mm256_loadu_ps(m.add(1));
+    let i0 = _mm256_setr_epi32(0, 3, 6, 6, 0, 0, 0, 0);
+    let i1 = _mm256_setr_epi32(1, 4, 7, 7, 0, 0, 0, 0);
+    let r0 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo, i0)));
+    let r1 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo, i1)));
+    let r2 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(hi, i1)));
     let t = _mm256_setr_pd(acc.x, acc.y, acc.z, 0.0);
-    let t = _mm256_fmadd_pd(_mm256_cvtps_pd(_mm_loadu_ps(m)), _mm256_set1_pd(v.x), t);
-    let t = _mm256_fmadd_pd(
-        _mm256_cvtps_pd(_mm_loadu_ps(m.add(3))),
-        _mm256_set1_pd(v.y),
-        t,
-    );
-    let t = _mm256_fmadd_pd(
-        _mm256_cvtps_pd(_mm_loadu_ps(m.add(6))),
-        _mm256_set1_pd(v.z),
-        t,
-    );
+    let t = _mm256_fmadd_pd(r0, _mm256_set1_pd(v.x), t);
+    let t = _mm256_fmadd_pd(r1, _mm256_set1_pd(v.y), t);
+    let t = _mm256_fmadd_pd(r2, _mm256_set1_pd(v.z), t);
     let mut out = [0.0; 4];
     _mm256_storeu_pd(out.as_mut_ptr(), t);
     Vector3::new(out[0], out[1], out[2])
+}
+
+/// `acc[col[k]] += val_kᵀ v` for the blocks `lo..hi` (one row's blocks,
+/// scattered transposed into their columns); with `FMA`
+/// [`scatter32_t_fma`].
+#[inline(always)]
+fn scatter32_t<const FMA: bool>(
+    col: &[u32],
+    val: &Blocks32,
+    lo: usize,
+    hi: usize,
+    v: &Vector3<f64>,
+    acc: &mut [Acc4],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        return unsafe { scatter32_t_fma(col, &val.0, lo, hi, v, acc) };
+    }
+    for k in lo..hi {
+        let a = &mut acc[col[k] as usize].0;
+        let y = val.block(k).transpose() * v;
+        for r in 0..3 {
+            a[r] += y[r];
+        }
+    }
+}
+
+/// [`scatter32_t`] with AVX2 and FMA: `val_kᵀ v = v.x m_0· + v.y m_1· +
+/// v.z m_2·`, the rows `m_r·` of the column-major block (floats r, r + 3,
+/// r + 6) permuted out of two eight-wide reads, added into the padded
+/// accumulator with one fused chain.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn scatter32_t_fma(
+    col: &[u32],
+    val: &[f32],
+    lo: usize,
+    hi: usize,
+    v: &Vector3<f64>,
+    acc: &mut [Acc4],
+) {
+    use std::arch::x86_64::*;
+    assert!(lo <= hi && hi <= col.len());
+    assert!(hi == lo || 9 * hi <= val.len());
+    // the fourth lane multiplies by zero: the padding stays zero
+    let (vx, vy, vz) = (
+        _mm256_setr_pd(v.x, v.x, v.x, 0.0),
+        _mm256_setr_pd(v.y, v.y, v.y, 0.0),
+        _mm256_setr_pd(v.z, v.z, v.z, 0.0),
+    );
+    let i0 = _mm256_setr_epi32(0, 3, 6, 6, 0, 0, 0, 0);
+    let i1 = _mm256_setr_epi32(1, 4, 7, 7, 0, 0, 0, 0);
+    let vp = val.as_ptr();
+    for k in lo..hi {
+        let j = *col.get_unchecked(k) as usize;
+        let a = &mut acc[j];
+        let m = vp.add(9 * k);
+        let lo8 = _mm256_loadu_ps(m);
+        let hi8 = _mm256_loadu_ps(m.add(1));
+        let r0 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo8, i0)));
+        let r1 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo8, i1)));
+        let r2 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(hi8, i1)));
+        let t = _mm256_load_pd(a.0.as_ptr());
+        let t = _mm256_fmadd_pd(r0, vx, t);
+        let t = _mm256_fmadd_pd(r1, vy, t);
+        let t = _mm256_fmadd_pd(r2, vz, t);
+        _mm256_store_pd(a.0.as_mut_ptr(), t);
+    }
 }
 
 /// [`row32_k`] with AVX2 and FMA: each column of a block read four wide
@@ -1308,6 +1450,22 @@ mod tests {
         (a, mass, edges, filter)
     }
 
+    /// [`grid`], its vertices' positions (a plane, 1 cm apart) and a
+    /// hierarchy set up for it.
+    #[allow(clippy::type_complexity)]
+    fn grid_hierarchy(
+        nx: usize,
+        ny: usize,
+    ) -> (BlockMatrix, Vec<f64>, Vec<Filter>, Vec<Vector3<f64>>, Amg) {
+        let (a, mass, edges, filter) = grid(nx, ny);
+        let x: Vec<Vector3<f64>> = (0..a.n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        amg.setup(&a, &filter, &mass, &x).unwrap();
+        (a, mass, filter, x, amg)
+    }
+
     /// Every coarse matrix is the Galerkin product `Pᵀ Â P` of the level
     /// below (`Â = S A S + (I − S) m` on the finest, the coarse matrix
     /// itself further down) plus, on the first coarse level, the masses of
@@ -1399,14 +1557,8 @@ mod tests {
     #[test]
     fn a_kept_hierarchy_preconditions_the_next_system() {
         use super::super::linear::{Cap, Pcg};
-        let (nx, ny) = (40, 36);
-        let (a, mass, edges, filter) = grid(nx, ny);
+        let (a, mass, filter, x, mut amg) = grid_hierarchy(40, 36);
         let n = a.n;
-        let x: Vec<Vector3<f64>> = (0..n)
-            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
-            .collect();
-        let mut amg = Amg::new(&a, &edges).unwrap();
-        amg.setup(&a, &filter, &mass, &x).unwrap();
         amg.record(10);
         // the next step: stiffer springs, constraints moved by one vertex
         // (new contacts, released ones, a pin freed)
@@ -1575,19 +1727,123 @@ mod tests {
         let last = a.val.len() - 1;
         let acc = Vector3::new(0.5, -0.25, 2.0);
         for k in [0, last / 2, last] {
-            let want = acc + a.val[k] * x[k % a.n];
+            // transposed, as the restriction and the sweeps' scatter read them
+            let want = acc + a.val[k].transpose() * x[k % a.n];
             let scale = a.val[k].abs().max() * x[k % a.n].amax();
-            let plain = block32_vec_add::<false>(&a32, k, &x[k % a.n], &acc);
+            let plain = block32_tvec_add::<false>(&a32, k, &x[k % a.n], &acc);
             assert!(
                 (plain - want).amax() <= 3.0 * 6e-8 * scale + 1e-15,
                 "block {k}"
             );
+            let j = a.col[k] as usize;
+            let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
+            scatter32_t::<false>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
+            assert_eq!(sc[j].vec(), plain, "block {k}");
             if has_fma() {
-                let fused = block32_vec_add::<true>(&a32, k, &x[k % a.n], &acc);
+                let fused = block32_tvec_add::<true>(&a32, k, &x[k % a.n], &acc);
                 assert!(
                     (fused - plain).amax() <= 1e-13 * scale.max(1.0),
                     "block {k}"
                 );
+                let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
+                scatter32_t::<true>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
+                assert!((sc[j].vec() - plain).amax() <= 1e-13 * scale.max(1.0));
+                assert_eq!(sc[j].0[3], 0.0, "the padding stays zero");
+            }
+        }
+    }
+
+    /// The cycle's sweeps over the lower triangle ([`Lower32`]) are block
+    /// Gauss–Seidel over the whole matrix: on the finest level of a grid
+    /// with pinned, contact and free vertices, the forward sweep from zero,
+    /// the residual it leaves (filtered, restricted by `Pᵀ`), the
+    /// prolongation and the backward sweep equal a plain sweep over every
+    /// block of each row (the single-precision blocks, widened), with and
+    /// without the fused kernels.
+    #[test]
+    fn the_lower_triangle_sweeps_are_gauss_seidel_on_the_whole_matrix() {
+        let (a, _, filter, _, mut amg) = grid_hierarchy(23, 19);
+        let n = a.n;
+        let nc = amg.coarse[0].n;
+        let b: Vec<Vector3<f64>> = (0..n)
+            .map(|i| {
+                filter[i].apply(&Vector3::new(
+                    (i as f64).sin(),
+                    0.5,
+                    -(i as f64 * 0.7).cos(),
+                ))
+            })
+            .collect();
+        let xc: Vec<Vector3<f64>> = (0..nc)
+            .map(|i| Vector3::new(0.1 * i as f64, -1.0, (i as f64).cos()))
+            .collect();
+        let t = &amg.transfers[0];
+        let blk = |k: usize| a.val[k].map(|v| v as f32 as f64);
+        let pblk = |e: usize| t.p.val[e].map(|v| v as f32 as f64);
+        let dinv = amg.work[0].dinv.clone();
+        // the plain sweeps
+        let mut x = vec![Vector3::zeros(); n];
+        for i in 0..n {
+            let mut s = b[i];
+            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+                if k != a.diag[i] {
+                    s -= blk(k) * x[a.col[k] as usize];
+                }
+            }
+            x[i] = dinv[i] * s;
+        }
+        let mut bc = vec![Vector3::zeros(); nc];
+        for i in 0..n {
+            let mut r = b[i];
+            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+                r -= blk(k) * x[a.col[k] as usize];
+            }
+            let r = filter[i].apply(&r);
+            for e in t.p.ptr[i]..t.p.ptr[i + 1] {
+                bc[t.p.col[e] as usize] += pblk(e).transpose() * r;
+            }
+        }
+        let mut y = x.clone();
+        for i in 0..n {
+            let mut e = Vector3::zeros();
+            for k in t.p.ptr[i]..t.p.ptr[i + 1] {
+                e += pblk(k) * xc[t.p.col[k] as usize];
+            }
+            y[i] += filter[i].apply(&e);
+        }
+        for i in (0..n).rev() {
+            let mut s = b[i];
+            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+                s -= blk(k) * y[a.col[k] as usize];
+            }
+            y[i] += dinv[i] * s;
+        }
+        let amax = |v: &[Vector3<f64>]| v.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        let (sx, sbc, sy) = (amax(&x), amax(&bc), amax(&y));
+        assert!(sx > 0.0 && sbc > 0.0 && sy > 0.0);
+        for fma in [false, true] {
+            if fma && !has_fma() {
+                continue;
+            }
+            let t = &amg.transfers[0];
+            let w = &mut amg.work[0];
+            w.b.copy_from_slice(&b);
+            w.x.iter_mut()
+                .for_each(|v| *v = Vector3::new(7.0, 7.0, 7.0));
+            let mut got_bc = vec![Vector3::new(3.0, 3.0, 3.0); nc];
+            down(fma, &amg.fine32, Some(&filter), t, w, &mut got_bc);
+            for i in 0..n {
+                assert!((w.x[i] - x[i]).amax() <= 1e-12 * sx, "fma {fma}, x {i}");
+            }
+            for c in 0..nc {
+                assert!(
+                    (got_bc[c] - bc[c]).amax() <= 1e-10 * sbc,
+                    "fma {fma}, bc {c}"
+                );
+            }
+            up(fma, &amg.fine32, Some(&filter), t, w, &xc);
+            for i in 0..n {
+                assert!((w.x[i] - y[i]).amax() <= 1e-10 * sy, "fma {fma}, y {i}");
             }
         }
     }
