@@ -721,27 +721,29 @@ impl Amg {
         }
     }
 
-    /// `out = M⁻¹ r`, one V-cycle; `a` and `filter` as given to the last
-    /// [`Amg::setup`].
-    pub fn apply(
+    /// `out = M⁻¹ r`, one V-cycle (`a` and `filter` as given to the last
+    /// [`Amg::setup`]), and `rᵀ out` summed as the cycle's last loop writes
+    /// `out` (the PCG's next `δ`, without another pass over the vectors).
+    pub fn apply_dot(
         &mut self,
         a: &BlockMatrix,
         filter: &[Filter],
         r: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
-    ) {
+    ) -> f64 {
         let levels = self.transfers.len();
         let fma = has_fma();
-        self.work[0].b.copy_from_slice(r);
         for i in 0..a.n {
             self.work[0].b[i] = filter[i].apply(&r[i]);
         }
         if levels == 0 {
             self.bottom.apply(&self.work[0].b, out);
+            let mut d = 0.0;
             for i in 0..a.n {
                 out[i] = filter[i].apply(&out[i]);
+                d += r[i].dot(&out[i]);
             }
-            return;
+            return d;
         }
         // down: pre-smooth, restrict
         for l in 0..levels {
@@ -770,9 +772,12 @@ impl Amg {
             let f = if l == 0 { Some(filter) } else { None };
             up(fma, m32, f, &self.transfers[l], w, &rest[0].x);
         }
+        let mut d = 0.0;
         for i in 0..a.n {
             out[i] = filter[i].apply(&self.work[0].x[i]);
+            d += r[i].dot(&out[i]);
         }
+        d
     }
 }
 
@@ -1410,8 +1415,8 @@ impl Amg {
             .map(|i| filter[i].apply(&Vector3::new(0.5, (i as f64 * 1.3).sin(), -1.0)))
             .collect();
         let (mut mu, mut mv) = (vec![Vector3::zeros(); n], vec![Vector3::zeros(); n]);
-        self.apply(a, filter, &u, &mut mu);
-        self.apply(a, filter, &v, &mut mv);
+        self.apply_dot(a, filter, &u, &mut mu);
+        self.apply_dot(a, filter, &v, &mut mv);
         let dot = |p: &[Vector3<f64>], q: &[Vector3<f64>]| -> f64 {
             p.iter().zip(q).map(|(p, q)| p.dot(q)).sum()
         };
@@ -1421,6 +1426,11 @@ impl Amg {
             "{uv} vs {vu}"
         );
         assert!(dot(&u, &mu) > 0.0 && dot(&v, &mv) > 0.0);
+        // the fused `rᵀ out` of the PCG
+        let mut mu2 = vec![Vector3::zeros(); n];
+        let d = self.apply_dot(a, filter, &u, &mut mu2);
+        assert_eq!(mu2, mu);
+        assert!((d - dot(&u, &mu)).abs() <= 1e-12 * d.abs(), "{d}");
         for i in 0..n {
             assert!((filter[i].apply(&mu[i]) - mu[i]).amax() <= 1e-15 * mu[i].amax().max(1.0));
         }

@@ -285,12 +285,8 @@ impl Pcg {
         if delta0 <= 0.0 || rj <= eps2 {
             return Ok(0);
         }
-        direct.apply_to(a, filter, &self.r, &mut self.s);
-        let mut dnew = 0.0;
-        for i in 0..n {
-            self.c[i] = filter[i].apply(&self.s[i]);
-            dnew += self.r[i].dot(&self.c[i]);
-        }
+        let mut dnew = direct.apply_dot(a, filter, &self.r, &mut self.s);
+        self.c.copy_from_slice(&self.s);
         if !(dnew.is_finite() && dnew > 0.0) {
             return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
         }
@@ -336,13 +332,8 @@ impl Pcg {
             if !rj.is_finite() {
                 return Err(anyhow!("PCG breakdown: non-finite residual"));
             }
-            direct.apply_to(a, filter, &self.r, &mut self.s);
             let dold = dnew;
-            dnew = 0.0;
-            for i in 0..n {
-                self.s[i] = filter[i].apply(&self.s[i]);
-                dnew += self.r[i].dot(&self.s[i]);
-            }
+            dnew = direct.apply_dot(a, filter, &self.r, &mut self.s);
             if !(dnew.is_finite() && dnew > 0.0) {
                 return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
             }
@@ -372,6 +363,24 @@ pub trait Precond {
         r: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     );
+
+    /// `out = S M⁻¹ r` ([`Precond::apply_to`], filtered) and `rᵀ out`, the
+    /// PCG's next `δ`, in one pass.
+    fn apply_dot(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        r: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) -> f64 {
+        self.apply_to(a, filter, r, out);
+        let mut d = 0.0;
+        for i in 0..r.len() {
+            out[i] = filter[i].apply(&out[i]);
+            d += r[i].dot(&out[i]);
+        }
+        d
+    }
 }
 
 impl Precond for Direct {
@@ -388,7 +397,7 @@ impl Precond for Direct {
 }
 
 impl Precond for super::amg::Amg {
-    /// One V-cycle ([`super::amg::Amg::apply`]).
+    /// One V-cycle ([`super::amg::Amg::apply_dot`]).
     fn apply_to(
         &mut self,
         a: &BlockMatrix,
@@ -396,7 +405,19 @@ impl Precond for super::amg::Amg {
         r: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
     ) {
-        self.apply(a, filter, r, out);
+        super::amg::Amg::apply_dot(self, a, filter, r, out);
+    }
+
+    /// The cycle's output is filtered already: `rᵀ out` is summed as its
+    /// last loop writes it.
+    fn apply_dot(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        r: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) -> f64 {
+        super::amg::Amg::apply_dot(self, a, filter, r, out)
     }
 }
 
