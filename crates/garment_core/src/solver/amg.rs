@@ -116,8 +116,8 @@ struct Transfer {
     p: Csr,
     /// The transpose of each block of P (the restriction's blocks).
     pt: Vec<Matrix3<f64>>,
-    /// P in single precision, for the cycle (the restriction multiplies by
-    /// its blocks transposed).
+    /// P in single precision, for the cycle (the restriction scatters its
+    /// blocks transposed, [`scatter32_t`]).
     p32: Blocks32,
     /// For each block of the fine matrix (row i, column j): the position of
     /// `agg[j]` in row i of P.
@@ -363,9 +363,9 @@ impl Amg {
         let mut amg = Amg {
             bottom_filter: vec![Filter::Free; level_n],
             bottom_mass: vec![0.0; level_n],
+            coarse32: coarse.iter().map(Lower32::new).collect(),
             coarse,
-            coarse32: vec![Lower32::default(); coarse_t.len()],
-            fine32: Lower32::default(),
+            fine32: Lower32::new(a),
             coarse_t,
             transfers,
             work,
@@ -754,7 +754,7 @@ impl Amg {
             };
             let (w, rest) = self.work[l..].split_first_mut().expect("levels");
             let f = if l == 0 { Some(filter) } else { None };
-            down(fma, m32, f, &self.transfers[l], w, &mut rest[0].b);
+            down(fma, m32, f, &self.transfers[l], w, &mut rest[0]);
         }
         // bottom
         {
@@ -999,7 +999,7 @@ fn mat_vec_add<const FMA: bool>(
 /// The cycle's way down on one level (matrix `m`, its lower triangle;
 /// `filter` on the finest): a forward block Gauss–Seidel sweep from zero
 /// into `w.x`, and the restriction of the residual left into the next
-/// level's `bc`. Each block below the diagonal is read once: for the sweep
+/// level's right-hand side `next.b` (scattered by `Pᵀ` through `next.acc`). Each block below the diagonal is read once: for the sweep
 /// (`A_ij x_j`, j < i) and, transposed, for the residual the sweep leaves in
 /// row j (`−A_ijᵀ x_i = −A_ji x_i` into row j with the new x_i, summed in `w.acc`).
 fn down(
@@ -1008,14 +1008,14 @@ fn down(
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
-    bc: &mut [Vector3<f64>],
+    next: &mut Work,
 ) {
     #[cfg(target_arch = "x86_64")]
     if fma {
         // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { down_fma(m, filter, t, w, bc) };
+        return unsafe { down_fma(m, filter, t, w, next) };
     }
-    down_k::<false>(m, filter, t, w, bc);
+    down_k::<false>(m, filter, t, w, next);
 }
 
 /// [`down`] compiled with AVX2 and FMA.
@@ -1029,9 +1029,9 @@ unsafe fn down_fma(
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
-    bc: &mut [Vector3<f64>],
+    next: &mut Work,
 ) {
-    down_k::<true>(m, filter, t, w, bc);
+    down_k::<true>(m, filter, t, w, next);
 }
 
 #[inline(always)]
@@ -1040,7 +1040,7 @@ fn down_k<const FMA: bool>(
     filter: Option<&[Filter]>,
     t: &Transfer,
     w: &mut Work,
-    bc: &mut [Vector3<f64>],
+    next: &mut Work,
 ) {
     let n = m.ptr.len() - 1;
     w.acc.iter_mut().for_each(|v| *v = Acc4::default());
@@ -1054,16 +1054,23 @@ fn down_k<const FMA: bool>(
         w.x[i] = xi;
         scatter32_t::<FMA>(&m.col, &m.val, lo, d, &-xi, &mut w.acc);
     }
-    bc.iter_mut().for_each(|v| *v = Vector3::zeros());
+    next.acc.iter_mut().for_each(|v| *v = Acc4::default());
     for i in 0..n {
         let ri = match filter {
             Some(f) => f[i].apply(&w.acc[i].vec()),
             None => w.acc[i].vec(),
         };
-        for e in t.p.ptr[i]..t.p.ptr[i + 1] {
-            let c = t.p.col[e] as usize;
-            bc[c] = block32_tvec_add::<FMA>(&t.p32, e, &ri, &bc[c]);
-        }
+        scatter32_t::<FMA>(
+            &t.p.col,
+            &t.p32,
+            t.p.ptr[i],
+            t.p.ptr[i + 1],
+            &ri,
+            &mut next.acc,
+        );
+    }
+    for (b, a) in next.b.iter_mut().zip(&next.acc) {
+        *b = a.vec();
     }
 }
 
@@ -1142,19 +1149,38 @@ struct Lower32 {
 }
 
 impl Lower32 {
-    fn fill(&mut self, m: &BlockMatrix) {
-        self.ptr.clear();
-        self.col.clear();
-        self.val.0.clear();
-        self.ptr.reserve(m.n + 1);
-        self.ptr.push(0);
+    /// The pattern of `m`'s lower triangle (fixed for the hierarchy's life,
+    /// as `m`'s own), without values.
+    fn new(m: &BlockMatrix) -> Lower32 {
+        let mut ptr = Vec::with_capacity(m.n + 1);
+        let mut col = Vec::new();
+        ptr.push(0);
         for i in 0..m.n {
-            for k in m.row_ptr[i]..=m.diag[i] {
-                self.col.push(m.col[k]);
-                self.val.push(&m.val[k]);
-            }
-            self.ptr.push(self.col.len());
+            col.extend_from_slice(&m.col[m.row_ptr[i]..=m.diag[i]]);
+            ptr.push(col.len());
         }
+        Lower32 {
+            ptr,
+            col,
+            val: Blocks32::default(),
+        }
+    }
+
+    /// The values of `m`, whose pattern is the one [`Lower32::new`] was given.
+    fn fill(&mut self, m: &BlockMatrix) {
+        assert_eq!(self.ptr.len(), m.n + 1, "the matrix's pattern changed");
+        self.val.0.clear();
+        self.val.0.reserve(9 * self.col.len() + 3);
+        for i in 0..m.n {
+            for v in &m.val[m.row_ptr[i]..=m.diag[i]] {
+                self.val.push(v);
+            }
+        }
+        assert_eq!(
+            self.val.0.len(),
+            9 * self.col.len(),
+            "the matrix's pattern changed"
+        );
         self.val.0.extend([0.0; 3]);
     }
 }
@@ -1212,56 +1238,6 @@ fn row32_k<const FMA: bool>(
         s += val.block(k) * x[col[k] as usize];
     }
     s
-}
-
-/// `acc + m_kᵀ v` for block k of `val`; with `FMA` the block's rows
-/// gathered by permutes and one four-wide fused chain.
-#[inline(always)]
-fn block32_tvec_add<const FMA: bool>(
-    val: &Blocks32,
-    k: usize,
-    v: &Vector3<f64>,
-    acc: &Vector3<f64>,
-) -> Vector3<f64> {
-    #[cfg(target_arch = "x86_64")]
-    if FMA {
-        assert!(9 * k + 9 <= val.0.len());
-        // SAFETY: FMA is only set where the CPU has AVX2 and FMA; the
-        // block's nine floats are in bounds (above)
-        return unsafe { block32_tvec_add_fma(val.0.as_ptr().add(9 * k), v, acc) };
-    }
-    acc + val.block(k).transpose() * v
-}
-
-/// [`block32_tvec_add`] with AVX2 and FMA: `mᵀ v = v.x m_0· + v.y m_1· +
-/// v.z m_2·`, the rows `m_r·` (floats r, r + 3, r + 6 of the column-major
-/// block) permuted out of two eight-wide reads.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA; `m` must point at 9 readable floats.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn block32_tvec_add_fma(
-    m: *const f32,
-    v: &Vector3<f64>,
-    acc: &Vector3<f64>,
-) -> Vector3<f64> {
-    use std::arch::x86_64::*;
-    let lo = _mm256_loadu_ps(m);
-    let hi = _mm256_loadu_ps(m.add(1));
-    let i0 = _mm256_setr_epi32(0, 3, 6, 6, 0, 0, 0, 0);
-    let i1 = _mm256_setr_epi32(1, 4, 7, 7, 0, 0, 0, 0);
-    let r0 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo, i0)));
-    let r1 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(lo, i1)));
-    let r2 = _mm256_cvtps_pd(_mm256_castps256_ps128(_mm256_permutevar8x32_ps(hi, i1)));
-    let t = _mm256_setr_pd(acc.x, acc.y, acc.z, 0.0);
-    let t = _mm256_fmadd_pd(r0, _mm256_set1_pd(v.x), t);
-    let t = _mm256_fmadd_pd(r1, _mm256_set1_pd(v.y), t);
-    let t = _mm256_fmadd_pd(r2, _mm256_set1_pd(v.z), t);
-    let mut out = [0.0; 4];
-    _mm256_storeu_pd(out.as_mut_ptr(), t);
-    Vector3::new(out[0], out[1], out[2])
 }
 
 /// `acc[col[k]] += val_kᵀ v` for the blocks `lo..hi` (one row's blocks,
@@ -1740,24 +1716,22 @@ mod tests {
             // transposed, as the restriction and the sweeps' scatter read them
             let want = acc + a.val[k].transpose() * x[k % a.n];
             let scale = a.val[k].abs().max() * x[k % a.n].amax();
-            let plain = block32_tvec_add::<false>(&a32, k, &x[k % a.n], &acc);
+            let j = a.col[k] as usize;
+            let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
+            scatter32_t::<false>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
+            let plain = sc[j].vec();
             assert!(
                 (plain - want).amax() <= 3.0 * 6e-8 * scale + 1e-15,
                 "block {k}"
             );
-            let j = a.col[k] as usize;
-            let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
-            scatter32_t::<false>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
-            assert_eq!(sc[j].vec(), plain, "block {k}");
             if has_fma() {
-                let fused = block32_tvec_add::<true>(&a32, k, &x[k % a.n], &acc);
+                let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
+                scatter32_t::<true>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
+                let fused = sc[j].vec();
                 assert!(
                     (fused - plain).amax() <= 1e-13 * scale.max(1.0),
                     "block {k}"
                 );
-                let mut sc = vec![Acc4([acc.x, acc.y, acc.z, 0.0]); a.n];
-                scatter32_t::<true>(&a.col, &a32, k, k + 1, &x[k % a.n], &mut sc);
-                assert!((sc[j].vec() - plain).amax() <= 1e-13 * scale.max(1.0));
                 assert_eq!(sc[j].0[3], 0.0, "the padding stays zero");
             }
         }
@@ -1836,12 +1810,16 @@ mod tests {
                 continue;
             }
             let t = &amg.transfers[0];
-            let w = &mut amg.work[0];
+            let (w, next) = amg.work.split_first_mut().expect("levels");
             w.b.copy_from_slice(&b);
             w.x.iter_mut()
                 .for_each(|v| *v = Vector3::new(7.0, 7.0, 7.0));
-            let mut got_bc = vec![Vector3::new(3.0, 3.0, 3.0); nc];
-            down(fma, &amg.fine32, Some(&filter), t, w, &mut got_bc);
+            next[0]
+                .b
+                .iter_mut()
+                .for_each(|v| *v = Vector3::new(3.0, 3.0, 3.0));
+            down(fma, &amg.fine32, Some(&filter), t, w, &mut next[0]);
+            let got_bc = &next[0].b;
             for i in 0..n {
                 assert!((w.x[i] - x[i]).amax() <= 1e-12 * sx, "fma {fma}, x {i}");
             }

@@ -353,27 +353,29 @@ fn zero_rhs(b: &[Vector3<f64>], filter: &[Filter]) -> bool {
         .all(|(b, f)| f.apply(b) == Vector3::zeros())
 }
 
-/// A preconditioner of [`Pcg::solve_factor`]: `out ≈ Â⁻¹ r` for
-/// `Â = S A S + (I − S) m` of this step's matrix `a` and filter.
+/// A preconditioner of [`Pcg::solve_factor`]: `out ≈ S Â⁻¹ r` for
+/// `Â = S A S + (I − S) m` of this step's matrix `a` and filter, and
+/// `rᵀ out`, the PCG's next `δ`, summed as `out` is written.
 pub trait Precond {
-    fn apply_to(
-        &mut self,
-        a: &BlockMatrix,
-        filter: &[Filter],
-        r: &[Vector3<f64>],
-        out: &mut [Vector3<f64>],
-    );
-
-    /// `out = S M⁻¹ r` ([`Precond::apply_to`], filtered) and `rᵀ out`, the
-    /// PCG's next `δ`, in one pass.
     fn apply_dot(
         &mut self,
         a: &BlockMatrix,
         filter: &[Filter],
         r: &[Vector3<f64>],
         out: &mut [Vector3<f64>],
+    ) -> f64;
+}
+
+impl Precond for Direct {
+    /// The factor held ([`Direct::apply`]), its output filtered.
+    fn apply_dot(
+        &mut self,
+        _: &BlockMatrix,
+        filter: &[Filter],
+        r: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
     ) -> f64 {
-        self.apply_to(a, filter, r, out);
+        self.apply(r, out);
         let mut d = 0.0;
         for i in 0..r.len() {
             out[i] = filter[i].apply(&out[i]);
@@ -383,33 +385,9 @@ pub trait Precond {
     }
 }
 
-impl Precond for Direct {
-    /// The factor held ([`Direct::apply`]).
-    fn apply_to(
-        &mut self,
-        _: &BlockMatrix,
-        _: &[Filter],
-        r: &[Vector3<f64>],
-        out: &mut [Vector3<f64>],
-    ) {
-        self.apply(r, out);
-    }
-}
-
 impl Precond for super::amg::Amg {
-    /// One V-cycle ([`super::amg::Amg::apply_dot`]).
-    fn apply_to(
-        &mut self,
-        a: &BlockMatrix,
-        filter: &[Filter],
-        r: &[Vector3<f64>],
-        out: &mut [Vector3<f64>],
-    ) {
-        super::amg::Amg::apply_dot(self, a, filter, r, out);
-    }
-
-    /// The cycle's output is filtered already: `rᵀ out` is summed as its
-    /// last loop writes it.
+    /// One V-cycle, whose output is filtered already
+    /// ([`super::amg::Amg::apply_dot`]).
     fn apply_dot(
         &mut self,
         a: &BlockMatrix,
