@@ -894,6 +894,14 @@ impl Direct {
         })
     }
 
+    /// Whether the factor is supernodal: its single-precision solve
+    /// ([`super::trisolve`]) sums in double precision, so that it applies
+    /// `(L̃ L̃ᵀ)⁻¹` for the rounded factor `L̃`, a symmetric operator to
+    /// double-precision rounding.
+    pub fn supernodal(&self) -> bool {
+        self.sn.is_some()
+    }
+
     /// Non-zeros of the Cholesky factor L.
     pub fn nnz_l(&self) -> usize {
         self.symbolic.len_val()
