@@ -203,6 +203,9 @@ pub struct Amg {
     keep_extra: f64,
     /// Blocks of the finest matrix.
     blocks0: usize,
+    /// Coarsening stopped at a level cheap to solve exactly
+    /// ([`BOTTOM_PRODUCTS`]).
+    exact: bool,
 }
 
 impl Amg {
@@ -236,6 +239,7 @@ impl Amg {
             extra: self.extra,
             keep_extra: self.keep_extra,
             blocks0: self.blocks0,
+            exact: self.exact,
         })
     }
 }
@@ -367,6 +371,7 @@ impl Amg {
             }
         }
         let last = coarse.last().unwrap_or(a);
+        let exact = bottom.is_some();
         let bottom = match bottom {
             Some(d) => d,
             None => Direct::new(last)?,
@@ -409,6 +414,7 @@ impl Amg {
             extra: 0,
             keep_extra: 0.0,
             blocks0: a.col.len(),
+            exact,
         };
         let (setup, cycle) = amg.cost();
         amg.keep_extra = setup / cycle.max(1.0);
@@ -443,6 +449,18 @@ impl Amg {
             cycle += 2.0 * (fine + t.p.col.len() as f64);
         }
         (setup / blocks0.max(1.0), cycle / blocks0.max(1.0))
+    }
+
+    /// Has the next [`Amg::setup`] fill the coarse levels again (a caller
+    /// that skipped steps: the kept levels would be of an older matrix).
+    pub fn refill(&mut self) {
+        self.stale = true;
+    }
+
+    /// Whether coarsening stopped at a coarse level cheap to solve exactly
+    /// (see [`BOTTOM_PRODUCTS`]): two levels whose coarse one is factored.
+    pub fn exact_bottom(&self) -> bool {
+        self.exact
     }
 
     /// Vertices of each level, finest first.

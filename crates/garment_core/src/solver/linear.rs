@@ -34,9 +34,11 @@ pub enum LinearSolverKind {
     /// else the Cholesky factor (single precision, refined by the PCG). By
     /// benchmark (docs/benchmarks.md) the block-Jacobi PCG wins at small
     /// steps (dt = 1e-4 s: 7–25 iterations), the Cholesky at large ones and
-    /// on the garment trials. The multigrid PCG (`amg`) is not among its
-    /// choices (see `Simulation::solve_auto`). Decided on iteration counts,
-    /// never on measured time: runs are reproducible.
+    /// on the garment trials; where the multigrid's hierarchy has two levels
+    /// whose coarse one is solved exactly (the 1 cm table drape), the
+    /// multigrid PCG (`amg`) in place of the Cholesky (see
+    /// `Simulation::solve_heavy`). Decided on iteration counts, never on
+    /// measured time: runs are reproducible.
     #[default]
     Auto,
     /// The filtered PCG preconditioned by smoothed-aggregation multigrid

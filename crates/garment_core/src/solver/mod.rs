@@ -427,6 +427,15 @@ struct AutoChoice {
     /// to the one after if it fails (doubled at each failure).
     next_probe: u64,
     probe_gap: u64,
+    /// The multigrid's hierarchy is not one `auto` takes
+    /// ([`Simulation::solve_heavy`]).
+    no_amg: bool,
+    /// Step of the next try of the multigrid after one that did not
+    /// converge within its cycles, and the gap to the one after.
+    next_amg: u64,
+    amg_gap: u64,
+    /// The step the multigrid last solved (or tried to).
+    amg_last: u64,
 }
 
 /// What a step computes and throws away, sized for one cloth and one set of
@@ -578,6 +587,10 @@ impl Simulation {
                 on_direct: false,
                 next_probe: 0,
                 probe_gap: AUTO_PROBE,
+                no_amg: false,
+                next_amg: 0,
+                amg_gap: AUTO_PROBE,
+                amg_last: u64::MAX - 1,
             },
             ws,
         })
@@ -984,9 +997,11 @@ impl Simulation {
     /// so far shows the cap is out of reach, [`linear::Cap::Reachable`]:
     /// a failed try costs a few dozen iterations). The choice depends on
     /// iteration counts only, never on measured time, so a run gives the
-    /// same trajectory every time. (The multigrid PCG, `amg`, is not among
-    /// its choices: on the 0.5 cm table drape it ended 1.9 mm (eq. 6.2) from
-    /// the exact solve where this path ends 0.55 mm from it.)
+    /// same trajectory every time. In place of the Cholesky it takes the
+    /// multigrid PCG where that hierarchy's coarse level is solved exactly
+    /// ([`Simulation::solve_heavy`]); not where its levels are swept (on the
+    /// 0.5 cm table drape the multigrid ended 1.9 mm (eq. 6.2) from the
+    /// exact solve where the Cholesky path ends 0.55 mm from it).
     fn solve_auto(&mut self) -> Result<usize> {
         let blocks = self.ws.a.col.len();
         let threads = self.ws.team.size();
@@ -1005,10 +1020,56 @@ impl Simulation {
                     self.auto.next_probe = self.steps + self.auto.probe_gap;
                     self.auto.probe_gap = (2 * self.auto.probe_gap).min(AUTO_PROBE_MAX);
                     let spent = self.ws.pcg.spent();
-                    let it = self.solve_factored()?;
+                    let it = self.solve_heavy(cap)?;
                     return Ok(it + spent);
                 }
             }
+        }
+        self.solve_heavy(cap)
+    }
+
+    /// `auto`'s solve where the block-Jacobi PCG needs more than `cap`
+    /// iterations: the multigrid PCG if its hierarchy has two levels whose
+    /// coarse one is solved exactly ([`amg::Amg::exact_bottom`]; the 1 cm
+    /// table drape, not the 0.5 cm one or the garments), within the cycles
+    /// that cost as much as `cap` block-Jacobi iterations; else, or if it
+    /// does not converge within them, the Cholesky
+    /// ([`Simulation::solve_factored`]).
+    fn solve_heavy(&mut self, cap: usize) -> Result<usize> {
+        if !self.auto.no_amg {
+            if self.amg()?.exact_bottom() {
+                if self.steps < self.auto.next_amg {
+                    return self.solve_factored();
+                }
+                let m = self.ws.amg.as_mut().expect("multigrid built");
+                if self.auto.amg_last + 1 != self.steps {
+                    // its kept coarse levels are of a step before the last
+                    m.refill();
+                }
+                let cycle = m.cost().1;
+                let cycles = ((cap as f64 / cycle.max(1.0)).floor() as usize).max(1);
+                let solved = self.solve_amg(linear::Cap::Hard(cycles));
+                self.auto.amg_last = self.steps;
+                match solved {
+                    Ok(it) => {
+                        self.auto.amg_gap = AUTO_PROBE;
+                        return Ok(it);
+                    }
+                    Err(_) => {
+                        // as the block-Jacobi PCG's tries: again after a
+                        // gap doubled at each failure (the drop onto the
+                        // board, where the multigrid needs hundreds)
+                        self.auto.next_amg = self.steps + self.auto.amg_gap;
+                        self.auto.amg_gap = (2 * self.auto.amg_gap).min(AUTO_PROBE_MAX);
+                        let spent = self.ws.pcg.spent();
+                        return Ok(self.solve_factored()? + spent);
+                    }
+                }
+            }
+            // a hierarchy whose levels are all swept: not tried again, and
+            // not kept
+            self.auto.no_amg = true;
+            self.ws.amg = None;
         }
         self.solve_factored()
     }
