@@ -434,21 +434,34 @@ impl Amg {
     pub fn cost(&self) -> (f64, f64) {
         let blocks0: f64 = self.blocks0 as f64;
         let mut setup = (POWER_AGAIN + 1) as f64 * blocks0;
-        let mut cycle = blocks0;
         for (l, t) in self.transfers.iter().enumerate() {
-            let fine = if l == 0 {
-                blocks0
-            } else {
-                self.coarse[l - 1].col.len() as f64
-            };
             let upper: usize = (0..t.agg.len())
                 .flat_map(|i| (t.p.ptr[i]..t.p.ptr[i + 1]).map(move |e| (i, e)))
                 .map(|(i, e)| t.ap.ptr[i + 1] - t.g_start[e] as usize)
                 .sum();
-            setup += 3.0 * (t.ap_pos.len() + upper) as f64 + 2.0 * fine;
-            cycle += 2.0 * (fine + t.p.col.len() as f64);
+            setup += 3.0 * (t.ap_pos.len() + upper) as f64 + 2.0 * self.level_blocks(l);
         }
-        (setup / blocks0.max(1.0), cycle / blocks0.max(1.0))
+        (setup / blocks0.max(1.0), self.cycle_cost())
+    }
+
+    /// A cycle's cost, as in [`Amg::cost`], without the setup's (whose count
+    /// walks every entry of P): cheap enough for every step.
+    pub fn cycle_cost(&self) -> f64 {
+        let blocks0 = self.blocks0 as f64;
+        let mut cycle = blocks0;
+        for (l, t) in self.transfers.iter().enumerate() {
+            cycle += 2.0 * (self.level_blocks(l) + t.p.col.len() as f64);
+        }
+        cycle / blocks0.max(1.0)
+    }
+
+    /// Blocks of level l's matrix (0: the finest).
+    fn level_blocks(&self, l: usize) -> f64 {
+        if l == 0 {
+            self.blocks0 as f64
+        } else {
+            self.coarse[l - 1].col.len() as f64
+        }
     }
 
     /// Has the next [`Amg::setup`] fill the coarse levels again (a caller

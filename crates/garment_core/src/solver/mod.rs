@@ -435,7 +435,7 @@ struct AutoChoice {
     next_amg: u64,
     amg_gap: u64,
     /// The step the multigrid last solved (or tried to).
-    amg_last: u64,
+    amg_last: Option<u64>,
 }
 
 /// What a step computes and throws away, sized for one cloth and one set of
@@ -590,7 +590,7 @@ impl Simulation {
                 no_amg: false,
                 next_amg: 0,
                 amg_gap: AUTO_PROBE,
-                amg_last: u64::MAX - 1,
+                amg_last: None,
             },
             ws,
         })
@@ -1042,14 +1042,14 @@ impl Simulation {
                     return self.solve_factored();
                 }
                 let m = self.ws.amg.as_mut().expect("multigrid built");
-                if self.auto.amg_last + 1 != self.steps {
+                if self.auto.amg_last.map(|s| s + 1) != Some(self.steps) {
                     // its kept coarse levels are of a step before the last
                     m.refill();
                 }
-                let cycle = m.cost().1;
+                let cycle = m.cycle_cost();
                 let cycles = ((cap as f64 / cycle.max(1.0)).floor() as usize).max(1);
                 let solved = self.solve_amg(linear::Cap::Hard(cycles));
-                self.auto.amg_last = self.steps;
+                self.auto.amg_last = Some(self.steps);
                 match solved {
                     Ok(it) => {
                         self.auto.amg_gap = AUTO_PROBE;
