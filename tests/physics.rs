@@ -521,6 +521,57 @@ fn auto_takes_the_multigrid_only_where_its_coarse_level_is_solved_exactly() {
     }
 }
 
+/// Where the multigrid solves (1 cm, its coarse level exactly), `auto`
+/// gives the block-Jacobi PCG only the iterations the multigrid's last
+/// solve cost (a cycle with its exact coarse solve is about five
+/// block-Jacobi iterations here): on the cloth lying on the board at
+/// dt = 1/300 s, where the block-Jacobi PCG needs 57–106 iterations a step
+/// and the multigrid 4–7, the steps go to the multigrid, and no step on the
+/// block-Jacobi PCG takes more than that price.
+#[test]
+fn auto_prices_the_block_jacobi_pcg_against_the_multigrid() {
+    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
+    let mut sim = sc
+        .build(&Overrides {
+            spacing: Some(0.01),
+            dt: Some(1.0 / 300.0),
+            threads: Some(1),
+            ..Default::default()
+        })
+        .unwrap();
+    let steps: Vec<(usize, SolvedBy)> = (0..480)
+        .map(|_| {
+            let s = sim.step().unwrap();
+            (s.iterations, s.solved_by)
+        })
+        .collect();
+    let late = &steps[380..];
+    let on = |by: SolvedBy| late.iter().filter(|(_, b)| *b == by).count();
+    assert!(
+        on(SolvedBy::Amg) >= 90 && on(SolvedBy::Cholesky) == 0,
+        "{late:?}"
+    );
+    let mut last_amg = None;
+    for &(it, by) in &steps {
+        match (by, last_amg) {
+            (SolvedBy::Amg, _) => last_amg = Some(it),
+            (SolvedBy::Pcg, Some(m)) => assert!(it <= 6 * (m + 1), "{it} after {m}: {steps:?}"),
+            _ => {}
+        }
+    }
+    // the block-Jacobi PCG alone on the same lying cloth needs far more
+    let mut pcg = sim.clone();
+    let mut params = pcg.params().clone();
+    params.linear_solver = LinearSolverKind::Pcg;
+    pcg.set_params(params).unwrap();
+    let it = pcg.step().unwrap().iterations;
+    let amg_mean = late.iter().map(|(k, _)| k).sum::<usize>() as f64 / late.len() as f64;
+    assert!(
+        it as f64 > 6.0 * (amg_mean + 1.0),
+        "PCG {it}, multigrid {amg_mean}"
+    );
+}
+
 /// A clone carries the state (positions, velocities, hysteresis and
 /// friction memory, pins, obstacles, the solver `auto` is on) and a fresh
 /// workspace: cloned in the middle of a drape whose `auto` solver uses both

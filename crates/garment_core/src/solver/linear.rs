@@ -37,7 +37,9 @@ pub enum LinearSolverKind {
     /// on the garment trials; where the multigrid's hierarchy has two levels
     /// whose coarse one is solved exactly (the 1 cm table drape), the
     /// multigrid PCG (`amg`) in place of the Cholesky (see
-    /// `Simulation::solve_heavy`). Decided on iteration counts, never on
+    /// `Simulation::solve_heavy`), and then in place of the block-Jacobi
+    /// PCG too where that would need more iterations than the multigrid's
+    /// last solve cost (see `Simulation::solve_auto`). Decided on iteration counts, never on
     /// measured time: runs are reproducible.
     #[default]
     Auto,

@@ -436,6 +436,10 @@ struct AutoChoice {
     amg_gap: u64,
     /// The step the multigrid last solved (or tried to).
     amg_last: Option<u64>,
+    /// What the multigrid's last solve cost, in block-Jacobi PCG
+    /// iterations: the block-Jacobi PCG's cap while it is lower than the
+    /// Cholesky's break-even ([`Simulation::solve_auto`]).
+    amg_price: Option<usize>,
 }
 
 /// What a step computes and throws away, sized for one cloth and one set of
@@ -591,6 +595,7 @@ impl Simulation {
                 next_amg: 0,
                 amg_gap: AUTO_PROBE,
                 amg_last: None,
+                amg_price: None,
             },
             ws,
         })
@@ -999,7 +1004,9 @@ impl Simulation {
     /// iteration counts only, never on measured time, so a run gives the
     /// same trajectory every time. In place of the Cholesky it takes the
     /// multigrid PCG where that hierarchy's coarse level is solved exactly
-    /// ([`Simulation::solve_heavy`]); not where its levels are swept (on the
+    /// ([`Simulation::solve_heavy`]), and once it has solved a step the
+    /// block-Jacobi PCG's cap is at most what that solve cost
+    /// ([`Simulation::amg_price`]); not where its levels are swept (on the
     /// 0.5 cm table drape the multigrid ended 1.9 mm (eq. 6.2) from the
     /// exact solve where the Cholesky path ends 0.55 mm from it).
     fn solve_auto(&mut self) -> Result<usize> {
@@ -1007,9 +1014,13 @@ impl Simulation {
         let threads = self.ws.team.size();
         let cap = self.direct()?.break_even_iterations(blocks, threads);
         let cap = cap.min(self.params.cg_max_iterations);
+        // where the multigrid solves (its coarse level exactly), the
+        // block-Jacobi PCG gets the iterations its last solve cost instead,
+        // if fewer
+        let pcg_cap = self.auto.amg_price.map_or(cap, |p| p.min(cap));
         let probe = self.steps >= self.auto.next_probe;
         if !self.auto.on_direct || probe {
-            match self.solve_pcg(linear::Cap::Reachable(cap)) {
+            match self.solve_pcg(linear::Cap::Reachable(pcg_cap)) {
                 Ok(it) => {
                     self.auto.on_direct = false;
                     self.auto.probe_gap = AUTO_PROBE;
@@ -1053,6 +1064,7 @@ impl Simulation {
                 match solved {
                     Ok(it) => {
                         self.auto.amg_gap = AUTO_PROBE;
+                        self.auto.amg_price = Some(self.amg_price(it));
                         return Ok(it);
                     }
                     Err(_) => {
@@ -1072,6 +1084,21 @@ impl Simulation {
             self.ws.amg = None;
         }
         self.solve_factored()
+    }
+
+    /// A multigrid solve of `iterations` (and the first cycle before them)
+    /// in block-Jacobi PCG iterations, by operation counts
+    /// ([`amg::Amg::exact_cycle_cost`] against a product and the vector
+    /// work of [`linear::Direct::break_even_iterations`]'s iteration). On
+    /// the 1 cm table drape at rest at dt = 1/300 s the multigrid takes 4–7
+    /// iterations where the block-Jacobi PCG takes 57–106: the price, about
+    /// 25–40, then sends those steps to the multigrid (which took 3.5–6.3 ms
+    /// a step there against the PCG's 6.3–11.6).
+    fn amg_price(&self, iterations: usize) -> usize {
+        let m = self.ws.amg.as_ref().expect("multigrid built");
+        let blocks = self.ws.a.col.len() as f64;
+        let pcg_iteration = 1.0 + 30.0 * 3.0 * self.ws.a.n as f64 / (18.0 * blocks.max(1.0));
+        ((iterations + 1) as f64 * m.exact_cycle_cost() / pcg_iteration).ceil() as usize
     }
 
     /// The Cholesky factor of this step's `S A S + (I − S) m` in single
