@@ -5,17 +5,11 @@
 //! backward), ~6 MB at 1 cm. faer's general solve does per supernode a dense
 //! triangular solve, a matrix product into a temporary and a scatter: it
 //! walks each column twice (diagonal block, then the rows below) and divides
-//! on the dependency chain. Here the columns go in groups of four: the
-//! group's small triangle a column at a time, then one pass over all the
-//! rows below it that updates them with (or takes the dot products of) the
-//! group's four columns at once, so the work vector is read and written
-//! once per group instead of once per column; the diagonal's reciprocals
-//! are computed once per factorisation (in its first forward pass), and the
-//! sums are in double precision (the factor is read in single). On a
-//! 51 × 51 grid (0.6 M factor values) an application took 0.25 ms against
-//! faer's 0.33 (medians of 300) a column at a time; in groups 310 against
-//! 371 µs a column at a time (best of 5, another host). In the
-//! 1 cm drape the refinement converges as fast as with faer's solve (with
+//! on the dependency chain. Here each column is one contiguous update (or
+//! dot product) over all its rows, with the diagonal's reciprocals computed
+//! once per factorisation (in its first forward pass), and the sums are in
+//! double precision (the factor is read in single). On a 51 × 51 grid (0.6 M factor values) an
+//! application takes 0.25 ms against faer's 0.33 (medians of 300); in the
 //! 1 cm drape the refinement converges as fast as with faer's solve (with
 //! single-precision sums here it needed 1.9 iterations per step instead of
 //! 1.6). Same storage as faer (per supernode a column-major block whose
@@ -154,41 +148,17 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
         let w = &mut w[..ld];
         w[..nc].copy_from_slice(&x[c0..c0 + nc]);
         w[nc..].fill(0.0);
-        // the columns in groups of up to four: the group's triangle one
-        // column at a time, then one pass over the rows below it that applies
-        // all its columns (w read and written once per group, not per column;
-        // the same sums in the same order as a column at a time)
-        let mut j0 = 0;
-        while j0 < nc {
-            let jb = (nc - j0).min(GROUP);
-            let mut xs = [0.0; GROUP];
-            for j in j0..j0 + jb {
-                let r = if first {
-                    let r = 1.0 / v[j * ld + j] as f64;
-                    inv_diag[c0 + j] = r;
-                    r
-                } else {
-                    inv_diag[c0 + j]
-                };
-                let xj = w[j] * r;
-                w[j] = xj;
-                xs[j - j0] = -xj;
-                for i in j + 1..j0 + jb {
-                    w[i] = madd::<FMA>(v[j * ld + i] as f64, -xj, w[i]);
-                }
-            }
-            let below = j0 + jb;
-            let col = |j: usize| &v[j * ld + below..(j + 1) * ld];
-            let t = &mut w[below..];
-            match jb {
-                4 => axpy4::<FMA>(t, [col(j0), col(j0 + 1), col(j0 + 2), col(j0 + 3)], xs),
-                _ => {
-                    for (c, &xj) in xs.iter().enumerate().take(jb) {
-                        axpy::<FMA>(t, col(j0 + c), xj);
-                    }
-                }
-            }
-            j0 += jb;
+        for j in 0..nc {
+            let r = if first {
+                let r = 1.0 / v[j * ld + j] as f64;
+                inv_diag[c0 + j] = r;
+                r
+            } else {
+                inv_diag[c0 + j]
+            };
+            let xj = w[j] * r;
+            w[j] = xj;
+            axpy::<FMA>(&mut w[j + 1..], &v[j * ld + j + 1..(j + 1) * ld], -xj);
         }
         x[c0..c0 + nc].copy_from_slice(&w[..nc]);
         for (&r, &d) in pat.iter().zip(&w[nc..]) {
@@ -204,87 +174,12 @@ fn solve_impl<const FMA: bool>(s: &mut Supernodal, l: &[f32], x: &mut [f64]) {
         for (d, &r) in w[nc..].iter_mut().zip(pat) {
             *d = x[r as usize];
         }
-        // the groups of the forward pass in reverse: the dot products of the
-        // group's columns with the rows below it in one pass over w, then the
-        // group's triangle a column at a time
-        let mut j1 = nc;
-        while j1 > 0 {
-            let jb = match nc % GROUP {
-                0 => GROUP,
-                k if j1 == nc => k,
-                _ => GROUP,
-            };
-            let j0 = j1 - jb;
-            let col = |j: usize| &v[j * ld + j1..(j + 1) * ld];
-            let mut ds = [0.0; GROUP];
-            match jb {
-                4 => ds = dot4::<FMA>([col(j0), col(j0 + 1), col(j0 + 2), col(j0 + 3)], &w[j1..]),
-                _ => {
-                    for (c, d) in ds.iter_mut().enumerate().take(jb) {
-                        *d = dot::<FMA>(col(j0 + c), &w[j1..]);
-                    }
-                }
-            }
-            for j in (j0..j1).rev() {
-                let mut d = ds[j - j0];
-                for i in j + 1..j1 {
-                    d = madd::<FMA>(v[j * ld + i] as f64, w[i], d);
-                }
-                w[j] = (w[j] - d) * inv_diag[c0 + j];
-            }
-            j1 = j0;
+        for j in (0..nc).rev() {
+            let d = dot::<FMA>(&v[j * ld + j + 1..(j + 1) * ld], &w[j + 1..]);
+            w[j] = (w[j] - d) * inv_diag[c0 + j];
         }
         x[c0..c0 + nc].copy_from_slice(&w[..nc]);
     }
-}
-
-/// Columns per group in the solves' passes over a supernode.
-const GROUP: usize = 4;
-
-/// `t += Σ_c a_c x_c`, the columns in order for each row (as four calls of
-/// [`axpy`] would sum).
-#[inline(always)]
-fn axpy4<const FMA: bool>(t: &mut [f64], a: [&[f32]; 4], x: [f64; 4]) {
-    let n = t.len();
-    let [a0, a1, a2, a3] = a.map(|c| &c[..n]);
-    for i in 0..n {
-        let mut s = madd::<FMA>(a0[i] as f64, x[0], t[i]);
-        s = madd::<FMA>(a1[i] as f64, x[1], s);
-        s = madd::<FMA>(a2[i] as f64, x[2], s);
-        t[i] = madd::<FMA>(a3[i] as f64, x[3], s);
-    }
-}
-
-/// `[a_cᵀ b]` for four columns in one pass over `b`, each in 8 independent
-/// lanes (vectorised).
-#[inline(always)]
-fn dot4<const FMA: bool>(a: [&[f32]; 4], b: &[f64]) -> [f64; 4] {
-    const L: usize = 8;
-    let n = b.len();
-    let a = a.map(|c| &c[..n]);
-    let mut acc = [[0.0f64; L]; 4];
-    let full = n - n % L;
-    for i in (0..full).step_by(L) {
-        let y = &b[i..i + L];
-        for c in 0..4 {
-            let x = &a[c][i..i + L];
-            for k in 0..L {
-                acc[c][k] = madd::<FMA>(x[k] as f64, y[k], acc[c][k]);
-            }
-        }
-    }
-    let mut out = [0.0; 4];
-    for c in 0..4 {
-        let mut s = 0.0;
-        for i in full..n {
-            s = madd::<FMA>(a[c][i] as f64, b[i], s);
-        }
-        for v in acc[c] {
-            s += v;
-        }
-        out[c] = s;
-    }
-    out
 }
 
 /// `t += a x`
