@@ -19,6 +19,11 @@ fn scene(name: &str) -> Scene {
     Scene::load(&Path::new("config/scenes").join(name)).unwrap()
 }
 
+/// The shipped table drape with these overrides.
+fn table(ov: Overrides) -> Simulation {
+    scene("table_drape.yaml").build(&ov).unwrap()
+}
+
 /// 30 cm square at 3 cm, held by two adjacent corners, released horizontal.
 fn swinging(fabric: Fabric, dt: f64) -> Simulation {
     let spec = GridSpec {
@@ -448,14 +453,11 @@ fn pins_and_obstacles_are_addressed_by_handles() {
 #[test]
 fn auto_solver_runs_are_reproducible() {
     let run = || {
-        let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-        let mut sim = sc
-            .build(&Overrides {
-                spacing: Some(0.01),
-                dt: Some(4e-3),
-                ..Default::default()
-            })
-            .unwrap();
+        let mut sim = table(Overrides {
+            spacing: Some(0.01),
+            dt: Some(4e-3),
+            ..Default::default()
+        });
         let mut iters = Vec::new();
         for _ in 0..100 {
             let s = sim.step().unwrap();
@@ -493,15 +495,12 @@ fn auto_solver_runs_are_reproducible() {
 #[test]
 fn auto_takes_the_multigrid_only_where_its_coarse_level_is_solved_exactly() {
     for (spacing, multigrid) in [(0.01, true), (0.005, false)] {
-        let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-        let mut sim = sc
-            .build(&Overrides {
-                spacing: Some(spacing),
-                dt: Some(1.0 / 120.0),
-                threads: Some(1),
-                ..Default::default()
-            })
-            .unwrap();
+        let mut sim = table(Overrides {
+            spacing: Some(spacing),
+            dt: Some(1.0 / 120.0),
+            threads: Some(1),
+            ..Default::default()
+        });
         // the drop onto the board (where the multigrid needs hundreds of
         // iterations and `auto` backs off to the Cholesky), then the drape
         let steps = if multigrid { 60 } else { 8 };
@@ -530,15 +529,12 @@ fn auto_takes_the_multigrid_only_where_its_coarse_level_is_solved_exactly() {
 /// block-Jacobi PCG takes more than that price.
 #[test]
 fn auto_prices_the_block_jacobi_pcg_against_the_multigrid() {
-    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-    let mut sim = sc
-        .build(&Overrides {
-            spacing: Some(0.01),
-            dt: Some(1.0 / 300.0),
-            threads: Some(1),
-            ..Default::default()
-        })
-        .unwrap();
+    let mut sim = table(Overrides {
+        spacing: Some(0.01),
+        dt: Some(1.0 / 300.0),
+        threads: Some(1),
+        ..Default::default()
+    });
     let steps: Vec<(usize, SolvedBy)> = (0..480)
         .map(|_| {
             let s = sim.step().unwrap();
@@ -587,16 +583,13 @@ fn a_cloned_simulation_steps_as_the_original() {
         (2, LinearSolverKind::Auto),
         (1, LinearSolverKind::Amg),
     ] {
-        let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-        let mut sim = sc
-            .build(&Overrides {
-                spacing: Some(0.01),
-                dt: Some(4e-3),
-                threads: Some(threads),
-                solver: Some(solver),
-                ..Default::default()
-            })
-            .unwrap();
+        let mut sim = table(Overrides {
+            spacing: Some(0.01),
+            dt: Some(4e-3),
+            threads: Some(threads),
+            solver: Some(solver),
+            ..Default::default()
+        });
         for _ in 0..60 {
             sim.step().unwrap();
         }
@@ -628,15 +621,12 @@ fn a_cloned_simulation_steps_as_the_original() {
 /// the run goes on bit for bit as if nothing had changed).
 #[test]
 fn parameters_change_between_steps_through_set_params() {
-    let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-    let mut sim = sc
-        .build(&Overrides {
-            spacing: Some(0.02),
-            dt: Some(1.0 / 120.0),
-            threads: Some(2),
-            ..Default::default()
-        })
-        .unwrap();
+    let mut sim = table(Overrides {
+        spacing: Some(0.02),
+        dt: Some(1.0 / 120.0),
+        threads: Some(2),
+        ..Default::default()
+    });
     for _ in 0..20 {
         sim.step().unwrap();
     }

@@ -812,6 +812,13 @@ pub enum Precision {
     F32,
 }
 
+/// A block-Jacobi PCG iteration's flops by operation counts: the product
+/// with the `blocks` 3 × 3 blocks of A (both triangles) and the vector work
+/// on its `dim` unknowns.
+pub fn pcg_iteration_flops(blocks: usize, dim: usize) -> f64 {
+    2.0 * 9.0 * blocks as f64 + 30.0 * dim as f64
+}
+
 /// Direct solver: Cholesky of `S A S + (I − S) m` (SPD), symbolic analysis once.
 pub struct Direct {
     /// Vertex ordering of the factor (new → old).
@@ -923,8 +930,7 @@ impl Direct {
     pub fn break_even_iterations(&self, blocks: usize, threads: usize) -> usize {
         let n = self.csc.dim as f64;
         let l = self.nnz_l() as f64;
-        let per_iter = 2.0 * 9.0 * blocks as f64 + 30.0 * n;
-        let one = 0.55 * l * l / n / per_iter;
+        let one = 0.55 * l * l / n / pcg_iteration_flops(blocks, self.csc.dim);
         let speedup = 1.0 + 0.8 * (threads.max(1) - 1) as f64;
         (one * speedup).round().max(10.0) as usize
     }

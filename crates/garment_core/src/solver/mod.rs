@@ -1088,16 +1088,18 @@ impl Simulation {
 
     /// A multigrid solve of `iterations` (and the first cycle before them)
     /// in block-Jacobi PCG iterations, by operation counts
-    /// ([`amg::Amg::exact_cycle_cost`] against a product and the vector
-    /// work of [`linear::Direct::break_even_iterations`]'s iteration). On
+    /// ([`amg::Amg::exact_cycle_cost`], in products with the finest matrix,
+    /// against [`linear::pcg_iteration_flops`]). On
     /// the 1 cm table drape at rest at dt = 1/300 s the multigrid takes 4–7
     /// iterations where the block-Jacobi PCG takes 57–106: the price, about
     /// 25–40, then sends those steps to the multigrid (which took 3.5–6.3 ms
     /// a step there against the PCG's 6.3–11.6).
     fn amg_price(&self, iterations: usize) -> usize {
         let m = self.ws.amg.as_ref().expect("multigrid built");
-        let blocks = self.ws.a.col.len() as f64;
-        let pcg_iteration = 1.0 + 30.0 * 3.0 * self.ws.a.n as f64 / (18.0 * blocks.max(1.0));
+        let blocks = self.ws.a.col.len();
+        // a product with the finest matrix: 9 multiply-adds a block
+        let product = 18.0 * blocks.max(1) as f64;
+        let pcg_iteration = linear::pcg_iteration_flops(blocks, 3 * self.ws.a.n) / product;
         ((iterations + 1) as f64 * m.exact_cycle_cost() / pcg_iteration).ceil() as usize
     }
 
