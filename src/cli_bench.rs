@@ -23,7 +23,8 @@ pub struct BenchArgs {
     /// Steps per measurement (after the warm-up of the same count).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: u64,
-    /// Repetitions; the median is reported.
+    /// Repetitions of the same steps (each from the scene built and warmed up
+    /// again); the median is reported.
     #[arg(long, default_value_t = 3, value_parser = crate::cli_lab::at_least_one)]
     pub repeat: usize,
     /// Simulated time before measuring (the cloth is mid-drape; at most
@@ -56,7 +57,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     } = a;
     let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
     println!(
-        "scene {} ; {} steps per run, median of {} runs, after {} s of simulated warm-up",
+        "scene {} ; {} steps per run, median of {} runs of the same steps, after {} s of simulated warm-up",
         scene.display(),
         steps,
         repeat,
@@ -88,7 +89,10 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     self_collision: self_collision.then_some(true),
                     ..Default::default()
                 };
-                let mut sim = sc.build(&ov)?;
+                let (grid, used) = {
+                    let sim = sc.build(&ov)?;
+                    (format!("{}x{}", sim.cloth.nx, sim.cloth.ny), sim.threads())
+                };
                 let wsteps = (warmup / h).round() as u64;
                 // per run: ms per step in all, then in assembly, solve
                 // and contacts (the step's own timers)
@@ -96,11 +100,20 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 // self-collision contacts and collisions per step
                 let mut own = [0.0; 2];
                 let mut it = 0.0;
+                // the process's peak after the first run (the later runs'
+                // heaps, fragmented by the runs before, would add to it)
+                let mut peak = f64::NAN;
                 let measured = (|| -> Result<()> {
-                    for _ in 0..wsteps.min(steps * 3) {
-                        sim.step()?;
-                    }
                     for _ in 0..repeat.max(1) {
+                        // every run measures the same steps: the scene built
+                        // and warmed up again (the runs are deterministic), so
+                        // the median compares like with like rather than
+                        // later, calmer stretches of the drape; the last
+                        // run's simulation is dropped before this one is built
+                        let mut sim = sc.build(&ov)?;
+                        for _ in 0..wsteps.min(steps * 3) {
+                            sim.step()?;
+                        }
                         let t = std::time::Instant::now();
                         let mut iters = 0;
                         let mut phase = [0.0; 4];
@@ -125,6 +138,9 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                             per(phase[3]),
                         ]);
                         it = iters as f64 / steps as f64;
+                        if peak.is_nan() {
+                            peak = peak_rss_mb();
+                        }
                     }
                     Ok(())
                 })();
@@ -132,7 +148,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     println!(
                         "{:>8} {:>9} {:>10} {:>8}   failed: {e:#}",
                         sp,
-                        format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                        grid,
                         format!("{h:.4e}"),
                         format!("{so:?}").to_lowercase()
                     );
@@ -144,7 +160,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 println!(
                     "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7}",
                     sp,
-                    format!("{}x{}", sim.cloth.nx, sim.cloth.ny),
+                    grid,
                     format!("{h:.4e}"),
                     format!("{so:?}").to_lowercase(),
                     med[0],
@@ -153,8 +169,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     med[3],
                     h * 1e3 / med[0],
                     it,
-                    peak_rss_mb(),
-                    sim.threads()
+                    peak,
+                    used
                 );
                 if self_collision {
                     println!(
