@@ -20,7 +20,7 @@ pub struct BenchArgs {
     /// Solvers (comma separated).
     #[arg(long, value_delimiter = ',', default_values = ["pcg", "cholesky", "auto"])]
     pub solver: Vec<LinearSolverKind>,
-    /// Steps per measurement (after the warm-up of the same count).
+    /// Steps per measurement (after the warm-up).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: u64,
     /// Repetitions of the same steps (each from the scene built and warmed up
@@ -57,14 +57,15 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     } = a;
     let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
     println!(
-        "scene {} ; {} steps per run, median of {} runs of the same steps, after {} s of simulated warm-up",
+        "scene {} ; {} steps per run, median of {} runs of the same steps, after {} s of simulated \
+         warm-up (at most 3 × steps; the window column gives the simulated times measured)",
         scene.display(),
         steps,
         repeat,
         warmup
     );
     println!(
-        "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11} {:>7}",
+        "{:>8} {:>9} {:>10} {:>8} {:>10} {:>9} {:>8} {:>9} {:>9} {:>8} {:>11} {:>7} {:>13}",
         "spacing",
         "grid",
         "dt",
@@ -76,7 +77,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         "RTF",
         "iters",
         "peak RSS MB",
-        "threads"
+        "threads",
+        "window s"
     );
     for &sp in &spacing {
         for &h in &dt {
@@ -93,7 +95,12 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     let sim = sc.build(&ov)?;
                     (format!("{}x{}", sim.cloth.nx, sim.cloth.ny), sim.threads())
                 };
-                let wsteps = (warmup / h).round() as u64;
+                let wsteps = ((warmup / h).round() as u64).min(steps * 3);
+                let window = format!(
+                    "{:.3}-{:.3}",
+                    wsteps as f64 * h,
+                    (wsteps + steps) as f64 * h
+                );
                 // per run: ms per step in all, then in assembly, solve
                 // and contacts (the step's own timers)
                 let mut ms: Vec<[f64; 5]> = Vec::new();
@@ -111,7 +118,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                         // later, calmer stretches of the drape; the last
                         // run's simulation is dropped before this one is built
                         let mut sim = sc.build(&ov)?;
-                        for _ in 0..wsteps.min(steps * 3) {
+                        for _ in 0..wsteps {
                             sim.step()?;
                         }
                         let t = std::time::Instant::now();
@@ -158,7 +165,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
                 let med = ms[ms.len() / 2];
                 println!(
-                    "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7}",
+                    "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7} {:>13}",
                     sp,
                     grid,
                     format!("{h:.4e}"),
@@ -170,7 +177,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                     h * 1e3 / med[0],
                     it,
                     peak,
-                    used
+                    used,
+                    window
                 );
                 if self_collision {
                     println!(

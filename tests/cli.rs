@@ -333,7 +333,8 @@ fn bench_rows(stdout: &str) -> Vec<Vec<&str>> {
 
 /// `bench` prints one row per case with the time per step, its split into
 /// assembly, solve and contacts (which add up to at most the whole), the
-/// real-time factor (dt / time per step) and the peak memory.
+/// real-time factor (dt / time per step), the peak memory and the window of
+/// simulated time measured.
 #[test]
 fn bench_reports_time_per_step_and_its_phases() {
     let stdout = bench_5cm("0.001,0.0001", "pcg,cholesky", "3");
@@ -349,6 +350,7 @@ fn bench_reports_time_per_step_and_its_phases() {
         "iters",
         "peak RSS MB",
         "threads",
+        "window s",
     ] {
         assert!(header.contains(col), "header lacks {col}: {header}");
     }
@@ -369,5 +371,14 @@ fn bench_reports_time_per_step_and_its_phases() {
         assert!(num(9) >= 1.0 && num(10) > 1.0, "{r:?}");
         // 121 vertices: one thread (every core from 500)
         assert_eq!(r[11], "1", "{r:?}");
+        // the simulated times measured: after the warm-up of 0.01 s, at most
+        // 3 × 20 steps (at 1e-4 s: 60 steps, 0.006 s), then 20 steps
+        let (t0, t1) = r[12].split_once('-').unwrap_or_else(|| panic!("{r:?}"));
+        let (t0, t1): (f64, f64) = (t0.parse().unwrap(), t1.parse().unwrap());
+        let start = (0.01 / dt).round().min(60.0) * dt;
+        assert!(
+            (t0 - start).abs() < 1e-9 && (t1 - start - 20.0 * dt).abs() < 1e-9,
+            "{r:?}"
+        );
     }
 }
