@@ -347,9 +347,19 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
             v.linger(stop_ref);
         }
     }
-    match bag_error {
+    // the outputs (and the bag) cover the steps before a failed one
+    let failed = s.failure.as_ref().map(|f| {
+        format!(
+            "{f}\nthe run up to t = {:.4} s ({} steps) is written to {}",
+            s.simulated_s,
+            s.steps,
+            out.display()
+        )
+    });
+    match (failed, bag_error) {
+        (Some(f), Some(e)) => anyhow::bail!("{f}\n{e}"),
         // the outputs are written; the bag is not whole
-        Some(e) => anyhow::bail!("{e}"),
-        None => Ok(()),
+        (Some(e), None) | (None, Some(e)) => anyhow::bail!("{e}"),
+        (None, None) => Ok(()),
     }
 }

@@ -71,6 +71,12 @@ pub struct Summary {
     /// The cloth against itself (absent when self-collision is off).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub self_collision: Option<SelfSummary>,
+    /// Why the run ended before its duration: the step that failed, with
+    /// its error (a failed step changes nothing, so the summary, the energies
+    /// and the final state are those of the steps before it). Absent when the
+    /// run went to its end or was stopped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
 }
 
 /// Steps by the linear solve that gave their answer.
@@ -133,7 +139,8 @@ pub enum Control {
 /// record it, or to stop the run).
 pub type Observer<'a> = &'a mut dyn FnMut(&Simulation) -> Result<Control>;
 
-/// Runs a built simulation for `duration` seconds, sampling energies at `rate` Hz.
+/// Runs a built simulation for `duration` seconds, sampling energies at
+/// `rate` Hz; a step that fails is an error.
 pub fn run(
     sim: &mut Simulation,
     duration: f64,
@@ -141,13 +148,21 @@ pub fn run(
     settle_speed: f64,
     progress: Progress,
 ) -> Result<(Vec<EnergyRow>, Summary)> {
-    run_with(sim, duration, rate, settle_speed, progress, &mut |_| {
+    let (rows, summary) = run_to_failure(sim, duration, rate, settle_speed, progress, &mut |_| {
         Ok(Control::Continue)
-    })
+    })?;
+    match summary.failure {
+        Some(f) => Err(anyhow::anyhow!(f)),
+        None => Ok((rows, summary)),
+    }
 }
 
-/// As [`run`], calling `observer` before the first step and after each step.
-pub fn run_with(
+/// As [`run`], calling `observer` before the first step and after each
+/// step, and a step that fails ends the run with what was done before it:
+/// the energies sampled so far (and the state the failed step left
+/// unchanged) are returned, and `Summary::failure` says which step failed
+/// and why. An observer's error is still an error.
+pub fn run_to_failure(
     sim: &mut Simulation,
     duration: f64,
     rate: f64,
@@ -176,10 +191,23 @@ pub fn run_with(
     if stop {
         steps = 0;
     }
-    for k in 1..=steps {
-        let st = sim
-            .step()
-            .with_context(|| format!("step {k} (t = {:.4} s)", sim.time))?;
+    let mut failure = None;
+    // the steps done: all those planned unless the run stops or fails
+    let planned = steps;
+    for k in 1..=planned {
+        let st = match sim.step() {
+            Ok(st) => st,
+            Err(e) => {
+                failure = Some(format!("step {k} (t = {:.4} s): {e:#}", sim.time));
+                steps = k - 1;
+                if rows.last().is_some_and(|r| r.time != sim.time) {
+                    let mut r = row(sim);
+                    r.lost = e0 - sim.energies().total();
+                    rows.push(r);
+                }
+                break;
+            }
+        };
         iters += st.iterations;
         max_iters = max_iters.max(st.iterations);
         solved_by.count(st.solved_by);
@@ -198,7 +226,7 @@ pub fn run_with(
         if observer(sim)? == Control::Stop {
             stop = true;
         }
-        if k % every == 0 || k == steps || stop {
+        if k % every == 0 || k == planned || stop {
             let mut r = row(sim);
             r.lost = e0 - sim.energies().total();
             rows.push(r);
@@ -260,6 +288,7 @@ pub fn run_with(
             final_contacts: sim.last.self_contacts,
             ..own
         }),
+        failure,
     };
     Ok((rows, summary))
 }
@@ -279,7 +308,10 @@ pub fn row(sim: &Simulation) -> EnergyRow {
     }
 }
 
-/// Runs a scene file headless and writes its outputs into `out`.
+/// Runs a scene file headless and writes its outputs into `out`. A step
+/// that fails ends the run, and the outputs of the steps before it are
+/// written all the same: `Summary::failure` (also in `summary.json`) says
+/// which step failed and why, for the caller to report.
 pub fn drape(
     scene: &Scene,
     ov: &Overrides,
@@ -302,7 +334,7 @@ pub fn drape_with(
     progress: Progress,
     observer: Observer,
 ) -> Result<(Simulation, Summary)> {
-    let (rows, mut summary) = run_with(
+    let (rows, mut summary) = run_to_failure(
         &mut sim,
         scene.duration(ov),
         scene.file.output_rate,

@@ -491,6 +491,84 @@ fn a_failed_step_names_the_spring_and_the_strain() {
     }
 }
 
+/// A step that fails ends a drape, and what was computed before it is kept:
+/// `run::drape` writes the energies up to the failed step, the last good
+/// state (final.ply, final.png) and summary.json naming the step and the
+/// error (`drape` prints them, then exits with the error); `run::run`, which
+/// writes nothing, still returns the failure as an error.
+#[test]
+fn a_drape_whose_step_fails_writes_the_steps_before_it() {
+    use garment_sim::run;
+    use garment_sim::scene::{Overrides, Scene};
+    use garment_sim::solver::{Pin, PinPath, Simulation};
+    use nalgebra::Vector3;
+    let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
+    let ov = Overrides {
+        duration: Some(0.02),
+        ..Default::default()
+    };
+    // the first corner's pin sent out of range (a target no message or
+    // scene may give) during the sixth step
+    let flung = |sim: &mut Simulation| {
+        let dt = sim.params().dt;
+        let p0 = sim.cloth.x[0];
+        let mut pins: Vec<Pin> = sim.pins().to_vec();
+        pins.retain(|p| p.vertex != 0);
+        pins.push(Pin::new(
+            0,
+            PinPath::Waypoints(vec![
+                (0.0, p0),
+                (5.5 * dt, p0),
+                (5.6 * dt, p0 + Vector3::new(f64::INFINITY, 0.0, 0.0)),
+            ]),
+        ));
+        sim.set_pins(pins).unwrap();
+    };
+    let out = support::Scratch::new("failed_drape");
+    let mut sim = sc.build(&ov).unwrap();
+    flung(&mut sim);
+    let dt = sim.params().dt;
+    let (sim, s) = run::drape_with(&sc, &ov, sim, &out, &mut |_, _| {}, &mut |_| {
+        Ok(run::Control::Continue)
+    })
+    .unwrap();
+    let failure = s.failure.as_deref().expect("the run failed");
+    // the sixth step ends past the last waypoint, where the target is not
+    // finite: it fails, and the five steps before it are kept
+    assert!(failure.starts_with("step 6 (t = 0.0042 s)"), "{failure}");
+    assert!(failure.contains("diverged at vertex 0"), "{failure}");
+    assert_eq!(s.steps, 5);
+    assert!((sim.time - 5.0 * dt).abs() < 1e-12, "{}", sim.time);
+    assert!(sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    // the files: the energies from the start to the last good step, that
+    // state, and the summary with the failure
+    let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
+    let last: f64 = csv
+        .lines()
+        .last()
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((last - 5.0 * dt).abs() < 1e-12, "{csv}");
+    assert!(out.join("final.ply").is_file() && out.join("final.png").is_file());
+    let js: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(js["failure"].as_str(), Some(failure));
+    assert_eq!(js["steps"].as_u64(), Some(5));
+    // without outputs to keep, the failure is an error
+    let mut sim = sc.build(&ov).unwrap();
+    flung(&mut sim);
+    let e = run::run(&mut sim, 0.02, 120.0, 0.005, &mut |_, _| {}).unwrap_err();
+    assert!(format!("{e:#}").starts_with("step 6 (t = "), "{e:#}");
+    // a run that goes to its end has no failure in its summary
+    let mut sim = sc.build(&ov).unwrap();
+    let (_, ok) = run::run(&mut sim, 0.02, 120.0, 0.005, &mut |_, _| {}).unwrap();
+    assert!(ok.failure.is_none());
+}
+
 /// Byte ranges of the chunk records (opcode 0x06) of an MCAP file, walked
 /// from the record headers (opcode, u64 length).
 fn chunk_ranges(data: &[u8]) -> Vec<(usize, usize)> {
