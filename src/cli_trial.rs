@@ -85,7 +85,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     let mut motion = crate::progress_printer("motion".into());
     let mut moving = false;
     let body = trial::body_handle(&sim);
-    let stats = trial::run_on(
+    let stats = trial::run_to_failure(
         &mut sim,
         body,
         &t.file.sewing,
@@ -244,7 +244,16 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         eprintln!("warning: {w}");
     }
     println!("wrote {}", a.out.display());
-    Ok(())
+    match &fit.run.failure {
+        // the outputs are those of the steps before the failed one
+        Some(f) => anyhow::bail!(
+            "{f}\nthe trial up to t = {:.4} s ({} steps) is written to {}",
+            fit.run.simulated_s,
+            fit.run.steps,
+            a.out.display()
+        ),
+        None => Ok(()),
+    }
 }
 
 /// A trial with a `dressing` section: sewn on the body, then a gripper pulls

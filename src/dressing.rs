@@ -1698,7 +1698,7 @@ pub fn run_trial(
     d.check()?;
     let (mut sim, g) = trial.build(ov)?;
     let body = crate::trial::body_handle(&sim).context("the trial has no body")?;
-    let sewing = crate::trial::run_on(
+    let sewing = crate::trial::run_to_failure(
         &mut sim,
         Some(body),
         &trial.file.sewing,
@@ -1706,7 +1706,8 @@ pub fn run_trial(
         Some(0.0),
         sewing_progress,
         stop,
-    )?;
+    )?
+    .into_result()?;
     let dressing = Dressing::set_up(&mut sim, &g, body, d)?;
     if d.edge_contacts {
         let mut p = sim.params().clone();

@@ -644,11 +644,27 @@ pub struct RunStats {
     /// (written as `body_wrench.csv`; empty when run without a body).
     #[serde(skip)]
     pub wrench: Vec<(f64, Wrench)>,
+    /// Why the trial ended early: the step that failed, with its error (a
+    /// failed step changes nothing: the figures are of the steps before it).
+    /// Absent when it ran its course or was stopped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+}
+
+impl RunStats {
+    /// The statistics of a trial that ran its course (or was stopped), or
+    /// the error of the step that failed.
+    pub fn into_result(self) -> Result<RunStats> {
+        match self.failure {
+            Some(f) => Err(anyhow::anyhow!(f)),
+            None => Ok(self),
+        }
+    }
 }
 
 /// Sews and drapes (the phases of the module's documentation);
 /// `progress(sim, phase, t, of)` after each step (the state as it is
-/// then), `stop()` ends the run early.
+/// then), `stop()` ends the run early; a step that fails is an error.
 pub fn run(
     sim: &mut Simulation,
     sew: &SewingFile,
@@ -657,12 +673,17 @@ pub fn run(
     progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
     stop: &dyn Fn() -> bool,
 ) -> Result<RunStats> {
-    run_on(sim, None, sew, st, max_time, progress, stop)
+    run_to_failure(sim, None, sew, st, max_time, progress, stop)?.into_result()
 }
 
 /// [`run`], recording the garment's wrench on obstacle `body` after every
-/// step ([`RunStats::wrench`]).
-pub fn run_on(
+/// step ([`RunStats::wrench`]); a step that fails ends the trial with what
+/// was done before it: the sewing's own settings (no gravity, stiffer seams)
+/// are undone, no later phase runs, and [`RunStats::failure`] says which step
+/// failed and why (for a caller that writes the trial's outputs all the
+/// same; [`RunStats::into_result`] makes it an error). A bad setting is an
+/// error at once.
+pub fn run_to_failure(
     sim: &mut Simulation,
     body: Option<Handle<Obstacle>>,
     sew: &SewingFile,
@@ -730,6 +751,7 @@ pub fn run_on(
         s.d *= sew.stiffness_factor;
     }
     let sew_steps = (sew.duration / sim.params().dt).round() as u64;
+    let mut failure = None;
     let mut step = |sim: &mut Simulation, steps: &mut u64, acc: &mut Spent| -> Result<()> {
         let s = sim
             .step()
@@ -758,7 +780,10 @@ pub fn run_on(
         if stop() {
             break;
         }
-        step(sim, &mut steps, &mut acc)?;
+        if let Err(e) = step(sim, &mut steps, &mut acc) {
+            failure = Some(format!("{e:#}"));
+            break;
+        }
         progress(sim, "sewing", sim.time, sew.duration);
     }
     let sewing_s = sim.time;
@@ -776,8 +801,11 @@ pub fn run_on(
     }
     let mut calm_since: Option<f64> = None;
     let mut settle = None;
-    while sim.time - sewing_s < max_time - 1e-12 && !stop() {
-        step(sim, &mut steps, &mut acc)?;
+    while failure.is_none() && sim.time - sewing_s < max_time - 1e-12 && !stop() {
+        if let Err(e) = step(sim, &mut steps, &mut acc) {
+            failure = Some(format!("{e:#}"));
+            break;
+        }
         if sim.rms_speed() < st.speed {
             let since = *calm_since.get_or_insert(sim.time);
             if sim.time - since >= st.hold - 1e-12 {
@@ -799,7 +827,7 @@ pub fn run_on(
         .collect();
     let mut motion_s = None;
     let mut motion = None;
-    if !held.is_empty() && !stop() {
+    if failure.is_none() && !held.is_empty() && !stop() {
         let mut play: f64 = 0.0;
         for h in held {
             if let Some(b) = sim.obstacle_mut(h).and_then(|o| o.deforming_mut()) {
@@ -810,7 +838,10 @@ pub fn run_on(
         let t0 = sim.time;
         let (wall0, steps0, acc0) = (Instant::now(), steps, acc);
         while sim.time - t0 < play - 1e-12 && !stop() {
-            step(sim, &mut steps, &mut acc)?;
+            if let Err(e) = step(sim, &mut steps, &mut acc) {
+                failure = Some(format!("{e:#}"));
+                break;
+            }
             progress(sim, "motion", sim.time - t0, play);
         }
         motion_s = Some(sim.time - t0);
@@ -836,6 +867,7 @@ pub fn run_on(
         motion,
         trace,
         wrench,
+        failure,
     })
 }
 

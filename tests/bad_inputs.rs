@@ -500,33 +500,14 @@ fn a_failed_step_names_the_spring_and_the_strain() {
 fn a_drape_whose_step_fails_writes_the_steps_before_it() {
     use garment_sim::run;
     use garment_sim::scene::{Overrides, Scene};
-    use garment_sim::solver::{Pin, PinPath, Simulation};
-    use nalgebra::Vector3;
     let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
     let ov = Overrides {
         duration: Some(0.02),
         ..Default::default()
     };
-    // the first corner's pin sent out of range (a target no message or
-    // scene may give) during the sixth step
-    let flung = |sim: &mut Simulation| {
-        let dt = sim.params().dt;
-        let p0 = sim.cloth.x[0];
-        let mut pins: Vec<Pin> = sim.pins().to_vec();
-        pins.retain(|p| p.vertex != 0);
-        pins.push(Pin::new(
-            0,
-            PinPath::Waypoints(vec![
-                (0.0, p0),
-                (5.5 * dt, p0),
-                (5.6 * dt, p0 + Vector3::new(f64::INFINITY, 0.0, 0.0)),
-            ]),
-        ));
-        sim.set_pins(pins).unwrap();
-    };
     let out = support::Scratch::new("failed_drape");
     let mut sim = sc.build(&ov).unwrap();
-    flung(&mut sim);
+    support::pin_failing_at_step_6(&mut sim, 0);
     let dt = sim.params().dt;
     let (sim, s) = run::drape_with(&sc, &ov, sim, &out, &mut |_, _| {}, &mut |_| {
         Ok(run::Control::Continue)
@@ -560,7 +541,7 @@ fn a_drape_whose_step_fails_writes_the_steps_before_it() {
     assert_eq!(js["steps"].as_u64(), Some(5));
     // without outputs to keep, the failure is an error
     let mut sim = sc.build(&ov).unwrap();
-    flung(&mut sim);
+    support::pin_failing_at_step_6(&mut sim, 0);
     let e = run::run(&mut sim, 0.02, 120.0, 0.005, &mut |_, _| {}).unwrap_err();
     assert!(format!("{e:#}").starts_with("step 6 (t = "), "{e:#}");
     // a run that goes to its end has no failure in its summary

@@ -57,10 +57,21 @@ fn pin_top(sim: &mut Simulation) {
     sim.set_pins(pins).unwrap();
 }
 
-#[test]
-fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
-    // panel b hangs 5 cm below panel a, whose top edge is held; the seam
-    // joins a's bottom edge (0) to b's top edge (2)
+/// `trial::run` with the default sewing and settling, quietly.
+fn sew_and_drape(sim: &mut Simulation) -> anyhow::Result<trial::RunStats> {
+    trial::run(
+        sim,
+        &SewingFile::default(),
+        &SettleFile::default(),
+        None,
+        &mut |_, _, _, _| {},
+        &|| false,
+    )
+}
+
+/// Panel b hangs 5 cm below panel a; the seam joins a's bottom edge (0) to
+/// b's top edge (2); wool tropical, 2 cm grid.
+fn two_panels() -> (Garment, Fabric) {
     let a = rect("a", 0.2, 0.15, [0.0, 0.0, 0.35], 90.0);
     let b = rect("b", 0.2, 0.15, [0.0, 0.0, 0.15], 90.0);
     let seam = SeamSpec {
@@ -71,6 +82,13 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
     };
     let f = fabric("wool_tropical");
     let g = Garment::build(&[a, b], &[seam], 0.02, f.areal_mass).unwrap();
+    (g, f)
+}
+
+#[test]
+fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
+    // panel b hangs 5 cm below panel a, whose top edge is held
+    let (g, f) = two_panels();
     assert!(
         g.seams[0].reversed,
         "a's bottom runs left to right, b's top right to left"
@@ -82,8 +100,42 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
     );
     let mut sim = Simulation::new(g.cloth.clone(), f, params(0.005)).unwrap();
     pin_top(&mut sim);
-    let st = trial::run(
+    let st = sew_and_drape(&mut sim).unwrap();
+    let (gap, _) = g.largest_gap(&sim.cloth.x);
+    assert!(st.settle_time_s.is_some(), "settles: {st:?}");
+    assert!(gap < 1e-3, "largest seam gap {:.3} mm", gap * 1e3);
+    // b hangs from the seam: its lowest point is near 0.35 − 0.15 = 0.20 m
+    let low = sim.cloth.x.iter().map(|p| p.z).fold(f64::MAX, f64::min);
+    assert!((low - 0.20).abs() < 0.01, "lowest point {low}");
+}
+
+/// A trial whose step fails during sewing ends with what was done before it
+/// (`trial::run_to_failure`, which `trial` uses to write its outputs all the
+/// same): the failed step is named, the steps before it are counted, the
+/// sewing's own settings (no gravity, stiffer seams) are undone and no drape
+/// follows; `trial::run` still returns the failure as an error.
+#[test]
+fn a_trial_whose_step_fails_ends_with_the_steps_before_it() {
+    let (g, f) = two_panels();
+    let dt = 0.005;
+    let build = || {
+        let mut sim = Simulation::new(g.cloth.clone(), f.clone(), params(dt)).unwrap();
+        pin_top(&mut sim);
+        support::pin_failing_at_step_6(&mut sim, g.cloth.len() - 1);
+        sim
+    };
+    let mut sim = build();
+    let (gravity, seams) = (
+        sim.params().gravity,
+        sim.cloth
+            .seams
+            .iter()
+            .map(|s| (s.k, s.d))
+            .collect::<Vec<_>>(),
+    );
+    let st = trial::run_to_failure(
         &mut sim,
+        None,
         &SewingFile::default(),
         &SettleFile::default(),
         None,
@@ -91,12 +143,19 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
         &|| false,
     )
     .unwrap();
-    let (gap, _) = g.largest_gap(&sim.cloth.x);
-    assert!(st.settle_time_s.is_some(), "settles: {st:?}");
-    assert!(gap < 1e-3, "largest seam gap {:.3} mm", gap * 1e3);
-    // b hangs from the seam: its lowest point is near 0.35 − 0.15 = 0.20 m
-    let low = sim.cloth.x.iter().map(|p| p.z).fold(f64::MAX, f64::min);
-    assert!((low - 0.20).abs() < 0.01, "lowest point {low}");
+    let failure = st.failure.as_deref().expect("the trial failed");
+    assert!(failure.starts_with("step 6 (t = 0.0250 s)"), "{failure}");
+    assert!(failure.contains("diverged at vertex"), "{failure}");
+    assert_eq!(st.steps, 5);
+    assert!((sim.time - 5.0 * dt).abs() < 1e-12 && (st.sewing_s - sim.time).abs() < 1e-12);
+    assert!(st.settle_time_s.is_none() && st.motion_s.is_none());
+    assert!(sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    assert_eq!(sim.params().gravity, gravity);
+    let after: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
+    assert_eq!(after, seams);
+    // the same trial through `run` is an error
+    let e = sew_and_drape(&mut build()).unwrap_err();
+    assert!(format!("{e:#}").starts_with("step 6 (t = "), "{e:#}");
 }
 
 #[test]

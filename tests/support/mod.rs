@@ -215,3 +215,26 @@ pub fn ray_crosses(
     let dist = e2.dot(&q) / det;
     u >= 0.0 && w >= 0.0 && u + w <= 1.0 && dist > 0.0
 }
+
+/// Pins vertex `v` of `sim` where it is, then sends its target out of range
+/// (not finite: a target no message or scene may give) during the sixth
+/// step: that step fails, the five before it run.
+pub fn pin_failing_at_step_6(sim: &mut garment_sim::solver::Simulation, v: usize) {
+    use garment_sim::solver::{Pin, PinPath};
+    let dt = sim.params().dt;
+    let p0 = sim.cloth.x[v];
+    let mut pins: Vec<Pin> = sim.pins().to_vec();
+    pins.retain(|p| p.vertex != v);
+    pins.push(Pin::new(
+        v,
+        PinPath::Waypoints(vec![
+            (0.0, p0),
+            (5.5 * dt, p0),
+            (
+                5.6 * dt,
+                p0 + nalgebra::Vector3::new(f64::INFINITY, 0.0, 0.0),
+            ),
+        ]),
+    ));
+    sim.set_pins(pins).unwrap();
+}
