@@ -348,18 +348,15 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         }
     }
     // the outputs (and the bag) cover the steps before a failed one
-    let failed = s.failure.as_ref().map(|f| {
-        format!(
-            "{f}\nthe run up to t = {:.4} s ({} steps) is written to {}",
-            s.simulated_s,
-            s.steps,
-            out.display()
-        )
-    });
+    let failed = s
+        .failure
+        .as_ref()
+        .map(|f| run::written_before_failure(f, s.simulated_s, s.steps, &out));
     match (failed, bag_error) {
         (Some(f), Some(e)) => anyhow::bail!("{f}\n{e}"),
+        (Some(f), None) => Err(f),
         // the outputs are written; the bag is not whole
-        (Some(e), None) | (None, Some(e)) => anyhow::bail!("{e}"),
+        (None, Some(e)) => anyhow::bail!("{e}"),
         (None, None) => Ok(()),
     }
 }

@@ -246,12 +246,12 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     println!("wrote {}", a.out.display());
     match &fit.run.failure {
         // the outputs are those of the steps before the failed one
-        Some(f) => anyhow::bail!(
-            "{f}\nthe trial up to t = {:.4} s ({} steps) is written to {}",
+        Some(f) => Err(garment_sim::run::written_before_failure(
+            f,
             fit.run.simulated_s,
             fit.run.steps,
-            a.out.display()
-        ),
+            &a.out,
+        )),
         None => Ok(()),
     }
 }

@@ -151,10 +151,25 @@ pub fn run(
     let (rows, summary) = run_to_failure(sim, duration, rate, settle_speed, progress, &mut |_| {
         Ok(Control::Continue)
     })?;
-    match summary.failure {
+    failed(summary.failure.clone())?;
+    Ok((rows, summary))
+}
+
+/// A run's failure (`Summary::failure`, `RunStats::failure`) as an error.
+pub fn failed(failure: Option<String>) -> Result<()> {
+    match failure {
         Some(f) => Err(anyhow::anyhow!(f)),
-        None => Ok((rows, summary)),
+        None => Ok(()),
     }
+}
+
+/// What `drape` and `trial` say after writing the outputs of a run whose
+/// step failed (`failure`, then how far the outputs in `out` go).
+pub fn written_before_failure(failure: &str, t: f64, steps: u64, out: &Path) -> anyhow::Error {
+    anyhow::anyhow!(
+        "{failure}\nthe run up to t = {t:.4} s ({steps} steps) is written to {}",
+        out.display()
+    )
 }
 
 /// As [`run`], calling `observer` before the first step and after each
@@ -191,6 +206,11 @@ pub fn run_to_failure(
     if stop {
         steps = 0;
     }
+    // an energy row with the energy lost since the start
+    let sample = |sim: &Simulation| EnergyRow {
+        lost: e0 - sim.energies().total(),
+        ..row(sim)
+    };
     let mut failure = None;
     // the steps done: all those planned unless the run stops or fails
     let planned = steps;
@@ -201,9 +221,7 @@ pub fn run_to_failure(
                 failure = Some(format!("step {k} (t = {:.4} s): {e:#}", sim.time));
                 steps = k - 1;
                 if rows.last().is_some_and(|r| r.time != sim.time) {
-                    let mut r = row(sim);
-                    r.lost = e0 - sim.energies().total();
-                    rows.push(r);
+                    rows.push(sample(sim));
                 }
                 break;
             }
@@ -227,9 +245,7 @@ pub fn run_to_failure(
             stop = true;
         }
         if k % every == 0 || k == planned || stop {
-            let mut r = row(sim);
-            r.lost = e0 - sim.energies().total();
-            rows.push(r);
+            rows.push(sample(sim));
             progress(sim.time, duration);
         }
         if stop {

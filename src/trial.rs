@@ -655,10 +655,8 @@ impl RunStats {
     /// The statistics of a trial that ran its course (or was stopped), or
     /// the error of the step that failed.
     pub fn into_result(self) -> Result<RunStats> {
-        match self.failure {
-            Some(f) => Err(anyhow::anyhow!(f)),
-            None => Ok(self),
-        }
+        crate::run::failed(self.failure.clone())?;
+        Ok(self)
     }
 }
 
@@ -752,10 +750,11 @@ pub fn run_to_failure(
     }
     let sew_steps = (sew.duration / sim.params().dt).round() as u64;
     let mut failure = None;
-    let mut step = |sim: &mut Simulation, steps: &mut u64, acc: &mut Spent| -> Result<()> {
+    // a failed step's error, as `RunStats::failure` gives it
+    let mut step = |sim: &mut Simulation, steps: &mut u64, acc: &mut Spent| -> Result<(), String> {
         let s = sim
             .step()
-            .with_context(|| format!("step {} (t = {:.4} s)", *steps + 1, sim.time))?;
+            .map_err(|e| format!("step {} (t = {:.4} s): {e:#}", *steps + 1, sim.time))?;
         acc.split.assemble += s.assemble_s;
         acc.split.solve += s.solve_s;
         acc.split.collide += s.collide_s;
@@ -781,7 +780,7 @@ pub fn run_to_failure(
             break;
         }
         if let Err(e) = step(sim, &mut steps, &mut acc) {
-            failure = Some(format!("{e:#}"));
+            failure = Some(e);
             break;
         }
         progress(sim, "sewing", sim.time, sew.duration);
@@ -803,7 +802,7 @@ pub fn run_to_failure(
     let mut settle = None;
     while failure.is_none() && sim.time - sewing_s < max_time - 1e-12 && !stop() {
         if let Err(e) = step(sim, &mut steps, &mut acc) {
-            failure = Some(format!("{e:#}"));
+            failure = Some(e);
             break;
         }
         if sim.rms_speed() < st.speed {
@@ -839,7 +838,7 @@ pub fn run_to_failure(
         let (wall0, steps0, acc0) = (Instant::now(), steps, acc);
         while sim.time - t0 < play - 1e-12 && !stop() {
             if let Err(e) = step(sim, &mut steps, &mut acc) {
-                failure = Some(format!("{e:#}"));
+                failure = Some(e);
                 break;
             }
             progress(sim, "motion", sim.time - t0, play);
