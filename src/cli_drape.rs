@@ -27,8 +27,9 @@ pub struct DrapeArgs {
     pub duration: Option<f64>,
     /// Linear solver: auto (default: the block-Jacobi PCG while it converges in fewer
     /// iterations than the break-even count, else a single-precision Cholesky factor as
-    /// the PCG's preconditioner), pcg (block-Jacobi), amg (PCG with smoothed-aggregation
-    /// multigrid) or cholesky (exact, double precision).
+    /// the PCG's preconditioner), pcg (block-Jacobi), sgs (PCG with symmetric block
+    /// Gauss–Seidel), amg (PCG with smoothed-aggregation multigrid) or cholesky (exact,
+    /// double precision).
     #[arg(long)]
     pub solver: Option<LinearSolverKind>,
     /// Turn the hysteretic parts of the laws off.

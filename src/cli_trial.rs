@@ -42,7 +42,7 @@ pub struct TrialArgs {
     /// 1e-6 when absent).
     #[arg(long, allow_negative_numbers = true)]
     cg_tolerance: Option<f64>,
-    /// Linear solver: auto, pcg, amg or cholesky (default: the trial's `linear_solver`,
+    /// Linear solver: auto, pcg, sgs, amg or cholesky (default: the trial's `linear_solver`,
     /// auto when absent; docs/drape.md).
     #[arg(long)]
     solver: Option<LinearSolverKind>,

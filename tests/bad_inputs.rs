@@ -459,6 +459,7 @@ fn a_failed_step_names_the_spring_and_the_strain() {
     for (solver, stretch) in [
         LinearSolverKind::Cholesky,
         LinearSolverKind::Pcg,
+        LinearSolverKind::Sgs,
         LinearSolverKind::Auto,
     ]
     .into_iter()

@@ -31,7 +31,7 @@ ap.add_argument("--dt", type=float, default=1.0 / 300.0,
                 help="time step, s; Blender's is 1/(60 quality), the nearest quality is taken")
 ap.add_argument("--duration", type=float, default=2.0, help="simulated time, s")
 ap.add_argument("--threads", type=int, default=1, help="threads of both (1: both on core 0)")
-ap.add_argument("--solver", default="auto", help="our linear solver (auto, pcg, amg, cholesky)")
+ap.add_argument("--solver", default="auto", help="our linear solver (auto, pcg, sgs, amg, cholesky)")
 ap.add_argument("--cg-tolerance", type=float, default=None, help="our PCG's relative tolerance")
 ap.add_argument("--friction", type=float, default=None,
                 help="Blender's collision friction (default its 5; the thesis step needs 80 "

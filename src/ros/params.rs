@@ -319,7 +319,7 @@ pub const PARAMETERS: &[Parameter] = &[
         name: "solver",
         kind: Kind::String,
         runtime: false,
-        description: "linear solver override: `auto`, `pcg`, `amg` or `cholesky` (empty: the \
+        description: "linear solver override: `auto`, `pcg`, `sgs`, `amg` or `cholesky` (empty: the \
                       scene's or trial's)",
         get: |s| Value::Str(s.solver.clone()),
         put: |s, v| {

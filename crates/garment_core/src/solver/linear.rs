@@ -27,6 +27,9 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 pub enum LinearSolverKind {
     /// Filtered preconditioned conjugate gradient (block-Jacobi preconditioner).
     Pcg,
+    /// The filtered PCG preconditioned by symmetric block Gauss–Seidel
+    /// ([`Preconditioner::Sgs`]).
+    Sgs,
     /// Sparse Cholesky (faer), symbolic factorisation reused.
     Cholesky,
     /// The default: the block-Jacobi PCG while it converges within the
@@ -53,11 +56,12 @@ impl std::str::FromStr for LinearSolverKind {
     fn from_str(s: &str) -> std::result::Result<Self, String> {
         match s {
             "pcg" => Ok(Self::Pcg),
+            "sgs" => Ok(Self::Sgs),
             "cholesky" => Ok(Self::Cholesky),
             "auto" => Ok(Self::Auto),
             "amg" => Ok(Self::Amg),
             _ => Err(format!(
-                "unknown linear solver {s:?}: expected auto, pcg, amg or cholesky"
+                "unknown linear solver {s:?}: expected auto, pcg, sgs, amg or cholesky"
             )),
         }
     }
@@ -130,6 +134,18 @@ pub enum Cap {
     Reachable(usize),
 }
 
+/// The preconditioner of [`Pcg::solve`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preconditioner {
+    /// The inverses of the 3 × 3 diagonal blocks (Baraff & Witkin 1998).
+    BlockJacobi,
+    /// Symmetric block Gauss–Seidel, one sweep each way per thread's rows,
+    /// applied in Eisenstat's form (see `sgs_rows_impl`): an iteration
+    /// costs about what a block-Jacobi one does, and the table drape needs
+    /// 2.3–2.9 times fewer of them.
+    Sgs,
+}
+
 /// Workspace of the filtered PCG.
 #[derive(Debug, Clone, Default)]
 pub struct Pcg {
@@ -138,6 +154,18 @@ pub struct Pcg {
     q: Vec<Vector3<f64>>,
     s: Vec<Vector3<f64>>,
     pinv: Vec<Matrix3<f64>>,
+    /// [`Preconditioner::Sgs`]: the backward sweep's output, the filtered
+    /// diagonal blocks, where each row's blocks of its own thread end, and
+    /// the copies of the lower and upper triangles (see `sgs_rows_impl`).
+    t: Vec<Vector3<f64>>,
+    dblk: Vec<Matrix3<f64>>,
+    split: Vec<[u32; 2]>,
+    lval: Vec<Matrix3<f64>>,
+    lcol: Vec<u32>,
+    uval: Vec<Matrix3<f64>>,
+    ucol: Vec<u32>,
+    lptr: Vec<u32>,
+    uptr: Vec<u32>,
     /// Iterations of the last [`Pcg::solve`], also when it failed.
     spent: usize,
     /// Gravity's impulse on each vertex over a step, `m g h` (empty: none):
@@ -164,17 +192,18 @@ impl Pcg {
 
     /// Solves with relative tolerance `tol` on the filtered, preconditioned
     /// residual (relative to the right-hand side's, so the start does not
-    /// change when it stops); `dv` holds the first guess (its filtered part;
-    /// zeros for none) and then the solution. Returns the iteration count;
-    /// an error when `cap` stops it (see [`Cap`]) or the matrix is not
-    /// positive definite.
+    /// change when it stops), preconditioned by `precond`; `dv` holds the
+    /// first guess (its filtered part; zeros for none) and then the
+    /// solution. Returns the iteration count; an error when `cap` stops it
+    /// (see [`Cap`]) or the matrix is not positive definite.
     ///
     /// The solve runs on every thread of `team` (the simulation's, started
     /// once; see [`super::team::threads_for`]): each owns a contiguous range
-    /// of rows and does the product, the vector updates and its part of the
-    /// dot products on it; three barriers per iteration, partial sums added
-    /// in a fixed order (so every thread takes the same branches and the
-    /// result depends on the number of threads, never on scheduling).
+    /// of rows and does the product (or its sweeps), the vector updates and
+    /// its part of the dot products on it; three barriers per iteration,
+    /// partial sums added in a fixed order (so every thread takes the same
+    /// branches and the result depends on the number of threads, never on
+    /// scheduling).
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -185,6 +214,7 @@ impl Pcg {
         dv: &mut [Vector3<f64>],
         tol: f64,
         cap: Cap,
+        precond: Preconditioner,
         team: &mut Team,
     ) -> Result<usize> {
         let (max_iter, early) = match cap {
@@ -197,6 +227,27 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
+        if precond == Preconditioner::Sgs {
+            self.t.resize(n, Vector3::zeros());
+            self.dblk.resize(n, Matrix3::zeros());
+            self.split.resize(n, [0; 2]);
+            // where each row's lower and upper blocks go in their copies
+            self.lptr.clear();
+            self.uptr.clear();
+            self.lptr.push(0);
+            self.uptr.push(0);
+            for i in 0..n {
+                let l = self.lptr[i] + (a.diag[i] - a.row_ptr[i]) as u32;
+                let u = self.uptr[i] + (a.row_ptr[i + 1] - a.diag[i] - 1) as u32;
+                self.lptr.push(l);
+                self.uptr.push(u);
+            }
+            let (nl, nu) = (self.lptr[n] as usize, self.uptr[n] as usize);
+            self.lval.resize(nl, Matrix3::zeros());
+            self.lcol.resize(nl, 0);
+            self.uval.resize(nu, Matrix3::zeros());
+            self.ucol.resize(nu, 0);
+        }
         let nt = team.size().min(n).max(1);
         let sh = Shared {
             r: Ptr(self.r.as_mut_ptr()),
@@ -205,6 +256,13 @@ impl Pcg {
             s: Ptr(self.s.as_mut_ptr()),
             pinv: Ptr(self.pinv.as_mut_ptr()),
             dv: Ptr(dv.as_mut_ptr()),
+            t: Ptr(self.t.as_mut_ptr()),
+            dblk: Ptr(self.dblk.as_mut_ptr()),
+            split: Ptr(self.split.as_mut_ptr()),
+            lval: Ptr(self.lval.as_mut_ptr()),
+            lcol: Ptr(self.lcol.as_mut_ptr()),
+            uval: Ptr(self.uval.as_mut_ptr()),
+            ucol: Ptr(self.ucol.as_mut_ptr()),
             partial: (0..3 * nt).map(|_| AtomicU64::new(0)).collect(),
             barrier: Barrier::new(nt),
             nt,
@@ -219,10 +277,17 @@ impl Pcg {
             tol,
             max_iter,
             scale: &self.scale,
+            lptr: &self.lptr,
+            uptr: &self.uptr,
         };
         // every thread takes the same branches: thread 0's result is the solve's
         let mut results: Vec<Result<usize>> = (0..nt).map(|_| Ok(0)).collect();
-        team.run_each(&mut results, |t, r| *r = pcg_rows(&args, &sh, t));
+        team.run_each(&mut results, |t, r| {
+            *r = match precond {
+                Preconditioner::BlockJacobi => pcg_rows(&args, &sh, t),
+                Preconditioner::Sgs => sgs_rows(&args, &sh, t),
+            }
+        });
         self.spent = sh.iters.load(Ordering::Relaxed);
         results.swap_remove(0)
     }
@@ -438,6 +503,10 @@ struct PcgArgs<'a> {
     max_iter: usize,
     /// [`Pcg::set_scale`] (empty: none).
     scale: &'a [Vector3<f64>],
+    /// Where each row's lower and upper blocks start in their copies
+    /// ([`Preconditioner::Sgs`]; empty otherwise).
+    lptr: &'a [u32],
+    uptr: &'a [u32],
 }
 
 #[derive(Clone, Copy)]
@@ -454,6 +523,13 @@ struct Shared {
     s: Ptr<Vector3<f64>>,
     pinv: Ptr<Matrix3<f64>>,
     dv: Ptr<Vector3<f64>>,
+    t: Ptr<Vector3<f64>>,
+    dblk: Ptr<Matrix3<f64>>,
+    split: Ptr<[u32; 2]>,
+    lval: Ptr<Matrix3<f64>>,
+    lcol: Ptr<u32>,
+    uval: Ptr<Matrix3<f64>>,
+    ucol: Ptr<u32>,
     /// Per-thread partial sums, 3 slots per thread.
     partial: Vec<AtomicU64>,
     barrier: Barrier,
@@ -640,6 +716,469 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         }
     }
     Ok(it)
+}
+
+/// `Σ_k val[k] x[col[k]]` over the blocks `lo..hi` of one row of a block
+/// CSR matrix given by its columns and blocks: with `FMA`,
+/// [`blocks_mul_fma`] (only where the CPU has AVX2 and FMA), else the
+/// portable product.
+#[inline(always)]
+fn blocks_s<const FMA: bool>(
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if FMA {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        return unsafe { blocks_mul_fma(col, val, lo, hi, x) };
+    }
+    let mut s = Vector3::zeros();
+    for k in lo..hi {
+        s += val[k] * x[col[k] as usize];
+    }
+    s
+}
+
+/// One thread's part of the filtered PCG preconditioned by symmetric block
+/// Gauss–Seidel ([`Preconditioner::Sgs`]), where the CPU has AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn sgs_rows_fma(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    sgs_rows_impl::<true>(args, sh, t)
+}
+
+/// [`sgs_rows_impl`] with the products the CPU allows (as [`pcg_rows`]).
+fn sgs_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    #[cfg(target_arch = "x86_64")]
+    if has_fma() {
+        // SAFETY: the CPU has AVX2 and FMA (checked just above).
+        return unsafe { sgs_rows_fma(args, sh, t) };
+    }
+    sgs_rows_impl::<false>(args, sh, t)
+}
+
+/// One thread's part of the filtered PCG preconditioned by symmetric block
+/// Gauss–Seidel (rows `lo..hi` of thread `t`), in Eisenstat's form
+/// (Eisenstat, "Efficient implementation of a class of preconditioned
+/// conjugate gradient methods", SIAM J. Sci. Stat. Comput. 2(1), 1981).
+///
+/// The filtered matrix `Â = S A S + (I − S) τ` (`τ_i` a third of the trace
+/// of `A_ii`: the constrained directions are decoupled from the others and
+/// carry no right-hand side) is split into `D` (its 3 × 3 diagonal blocks),
+/// `L` and `U` (its blocks below and above the diagonal between rows of one
+/// thread) and `O` (its blocks between rows of two threads). The
+/// preconditioner is `M = (D + L) D⁻¹ (D + U)`: each thread's own symmetric
+/// Gauss–Seidel sweep. The conjugate gradient runs on
+/// `(D + L)⁻¹ Â (D + U)⁻¹`, whose product costs one backward and one forward
+/// sweep: with `t = (D + U)⁻¹ p`, `(D + L)⁻¹ Â t = t + (D + L)⁻¹ (p − D t +
+/// O t)`. The sweeps read copies of the lower and upper triangles made at
+/// the start (reading the halves of the rows in place makes the hardware
+/// fetch the whole rows). The iterate is kept unscaled (`Δv += α t`), and
+/// the transformed residual `r̃ = (D + L)⁻¹ r` gives the convergence test's
+/// norm, `r̃ᵀ D r̃ = rᵀ M⁻¹ r`: Baraff–Witkin's test with this
+/// preconditioner, against the right-hand side (or gravity's impulse) in
+/// the same norm.
+#[inline(always)]
+fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
+    let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
+    let (lptr, uptr) = (args.lptr, args.uptr);
+    let n = a.n;
+    let lo = t * n / sh.nt;
+    let hi = (t + 1) * n / sh.nt;
+    let len = hi - lo;
+    // SAFETY: thread t writes only rows lo..hi of every vector and of the
+    // triangles' copies; the whole of dv is read only between the barriers
+    // that follow its start, the whole of `t` only between the barrier after
+    // its sweep and the next one, the copies only after the barrier that
+    // follows their writing.
+    let own = |p: Ptr<Vector3<f64>>| unsafe { std::slice::from_raw_parts_mut(p.0.add(lo), len) };
+    let r = own(sh.r);
+    let q = own(sh.q);
+    let s = own(sh.s);
+    let p = own(sh.c);
+    let dv = own(sh.dv);
+    let tt = own(sh.t);
+    let dinv = unsafe { std::slice::from_raw_parts_mut(sh.pinv.0.add(lo), len) };
+    let dblk = unsafe { std::slice::from_raw_parts_mut(sh.dblk.0.add(lo), len) };
+    let split = unsafe { std::slice::from_raw_parts_mut(sh.split.0.add(lo), len) };
+    let tt_all = sh.t.0 as *const Vector3<f64>;
+    let dv_all = sh.dv.0 as *const Vector3<f64>;
+    let (f, bb, zz) = (&filter[lo..hi], &b[lo..hi], &z[lo..hi]);
+    let (rp, diag) = (&a.row_ptr, &a.diag);
+    for k in 0..len {
+        let i = lo + k;
+        let d = &a.val[diag[i]];
+        let tau = d.trace() / 3.0;
+        let fd = match f[k] {
+            Filter::Free => *d,
+            Filter::Fixed => Matrix3::identity() * tau,
+            Filter::Normal(nrm) => {
+                let m = f[k].right(&f[k].left(d));
+                (m + m.transpose()) * 0.5 + nrm * nrm.transpose() * tau
+            }
+        };
+        dblk[k] = fd;
+        dinv[k] = block_jacobi(&fd);
+        // the row's lower and upper blocks into their copies
+        let (l0, u0) = (lptr[i] as usize, uptr[i] as usize);
+        let (nl, nu) = (diag[i] - rp[i], rp[i + 1] - diag[i] - 1);
+        // SAFETY: rows lo..hi of the copies are this thread's, and the
+        // pattern's lower and upper counts give their lengths
+        unsafe {
+            std::ptr::copy_nonoverlapping(a.val.as_ptr().add(rp[i]), sh.lval.0.add(l0), nl);
+            std::ptr::copy_nonoverlapping(a.col.as_ptr().add(rp[i]), sh.lcol.0.add(l0), nl);
+            std::ptr::copy_nonoverlapping(a.val.as_ptr().add(diag[i] + 1), sh.uval.0.add(u0), nu);
+            std::ptr::copy_nonoverlapping(a.col.as_ptr().add(diag[i] + 1), sh.ucol.0.add(u0), nu);
+        }
+        // this thread's blocks of the row: the lower ones from the first
+        // column ≥ lo, the upper ones up to the first ≥ hi (the pattern's
+        // columns are sorted)
+        let lcols = &a.col[rp[i]..diag[i]];
+        let ucols = &a.col[diag[i] + 1..rp[i + 1]];
+        split[k] = [
+            (l0 + lcols.partition_point(|&c| (c as usize) < lo)) as u32,
+            (u0 + ucols.partition_point(|&c| (c as usize) < hi)) as u32,
+        ];
+        // start from the caller's guess in dv (the last step's Δv), made to
+        // obey the filter
+        let g = if dv[k].iter().all(|c| c.is_finite()) {
+            f[k].apply(&dv[k])
+        } else {
+            Vector3::zeros()
+        };
+        dv[k] = g + zz[k];
+    }
+    sh.barrier.wait();
+    let (nl, nu) = (lptr[n] as usize, uptr[n] as usize);
+    // SAFETY: every thread's rows of the copies are written (barrier above)
+    // and only read from here on
+    let sw = Sweeps {
+        lcol: unsafe { std::slice::from_raw_parts(sh.lcol.0, nl) },
+        lval: unsafe { std::slice::from_raw_parts(sh.lval.0, nl) },
+        ucol: unsafe { std::slice::from_raw_parts(sh.ucol.0, nu) },
+        uval: unsafe { std::slice::from_raw_parts(sh.uval.0, nu) },
+        lptr,
+        uptr,
+        f,
+        dinv,
+        split,
+        lo,
+    };
+    // δ0 and the floor in the preconditioner's norm: (S b)ᵀ M⁻¹ (S b) =
+    // yᵀ D y with y = (D + L)⁻¹ S b
+    for k in 0..len {
+        q[k] = f[k].apply(&bb[k]);
+    }
+    let delta0 = sw.forward_norm::<FMA>(q, dblk);
+    let floor = if args.scale.is_empty() {
+        0.0
+    } else {
+        for k in 0..len {
+            q[k] = f[k].apply(&args.scale[lo + k]);
+        }
+        sw.forward_norm::<FMA>(q, dblk)
+    };
+    // r = S (b − A Δv), r̃ = (D + L)⁻¹ r, s = D r̃, p = s
+    {
+        let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
+        for k in 0..len {
+            let ax = blocks_s::<FMA>(&a.col, &a.val, rp[lo + k], rp[lo + k + 1], x);
+            r[k] = f[k].apply(&(bb[k] - ax));
+        }
+    }
+    let dnew = sw.forward_norm::<FMA>(r, dblk);
+    for k in 0..len {
+        s[k] = dblk[k] * r[k];
+        p[k] = s[k];
+    }
+    sh.put(t, 0, delta0);
+    sh.put(t, 1, dnew);
+    sh.put(t, 2, floor);
+    sh.barrier.wait();
+    // the reference: the right-hand side, or gravity's impulse if larger
+    let delta0 = sh.sum(0).max(sh.sum(2));
+    // slots 1 and 2 are written again only after the loop's first barrier
+    let mut dnew = sh.sum(1);
+    if !(delta0.is_finite() && dnew.is_finite()) {
+        return Err(anyhow!(
+            "PCG breakdown: non-finite right-hand side or residual (δ0 = {delta0:e}, \
+             rᵀM⁻¹r = {dnew:e})"
+        ));
+    }
+    if delta0 <= 0.0 {
+        // as in the block-Jacobi PCG: nothing to solve only if the
+        // right-hand side is zero
+        return match zero_rhs(b, filter) {
+            true => Ok(0),
+            false => Err(anyhow!(
+                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
+                 out of range)"
+            )),
+        };
+    }
+    let eps2 = args.tol * args.tol * delta0;
+    let mut it = 0;
+    while dnew > eps2 {
+        if it >= args.max_iter {
+            return Err(anyhow!(
+                "PCG did not converge in {} iterations (residual ratio {:.2e})",
+                args.max_iter,
+                (dnew / delta0).sqrt()
+            ));
+        }
+        if args.early && it % 8 == 0 && out_of_reach(it, dnew / delta0, args.tol, args.max_iter) {
+            return Err(anyhow!(
+                "PCG would not converge in {} iterations (residual ratio {:.2e} after {it})",
+                args.max_iter,
+                (dnew / delta0).sqrt()
+            ));
+        }
+        // t = (D + U)⁻¹ p
+        sw.backward::<FMA>(p, tt);
+        sh.barrier.wait();
+        // q = (D + L)⁻¹ (p − D t + O t) + t, and pᵀ q
+        {
+            let tall = unsafe { std::slice::from_raw_parts(tt_all, n) };
+            for k in 0..len {
+                let i = lo + k;
+                let mut u = p[k] - dblk[k] * tt[k];
+                let (l0, u1) = (lptr[i] as usize, uptr[i + 1] as usize);
+                let (l1, u0) = (split[k][0] as usize, split[k][1] as usize);
+                if l1 > l0 || u0 < u1 {
+                    let o = blocks_s::<FMA>(sw.lcol, sw.lval, l0, l1, tall)
+                        + blocks_s::<FMA>(sw.ucol, sw.uval, u0, u1, tall);
+                    u += f[k].apply(&o);
+                }
+                q[k] = u;
+            }
+        }
+        sw.forward::<FMA>(q);
+        let mut pq = 0.0;
+        for k in 0..len {
+            q[k] += tt[k];
+            pq += p[k].dot(&q[k]);
+        }
+        sh.put(t, 2, pq);
+        // every thread has read t for O t (above) before the next sweep
+        sh.barrier.wait();
+        let pq = sh.sum(2);
+        if pq <= 0.0 || !pq.is_finite() {
+            return Err(anyhow!(
+                "PCG breakdown: the system matrix is not positive definite (pᵀAp = {pq:e})"
+            ));
+        }
+        let alpha = dnew / pq;
+        let dold = dnew;
+        let mut dn = 0.0;
+        for k in 0..len {
+            dv[k] += tt[k] * alpha;
+            r[k] -= q[k] * alpha;
+            s[k] = dblk[k] * r[k];
+            dn += r[k].dot(&s[k]);
+        }
+        // slot 1 was last read before the barrier above
+        sh.put(t, 1, dn);
+        sh.barrier.wait();
+        dnew = sh.sum(1);
+        if !dnew.is_finite() {
+            return Err(anyhow!(
+                "PCG breakdown: non-finite residual after {} iterations",
+                it + 1
+            ));
+        }
+        let beta = dnew / dold;
+        // p is read by this thread only (its sweeps and O t use t)
+        for k in 0..len {
+            p[k] = s[k] + p[k] * beta;
+        }
+        it += 1;
+        if t == 0 {
+            sh.iters.store(it, Ordering::Relaxed);
+        }
+    }
+    Ok(it)
+}
+
+/// `D_i⁻¹ (v − Σ_k val[k] x[col[k]])` over the blocks `lo..hi` of one row
+/// (`dinv` = `D_i⁻¹`), a row of a triangular sweep, with AVX2 and FMA.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn solve_row_fma(
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+    v: &Vector3<f64>,
+    dinv: &Matrix3<f64>,
+) -> Vector3<f64> {
+    use std::arch::x86_64::*;
+    assert!(lo <= hi);
+    assert!(hi <= val.len() && hi <= col.len());
+    let vp = val.as_ptr() as *const f64;
+    let xp = x.as_ptr() as *const f64;
+    let nx = x.len();
+    let last = val.len().saturating_sub(1);
+    let three = _mm256_setr_epi64x(-1, -1, -1, 0);
+    // as in `blocks_mul_fma`: block k times x_j, lane 3 dropped
+    let block = |k: usize| {
+        let j = *col.get_unchecked(k) as usize;
+        assert!(j < nx);
+        let m = vp.add(9 * k);
+        let xj = xp.add(3 * j);
+        let c2 = if k < last {
+            _mm256_loadu_pd(m.add(6))
+        } else {
+            _mm256_maskload_pd(m.add(6), three)
+        };
+        let t = _mm256_mul_pd(_mm256_loadu_pd(m), _mm256_broadcast_sd(&*xj));
+        let t = _mm256_fmadd_pd(
+            _mm256_loadu_pd(m.add(3)),
+            _mm256_broadcast_sd(&*xj.add(1)),
+            t,
+        );
+        _mm256_fmadd_pd(c2, _mm256_broadcast_sd(&*xj.add(2)), t)
+    };
+    let mut acc0 = _mm256_setzero_pd();
+    let mut acc1 = _mm256_setzero_pd();
+    let mut k = lo;
+    while k + 1 < hi {
+        acc0 = _mm256_add_pd(acc0, block(k));
+        acc1 = _mm256_add_pd(acc1, block(k + 1));
+        k += 2;
+    }
+    if k < hi {
+        acc0 = _mm256_add_pd(acc0, block(k));
+    }
+    let w = _mm256_sub_pd(
+        _mm256_maskload_pd(v.as_ptr(), three),
+        _mm256_add_pd(acc0, acc1),
+    );
+    // D_i⁻¹ w, D_i⁻¹ column-major like the blocks
+    let d = dinv.as_ptr();
+    let y = _mm256_mul_pd(_mm256_loadu_pd(d), _mm256_permute4x64_pd(w, 0b00_00_00_00));
+    let y = _mm256_fmadd_pd(
+        _mm256_loadu_pd(d.add(3)),
+        _mm256_permute4x64_pd(w, 0b01_01_01_01),
+        y,
+    );
+    let y = _mm256_fmadd_pd(
+        _mm256_maskload_pd(d.add(6), three),
+        _mm256_permute4x64_pd(w, 0b10_10_10_10),
+        y,
+    );
+    let mut out = [0.0; 4];
+    _mm256_storeu_pd(out.as_mut_ptr(), y);
+    Vector3::new(out[0], out[1], out[2])
+}
+
+/// A row of a triangular sweep: `S_i D_i⁻¹ (v − S_i Σ_k val[k] x[col[k]])`
+/// over the blocks `lo..hi`, `f` row i's filter (a free row with
+/// [`solve_row_fma`] where `FMA`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn solve_row_k<const FMA: bool>(
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+    v: &Vector3<f64>,
+    dinv: &Matrix3<f64>,
+    f: &Filter,
+) -> Vector3<f64> {
+    #[cfg(target_arch = "x86_64")]
+    if FMA && matches!(f, Filter::Free) {
+        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
+        return unsafe { solve_row_fma(col, val, lo, hi, x, v, dinv) };
+    }
+    let sum = blocks_s::<FMA>(col, val, lo, hi, x);
+    f.apply(&(dinv * (v - f.apply(&sum))))
+}
+
+/// One thread's triangular sweeps of [`sgs_rows_impl`] over its rows
+/// `lo..lo + len`, from the copies of the lower and upper triangles.
+struct Sweeps<'a> {
+    /// The lower triangle's blocks and columns, row i's at `lptr[i]..lptr[i + 1]`.
+    lcol: &'a [u32],
+    lval: &'a [Matrix3<f64>],
+    /// The upper triangle's, row i's at `uptr[i]..uptr[i + 1]`.
+    ucol: &'a [u32],
+    uval: &'a [Matrix3<f64>],
+    lptr: &'a [u32],
+    uptr: &'a [u32],
+    /// This thread's rows' filters and `D_i⁻¹`.
+    f: &'a [Filter],
+    dinv: &'a [Matrix3<f64>],
+    /// Per row, where this thread's lower blocks start and its upper ones end.
+    split: &'a [[u32; 2]],
+    lo: usize,
+}
+
+impl Sweeps<'_> {
+    /// `(D + L) y = v` in place (`v` holds this thread's rows).
+    #[inline(always)]
+    fn forward<const FMA: bool>(&self, v: &mut [Vector3<f64>]) {
+        let lo = self.lo;
+        for k in 0..v.len() {
+            let i = lo + k;
+            // SAFETY: the blocks split[k][0]..lptr[i + 1] have columns lo..i,
+            // rows already swept
+            let y = unsafe { std::slice::from_raw_parts(v.as_ptr().sub(lo), i) };
+            v[k] = solve_row_k::<FMA>(
+                self.lcol,
+                self.lval,
+                self.split[k][0] as usize,
+                self.lptr[i + 1] as usize,
+                y,
+                &v[k],
+                &self.dinv[k],
+                &self.f[k],
+            );
+        }
+    }
+
+    /// [`Sweeps::forward`], returning `yᵀ D y`: the preconditioner's norm
+    /// of `v`, `vᵀ M⁻¹ v` (`d` this thread's diagonal blocks).
+    #[inline(always)]
+    fn forward_norm<const FMA: bool>(&self, v: &mut [Vector3<f64>], d: &[Matrix3<f64>]) -> f64 {
+        self.forward::<FMA>(v);
+        let mut n = 0.0;
+        for k in 0..v.len() {
+            n += v[k].dot(&(d[k] * v[k]));
+        }
+        n
+    }
+
+    /// `t = (D + U)⁻¹ p`.
+    #[inline(always)]
+    fn backward<const FMA: bool>(&self, p: &[Vector3<f64>], t: &mut [Vector3<f64>]) {
+        let lo = self.lo;
+        let hi = lo + t.len();
+        for k in (0..t.len()).rev() {
+            let i = lo + k;
+            // SAFETY: the blocks uptr[i]..split[k][1] have columns i + 1..hi,
+            // rows already swept
+            let x = unsafe { std::slice::from_raw_parts(t.as_ptr().sub(lo), hi) };
+            t[k] = solve_row_k::<FMA>(
+                self.ucol,
+                self.uval,
+                self.uptr[i] as usize,
+                self.split[k][1] as usize,
+                x,
+                &p[k],
+                &self.dinv[k],
+                &self.f[k],
+            );
+        }
+    }
 }
 
 /// Row i of `A x`: with `FMA`, [`row_mul_fma`] (only where the CPU has AVX2
@@ -1175,7 +1714,17 @@ mod tests {
         let mut pcg = Pcg::default();
         let solve = |pcg: &mut Pcg, cap: Cap| {
             let mut x = vec![Vector3::zeros(); n];
-            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-13, cap, &mut Team::new(1));
+            let r = pcg.solve(
+                &a,
+                &b,
+                &filter,
+                &z,
+                &mut x,
+                1e-13,
+                cap,
+                Preconditioner::BlockJacobi,
+                &mut Team::new(1),
+            );
             (r, pcg.spent(), x)
         };
         let (r, spent, exact) = solve(&mut pcg, Cap::Hard(10_000));
@@ -1218,7 +1767,17 @@ mod tests {
         let solve = |team: &mut Team, cap: Cap| {
             let mut pcg = Pcg::default();
             let mut x = vec![Vector3::zeros(); n];
-            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-10, cap, team);
+            let r = pcg.solve(
+                &a,
+                &b,
+                &filter,
+                &z,
+                &mut x,
+                1e-10,
+                cap,
+                Preconditioner::BlockJacobi,
+                team,
+            );
             (r, pcg.spent(), x)
         };
         let (r1, _, x1) = solve(&mut Team::new(1), Cap::Hard(10_000));
@@ -1251,6 +1810,68 @@ mod tests {
             );
             // a cap far out of reach: given up at the first check, everywhere
             let (r, spent, _) = solve(&mut team, Cap::Reachable(it / 2));
+            assert!(r.unwrap_err().to_string().contains("would not converge"));
+            assert_eq!(spent, EARLY_FROM);
+        }
+    }
+
+    /// The PCG preconditioned by symmetric block Gauss–Seidel gives the
+    /// direct solve's constrained solution (free, contact and pinned
+    /// vertices, prescribed parts z) on one, two and three threads (each
+    /// sweeping its own rows), in fewer iterations than the block-Jacobi
+    /// PCG, bit for bit the same on a repeat; a try whose cap is out of
+    /// reach gives up at the first check.
+    #[test]
+    fn sgs_pcg_matches_the_direct_solve_on_every_thread_count() {
+        let (a, mass) = spd_grid_sized(60, 55, 5);
+        let n = a.n;
+        let (filter, b, z) = mixed_constraints(n);
+        let mut exact = vec![Vector3::zeros(); n];
+        Direct::new(&a)
+            .unwrap()
+            .solve(&a, &b, &filter, &z, &mass, &mut exact)
+            .unwrap();
+        let scale = exact.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        let solve = |team: &mut Team, cap: Cap, p: Preconditioner| {
+            let mut pcg = Pcg::default();
+            let mut x = vec![Vector3::zeros(); n];
+            let r = pcg.solve(&a, &b, &filter, &z, &mut x, 1e-12, cap, p, team);
+            (r, pcg.spent(), x)
+        };
+        let (r, _, _) = solve(
+            &mut Team::new(1),
+            Cap::Hard(10_000),
+            Preconditioner::BlockJacobi,
+        );
+        let jacobi = r.unwrap();
+        for size in [1, 2, 3] {
+            let mut team = Team::new(size);
+            let (r, _, x) = solve(&mut team, Cap::Hard(10_000), Preconditioner::Sgs);
+            let it = r.unwrap();
+            assert!(
+                it * 3 < jacobi * 2,
+                "{size} threads: {it} iterations against block-Jacobi's {jacobi}"
+            );
+            for i in 0..n {
+                assert!(
+                    (x[i] - exact[i]).amax() <= 1e-8 * scale,
+                    "{size} threads, vertex {i}: {:?} against {:?}",
+                    x[i],
+                    exact[i]
+                );
+                // the constraint (I − S) x = z holds
+                assert!((x[i] - filter[i].apply(&x[i]) - z[i]).amax() <= 1e-15);
+            }
+            let (r, _, again) = solve(&mut team, Cap::Hard(10_000), Preconditioner::Sgs);
+            assert_eq!(r.unwrap(), it);
+            assert!(
+                x.iter().zip(&again).all(|(p, q)| p == q),
+                "not reproducible"
+            );
+            // a cap half of what it needs: given up at the first check
+            let cap = EARLY_FROM + 1;
+            assert!(it >= 2 * cap, "the test needs a slower system: {it}");
+            let (r, spent, _) = solve(&mut team, Cap::Reachable(cap), Preconditioner::Sgs);
             assert!(r.unwrap_err().to_string().contains("would not converge"));
             assert_eq!(spent, EARLY_FROM);
         }
@@ -1315,6 +1936,7 @@ mod tests {
             &mut x_pcg,
             1e-13,
             Cap::Hard(10_000),
+            Preconditioner::BlockJacobi,
             &mut Team::new(1),
         )
         .unwrap();
@@ -1501,6 +2123,7 @@ mod tests {
                 &mut xj,
                 1e-10,
                 Cap::Hard(10_000),
+                Preconditioner::BlockJacobi,
                 &mut Team::new(1),
             )
             .unwrap();

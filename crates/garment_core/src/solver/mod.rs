@@ -497,7 +497,10 @@ impl Workspace {
         let slots = assemble::Slots::new(&a, cloth);
         let direct = match params.linear_solver {
             LinearSolverKind::Cholesky => Some(linear::Direct::new(&a)?),
-            LinearSolverKind::Pcg | LinearSolverKind::Auto | LinearSolverKind::Amg => None,
+            LinearSolverKind::Pcg
+            | LinearSolverKind::Sgs
+            | LinearSolverKind::Auto
+            | LinearSolverKind::Amg => None,
         };
         let z = vec![Vector3::zeros(); n];
         Ok(Workspace {
@@ -870,9 +873,14 @@ impl Simulation {
         // 3. solve
         let t_solve = Instant::now();
         let solved = match self.params.linear_solver {
-            LinearSolverKind::Pcg => {
-                self.solve_pcg(linear::Cap::Hard(self.params.cg_max_iterations))
-            }
+            LinearSolverKind::Pcg => self.solve_pcg(
+                linear::Cap::Hard(self.params.cg_max_iterations),
+                linear::Preconditioner::BlockJacobi,
+            ),
+            LinearSolverKind::Sgs => self.solve_pcg(
+                linear::Cap::Hard(self.params.cg_max_iterations),
+                linear::Preconditioner::Sgs,
+            ),
             LinearSolverKind::Cholesky => self.solve_direct(),
             LinearSolverKind::Auto => self.solve_auto(),
             LinearSolverKind::Amg => self.solve_amg_or_direct(),
@@ -920,7 +928,7 @@ impl Simulation {
         Ok(self.last)
     }
 
-    fn solve_pcg(&mut self, cap: linear::Cap) -> Result<usize> {
+    fn solve_pcg(&mut self, cap: linear::Cap, precond: linear::Preconditioner) -> Result<usize> {
         self.solved_by = SolvedBy::Pcg;
         self.ws.pcg.solve(
             &self.ws.a,
@@ -930,6 +938,7 @@ impl Simulation {
             &mut self.dv,
             self.params.cg_tolerance,
             cap,
+            precond,
             &mut self.ws.team,
         )
     }
@@ -1020,7 +1029,10 @@ impl Simulation {
         let pcg_cap = self.auto.amg_price.map_or(cap, |p| p.min(cap));
         let probe = self.steps >= self.auto.next_probe;
         if !self.auto.on_direct || probe {
-            match self.solve_pcg(linear::Cap::Reachable(pcg_cap)) {
+            match self.solve_pcg(
+                linear::Cap::Reachable(pcg_cap),
+                linear::Preconditioner::BlockJacobi,
+            ) {
                 Ok(it) => {
                     self.auto.on_direct = false;
                     self.auto.probe_gap = AUTO_PROBE;
