@@ -263,7 +263,7 @@ impl Pcg {
             lcol: Ptr(self.lcol.as_mut_ptr()),
             uval: Ptr(self.uval.as_mut_ptr()),
             ucol: Ptr(self.ucol.as_mut_ptr()),
-            partial: (0..3 * nt).map(|_| AtomicU64::new(0)).collect(),
+            partial: (0..SLOTS * nt).map(|_| AtomicU64::new(0)).collect(),
             barrier: Barrier::new(nt),
             nt,
             iters: AtomicUsize::new(0),
@@ -509,6 +509,9 @@ struct PcgArgs<'a> {
     uptr: &'a [u32],
 }
 
+/// Partial sums a thread of a PCG solve keeps ([`Shared::put`]).
+const SLOTS: usize = 4;
+
 #[derive(Clone, Copy)]
 struct Ptr<T>(*mut T);
 unsafe impl<T> Send for Ptr<T> {}
@@ -530,7 +533,7 @@ struct Shared {
     lcol: Ptr<u32>,
     uval: Ptr<Matrix3<f64>>,
     ucol: Ptr<u32>,
-    /// Per-thread partial sums, 3 slots per thread.
+    /// Per-thread partial sums, [`SLOTS`] per thread.
     partial: Vec<AtomicU64>,
     barrier: Barrier,
     nt: usize,
@@ -540,12 +543,12 @@ struct Shared {
 
 impl Shared {
     fn put(&self, t: usize, slot: usize, v: f64) {
-        self.partial[3 * t + slot].store(v.to_bits(), Ordering::Relaxed);
+        self.partial[SLOTS * t + slot].store(v.to_bits(), Ordering::Relaxed);
     }
     /// Sum of every thread's partial in `slot` (after a barrier), in thread order.
     fn sum(&self, slot: usize) -> f64 {
         (0..self.nt)
-            .map(|t| f64::from_bits(self.partial[3 * t + slot].load(Ordering::Relaxed)))
+            .map(|t| f64::from_bits(self.partial[SLOTS * t + slot].load(Ordering::Relaxed)))
             .sum()
     }
 }
@@ -808,6 +811,9 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let dv_all = sh.dv.0 as *const Vector3<f64>;
     let (f, bb, zz) = (&filter[lo..hi], &b[lo..hi], &z[lo..hi]);
     let (rp, diag) = (&a.row_ptr, &a.diag);
+    // the convergence test's reference, as the block-Jacobi PCG's:
+    // (S b)ᵀ D⁻¹ (S b), floored by gravity's impulse in the same norm
+    let (mut delta0, mut floor) = (0.0, 0.0);
     for k in 0..len {
         let i = lo + k;
         let d = &a.val[diag[i]];
@@ -822,6 +828,12 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         };
         dblk[k] = fd;
         dinv[k] = block_jacobi(&fd);
+        let fb = f[k].apply(&bb[k]);
+        delta0 += fb.dot(&(dinv[k] * fb));
+        if let Some(w) = args.scale.get(i) {
+            let fw = f[k].apply(w);
+            floor += fw.dot(&(dinv[k] * fw));
+        }
         // the row's lower and upper blocks into their copies
         let (l0, u0) = (lptr[i] as usize, uptr[i] as usize);
         let (nl, nu) = (diag[i] - rp[i], rp[i + 1] - diag[i] - 1);
@@ -867,27 +879,19 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         split,
         lo,
     };
-    // δ0 and the floor in the preconditioner's norm: (S b)ᵀ M⁻¹ (S b) =
-    // yᵀ D y with y = (D + L)⁻¹ S b
-    for k in 0..len {
-        q[k] = f[k].apply(&bb[k]);
-    }
-    let delta0 = sw.forward_norm::<FMA>(q, dblk);
-    let floor = if args.scale.is_empty() {
-        0.0
-    } else {
-        for k in 0..len {
-            q[k] = f[k].apply(&args.scale[lo + k]);
-        }
-        sw.forward_norm::<FMA>(q, dblk)
+    // r = S (b − A Δv) and its block-Jacobi norm rᵀ D⁻¹ r; r̃ = (D + L)⁻¹ r,
+    // s = D r̃, p = s
+    // row k of S (b − A x), x the whole Δv (complete between barriers)
+    let residual = |x: &[Vector3<f64>], k: usize| -> Vector3<f64> {
+        let ax = blocks_s::<FMA>(&a.col, &a.val, rp[lo + k], rp[lo + k + 1], x);
+        f[k].apply(&(bb[k] - ax))
     };
-    // r = S (b − A Δv), r̃ = (D + L)⁻¹ r, s = D r̃, p = s
-    {
-        let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
-        for k in 0..len {
-            let ax = blocks_s::<FMA>(&a.col, &a.val, rp[lo + k], rp[lo + k + 1], x);
-            r[k] = f[k].apply(&(bb[k] - ax));
-        }
+    let mut rho = 0.0;
+    // SAFETY: every thread's rows of dv are written (the barrier above)
+    let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
+    for k in 0..len {
+        r[k] = residual(x, k);
+        rho += r[k].dot(&(dinv[k] * r[k]));
     }
     let dnew = sw.forward_norm::<FMA>(r, dblk);
     for k in 0..len {
@@ -897,15 +901,17 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     sh.put(t, 0, delta0);
     sh.put(t, 1, dnew);
     sh.put(t, 2, floor);
+    sh.put(t, 3, rho);
     sh.barrier.wait();
     // the reference: the right-hand side, or gravity's impulse if larger
     let delta0 = sh.sum(0).max(sh.sum(2));
-    // slots 1 and 2 are written again only after the loop's first barrier
+    let rho = sh.sum(3);
+    // slots 1 to 3 are written again only after the loop's first barrier
     let mut dnew = sh.sum(1);
-    if !(delta0.is_finite() && dnew.is_finite()) {
+    if !(delta0.is_finite() && dnew.is_finite() && rho.is_finite()) {
         return Err(anyhow!(
             "PCG breakdown: non-finite right-hand side or residual (δ0 = {delta0:e}, \
-             rᵀM⁻¹r = {dnew:e})"
+             rᵀD⁻¹r = {rho:e})"
         ));
     }
     if delta0 <= 0.0 {
@@ -919,21 +925,58 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
             )),
         };
     }
+    // the test is the block-Jacobi PCG's, on the true residual: rᵀ D⁻¹ r ≤
+    // tol² δ0. The iterations track r̃ᵀ D r̃ = rᵀ M⁻¹ r instead, so the loop
+    // stops on that norm scaled by the two norms' ratio at the start, then
+    // checks the true residual (one product) and goes on, with the target
+    // lowered, until it passes
     let eps2 = args.tol * args.tol * delta0;
+    if rho <= eps2 {
+        return Ok(0);
+    }
+    let mut target = eps2 * dnew / rho;
+    // the squared residual ratio the caps and messages report
+    let ratio = |dnew: f64, target: f64| dnew / target * args.tol * args.tol;
     let mut it = 0;
-    while dnew > eps2 {
+    loop {
+        if dnew <= target {
+            let mut rho = 0.0;
+            // SAFETY: dv is complete (it was last written before the barrier
+            // of dnew) and written again only after the next barrier
+            let x = unsafe { std::slice::from_raw_parts(dv_all, n) };
+            for k in 0..len {
+                let rk = residual(x, k);
+                rho += rk.dot(&(dinv[k] * rk));
+            }
+            sh.put(t, 3, rho);
+            sh.barrier.wait();
+            let rho = sh.sum(3);
+            if !rho.is_finite() {
+                return Err(anyhow!(
+                    "PCG breakdown: non-finite residual after {it} iterations"
+                ));
+            }
+            if rho <= eps2 {
+                return Ok(it);
+            }
+            // what is left to gain, with a margin
+            target = dnew * (0.5 * eps2 / rho);
+        }
         if it >= args.max_iter {
             return Err(anyhow!(
                 "PCG did not converge in {} iterations (residual ratio {:.2e})",
                 args.max_iter,
-                (dnew / delta0).sqrt()
+                ratio(dnew, target).sqrt()
             ));
         }
-        if args.early && it % 8 == 0 && out_of_reach(it, dnew / delta0, args.tol, args.max_iter) {
+        if args.early
+            && it % 8 == 0
+            && out_of_reach(it, ratio(dnew, target), args.tol, args.max_iter)
+        {
             return Err(anyhow!(
                 "PCG would not converge in {} iterations (residual ratio {:.2e} after {it})",
                 args.max_iter,
-                (dnew / delta0).sqrt()
+                ratio(dnew, target).sqrt()
             ));
         }
         // t = (D + U)⁻¹ p
@@ -999,7 +1042,6 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
             sh.iters.store(it, Ordering::Relaxed);
         }
     }
-    Ok(it)
 }
 
 /// `D_i⁻¹ (v − Σ_k val[k] x[col[k]])` over the blocks `lo..hi` of one row
