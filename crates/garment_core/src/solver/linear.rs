@@ -141,8 +141,9 @@ pub enum Preconditioner {
     BlockJacobi,
     /// Symmetric block Gauss–Seidel, one sweep each way per thread's rows,
     /// applied in Eisenstat's form (see `sgs_rows_impl`): an iteration
-    /// costs about what a block-Jacobi one does, and the table drape needs
-    /// 2.3–2.9 times fewer of them.
+    /// reads the matrix about once, as a block-Jacobi one does, and the
+    /// table drape at the thesis step needs 2.0–2.6 times fewer of them
+    /// (docs/benchmarks.md).
     Sgs,
 }
 
