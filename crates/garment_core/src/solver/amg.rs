@@ -566,6 +566,7 @@ impl Amg {
             row_ptr,
             col,
             diag,
+            triangles: Default::default(),
         };
         let mut g_pos = Vec::new();
         for i in 0..n {

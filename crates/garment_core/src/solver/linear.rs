@@ -8,7 +8,7 @@
 //! is the prescribed velocity change in the constrained directions.
 
 use super::cpu::has_fma;
-use super::sparse::{BlockMatrix, LowerCsc};
+use super::sparse::{BlockMatrix, LowerCsc, Triangles};
 use super::team::{Barrier, Team};
 use anyhow::{anyhow, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
@@ -162,11 +162,7 @@ pub struct Pcg {
     dblk: Vec<Matrix3<f64>>,
     split: Vec<[u32; 2]>,
     lval: Vec<Matrix3<f64>>,
-    lcol: Vec<u32>,
     uval: Vec<Matrix3<f64>>,
-    ucol: Vec<u32>,
-    lptr: Vec<u32>,
-    uptr: Vec<u32>,
     /// Iterations of the last [`Pcg::solve`], also when it failed.
     spent: usize,
     /// Gravity's impulse on each vertex over a step, `m g h` (empty: none):
@@ -228,26 +224,15 @@ impl Pcg {
         self.q.resize(n, Vector3::zeros());
         self.s.resize(n, Vector3::zeros());
         self.pinv.resize(n, Matrix3::zeros());
-        if precond == Preconditioner::Sgs {
+        // the pattern's triangles (made once per matrix), whose values the
+        // sweeps copy at each solve
+        let tri = (precond == Preconditioner::Sgs).then(|| a.triangles());
+        if let Some(tri) = tri {
             self.t.resize(n, Vector3::zeros());
             self.dblk.resize(n, Matrix3::zeros());
             self.split.resize(n, [0; 2]);
-            // where each row's lower and upper blocks go in their copies
-            self.lptr.clear();
-            self.uptr.clear();
-            self.lptr.push(0);
-            self.uptr.push(0);
-            for i in 0..n {
-                let l = self.lptr[i] + (a.diag[i] - a.row_ptr[i]) as u32;
-                let u = self.uptr[i] + (a.row_ptr[i + 1] - a.diag[i] - 1) as u32;
-                self.lptr.push(l);
-                self.uptr.push(u);
-            }
-            let (nl, nu) = (self.lptr[n] as usize, self.uptr[n] as usize);
-            self.lval.resize(nl, Matrix3::zeros());
-            self.lcol.resize(nl, 0);
-            self.uval.resize(nu, Matrix3::zeros());
-            self.ucol.resize(nu, 0);
+            self.lval.resize(tri.lcol.len(), Matrix3::zeros());
+            self.uval.resize(tri.ucol.len(), Matrix3::zeros());
         }
         let nt = team.size().min(n).max(1);
         let sh = Shared {
@@ -261,9 +246,7 @@ impl Pcg {
             dblk: Ptr(self.dblk.as_mut_ptr()),
             split: Ptr(self.split.as_mut_ptr()),
             lval: Ptr(self.lval.as_mut_ptr()),
-            lcol: Ptr(self.lcol.as_mut_ptr()),
             uval: Ptr(self.uval.as_mut_ptr()),
-            ucol: Ptr(self.ucol.as_mut_ptr()),
             partial: (0..SLOTS * nt).map(|_| AtomicU64::new(0)).collect(),
             barrier: Barrier::new(nt),
             nt,
@@ -278,8 +261,7 @@ impl Pcg {
             tol,
             max_iter,
             scale: &self.scale,
-            lptr: &self.lptr,
-            uptr: &self.uptr,
+            tri,
         };
         // every thread takes the same branches: thread 0's result is the solve's
         let mut results: Vec<Result<usize>> = (0..nt).map(|_| Ok(0)).collect();
@@ -362,20 +344,7 @@ impl Pcg {
         }
         let mut it = 0;
         loop {
-            if it >= max_iter {
-                return Err(anyhow!(
-                    "PCG did not converge in {} iterations (residual ratio {:.2e})",
-                    max_iter,
-                    (rj / delta0).sqrt()
-                ));
-            }
-            if early && it % 8 == 0 && out_of_reach(it, rj / delta0, tol, max_iter) {
-                return Err(anyhow!(
-                    "PCG would not converge in {} iterations (residual ratio {:.2e} after {it})",
-                    max_iter,
-                    (rj / delta0).sqrt()
-                ));
-            }
+            capped(it, rj / delta0, tol, max_iter, early)?;
             let mut cq = 0.0;
             for i in 0..n {
                 let v = filter[i].apply(&row_mul_best(fma, a, i, &self.c));
@@ -492,6 +461,25 @@ fn out_of_reach(it: usize, ratio2: f64, tol: f64, max_iter: usize) -> bool {
     per_iter >= 0.0 || tol.ln() / per_iter > max_iter as f64
 }
 
+/// The error that stops a solve after `it` iterations whose squared
+/// residual ratio is `ratio2`: at the cap `max_iter`, or, with `early`
+/// ([`Cap::Reachable`]), every 8 iterations once the cap is out of reach.
+fn capped(it: usize, ratio2: f64, tol: f64, max_iter: usize, early: bool) -> Result<()> {
+    if it >= max_iter {
+        return Err(anyhow!(
+            "PCG did not converge in {max_iter} iterations (residual ratio {:.2e})",
+            ratio2.sqrt()
+        ));
+    }
+    if early && it.is_multiple_of(8) && out_of_reach(it, ratio2, tol, max_iter) {
+        return Err(anyhow!(
+            "PCG would not converge in {max_iter} iterations (residual ratio {:.2e} after {it})",
+            ratio2.sqrt()
+        ));
+    }
+    Ok(())
+}
+
 /// Inputs of a PCG solve shared by its threads.
 struct PcgArgs<'a> {
     /// Give up when the cap is out of reach ([`Cap::Reachable`]).
@@ -504,10 +492,8 @@ struct PcgArgs<'a> {
     max_iter: usize,
     /// [`Pcg::set_scale`] (empty: none).
     scale: &'a [Vector3<f64>],
-    /// Where each row's lower and upper blocks start in their copies
-    /// ([`Preconditioner::Sgs`]; empty otherwise).
-    lptr: &'a [u32],
-    uptr: &'a [u32],
+    /// The matrix's triangles ([`Preconditioner::Sgs`]; none otherwise).
+    tri: Option<&'a Triangles>,
 }
 
 /// Partial sums a thread of a PCG solve keeps ([`Shared::put`]).
@@ -531,9 +517,7 @@ struct Shared {
     dblk: Ptr<Matrix3<f64>>,
     split: Ptr<[u32; 2]>,
     lval: Ptr<Matrix3<f64>>,
-    lcol: Ptr<u32>,
     uval: Ptr<Matrix3<f64>>,
-    ucol: Ptr<u32>,
     /// Per-thread partial sums, [`SLOTS`] per thread.
     partial: Vec<AtomicU64>,
     barrier: Barrier,
@@ -655,20 +639,7 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     let eps2 = args.tol * args.tol * delta0;
     let mut it = 0;
     while dnew > eps2 {
-        if it >= args.max_iter {
-            return Err(anyhow!(
-                "PCG did not converge in {} iterations (residual ratio {:.2e})",
-                args.max_iter,
-                (dnew / delta0).sqrt()
-            ));
-        }
-        if args.early && it % 8 == 0 && out_of_reach(it, dnew / delta0, args.tol, args.max_iter) {
-            return Err(anyhow!(
-                "PCG would not converge in {} iterations (residual ratio {:.2e} after {it})",
-                args.max_iter,
-                (dnew / delta0).sqrt()
-            ));
-        }
+        capped(it, dnew / delta0, args.tol, args.max_iter, args.early)?;
         // q = S A c, cᵀq (c is complete here)
         let mut cq = 0.0;
         {
@@ -722,30 +693,6 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     Ok(it)
 }
 
-/// `Σ_k val[k] x[col[k]]` over the blocks `lo..hi` of one row of a block
-/// CSR matrix given by its columns and blocks: with `FMA`,
-/// [`blocks_mul_fma`] (only where the CPU has AVX2 and FMA), else the
-/// portable product.
-#[inline(always)]
-fn blocks_s<const FMA: bool>(
-    col: &[u32],
-    val: &[Matrix3<f64>],
-    lo: usize,
-    hi: usize,
-    x: &[Vector3<f64>],
-) -> Vector3<f64> {
-    #[cfg(target_arch = "x86_64")]
-    if FMA {
-        // SAFETY: FMA is only set where the CPU has AVX2 and FMA
-        return unsafe { blocks_mul_fma(col, val, lo, hi, x) };
-    }
-    let mut s = Vector3::zeros();
-    for k in lo..hi {
-        s += val[k] * x[col[k] as usize];
-    }
-    s
-}
-
 /// One thread's part of the filtered PCG preconditioned by symmetric block
 /// Gauss–Seidel ([`Preconditioner::Sgs`]), where the CPU has AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
@@ -788,7 +735,8 @@ fn sgs_rows(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
 #[inline(always)]
 fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Result<usize> {
     let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
-    let (lptr, uptr) = (args.lptr, args.uptr);
+    let tri = args.tri.expect("the triangles of a Gauss–Seidel solve");
+    let (lptr, uptr) = (&tri.lptr[..], &tri.uptr[..]);
     let n = a.n;
     let lo = t * n / sh.nt;
     let hi = (t + 1) * n / sh.nt;
@@ -842,15 +790,13 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         // pattern's lower and upper counts give their lengths
         unsafe {
             std::ptr::copy_nonoverlapping(a.val.as_ptr().add(rp[i]), sh.lval.0.add(l0), nl);
-            std::ptr::copy_nonoverlapping(a.col.as_ptr().add(rp[i]), sh.lcol.0.add(l0), nl);
             std::ptr::copy_nonoverlapping(a.val.as_ptr().add(diag[i] + 1), sh.uval.0.add(u0), nu);
-            std::ptr::copy_nonoverlapping(a.col.as_ptr().add(diag[i] + 1), sh.ucol.0.add(u0), nu);
         }
         // this thread's blocks of the row: the lower ones from the first
         // column ≥ lo, the upper ones up to the first ≥ hi (the pattern's
         // columns are sorted)
-        let lcols = &a.col[rp[i]..diag[i]];
-        let ucols = &a.col[diag[i] + 1..rp[i + 1]];
+        let lcols = &tri.lcol[l0..l0 + nl];
+        let ucols = &tri.ucol[u0..u0 + nu];
         split[k] = [
             (l0 + lcols.partition_point(|&c| (c as usize) < lo)) as u32,
             (u0 + ucols.partition_point(|&c| (c as usize) < hi)) as u32,
@@ -865,13 +811,13 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         dv[k] = g + zz[k];
     }
     sh.barrier.wait();
-    let (nl, nu) = (lptr[n] as usize, uptr[n] as usize);
+    let (nl, nu) = (tri.lcol.len(), tri.ucol.len());
     // SAFETY: every thread's rows of the copies are written (barrier above)
     // and only read from here on
     let sw = Sweeps {
-        lcol: unsafe { std::slice::from_raw_parts(sh.lcol.0, nl) },
+        lcol: &tri.lcol,
         lval: unsafe { std::slice::from_raw_parts(sh.lval.0, nl) },
-        ucol: unsafe { std::slice::from_raw_parts(sh.ucol.0, nu) },
+        ucol: &tri.ucol,
         uval: unsafe { std::slice::from_raw_parts(sh.uval.0, nu) },
         lptr,
         uptr,
@@ -884,7 +830,7 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
     // s = D r̃, p = s
     // row k of S (b − A x), x the whole Δv (complete between barriers)
     let residual = |x: &[Vector3<f64>], k: usize| -> Vector3<f64> {
-        let ax = blocks_s::<FMA>(&a.col, &a.val, rp[lo + k], rp[lo + k + 1], x);
+        let ax = blocks_mul_slices(FMA, &a.col, &a.val, rp[lo + k], rp[lo + k + 1], x);
         f[k].apply(&(bb[k] - ax))
     };
     let mut rho = 0.0;
@@ -936,8 +882,6 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         return Ok(0);
     }
     let mut target = eps2 * dnew / rho;
-    // the squared residual ratio the caps and messages report
-    let ratio = |dnew: f64, target: f64| dnew / target * args.tol * args.tol;
     let mut it = 0;
     loop {
         if dnew <= target {
@@ -963,23 +907,9 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
             // what is left to gain, with a margin
             target = dnew * (0.5 * eps2 / rho);
         }
-        if it >= args.max_iter {
-            return Err(anyhow!(
-                "PCG did not converge in {} iterations (residual ratio {:.2e})",
-                args.max_iter,
-                ratio(dnew, target).sqrt()
-            ));
-        }
-        if args.early
-            && it % 8 == 0
-            && out_of_reach(it, ratio(dnew, target), args.tol, args.max_iter)
-        {
-            return Err(anyhow!(
-                "PCG would not converge in {} iterations (residual ratio {:.2e} after {it})",
-                args.max_iter,
-                ratio(dnew, target).sqrt()
-            ));
-        }
+        // the squared residual ratio the caps judge and report
+        let ratio = dnew / target * args.tol * args.tol;
+        capped(it, ratio, args.tol, args.max_iter, args.early)?;
         // t = (D + U)⁻¹ p
         sw.backward::<FMA>(p, tt);
         sh.barrier.wait();
@@ -992,8 +922,8 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
                 let (l0, u1) = (lptr[i] as usize, uptr[i + 1] as usize);
                 let (l1, u0) = (split[k][0] as usize, split[k][1] as usize);
                 if l1 > l0 || u0 < u1 {
-                    let o = blocks_s::<FMA>(sw.lcol, sw.lval, l0, l1, tall)
-                        + blocks_s::<FMA>(sw.ucol, sw.uval, u0, u1, tall);
+                    let o = blocks_mul_slices(FMA, sw.lcol, sw.lval, l0, l1, tall)
+                        + blocks_mul_slices(FMA, sw.ucol, sw.uval, u0, u1, tall);
                     u += f[k].apply(&o);
                 }
                 q[k] = u;
@@ -1063,47 +993,9 @@ unsafe fn solve_row_fma(
     dinv: &Matrix3<f64>,
 ) -> Vector3<f64> {
     use std::arch::x86_64::*;
-    assert!(lo <= hi);
-    assert!(hi <= val.len() && hi <= col.len());
-    let vp = val.as_ptr() as *const f64;
-    let xp = x.as_ptr() as *const f64;
-    let nx = x.len();
-    let last = val.len().saturating_sub(1);
     let three = _mm256_setr_epi64x(-1, -1, -1, 0);
-    // as in `blocks_mul_fma`: block k times x_j, lane 3 dropped
-    let block = |k: usize| {
-        let j = *col.get_unchecked(k) as usize;
-        assert!(j < nx);
-        let m = vp.add(9 * k);
-        let xj = xp.add(3 * j);
-        let c2 = if k < last {
-            _mm256_loadu_pd(m.add(6))
-        } else {
-            _mm256_maskload_pd(m.add(6), three)
-        };
-        let t = _mm256_mul_pd(_mm256_loadu_pd(m), _mm256_broadcast_sd(&*xj));
-        let t = _mm256_fmadd_pd(
-            _mm256_loadu_pd(m.add(3)),
-            _mm256_broadcast_sd(&*xj.add(1)),
-            t,
-        );
-        _mm256_fmadd_pd(c2, _mm256_broadcast_sd(&*xj.add(2)), t)
-    };
-    let mut acc0 = _mm256_setzero_pd();
-    let mut acc1 = _mm256_setzero_pd();
-    let mut k = lo;
-    while k + 1 < hi {
-        acc0 = _mm256_add_pd(acc0, block(k));
-        acc1 = _mm256_add_pd(acc1, block(k + 1));
-        k += 2;
-    }
-    if k < hi {
-        acc0 = _mm256_add_pd(acc0, block(k));
-    }
-    let w = _mm256_sub_pd(
-        _mm256_maskload_pd(v.as_ptr(), three),
-        _mm256_add_pd(acc0, acc1),
-    );
+    let acc = blocks_acc_fma(col, val, lo, hi, x);
+    let w = _mm256_sub_pd(_mm256_maskload_pd(v.as_ptr(), three), acc);
     // D_i⁻¹ w, D_i⁻¹ column-major like the blocks
     let d = dinv.as_ptr();
     let y = _mm256_mul_pd(_mm256_loadu_pd(d), _mm256_permute4x64_pd(w, 0b00_00_00_00));
@@ -1117,9 +1009,7 @@ unsafe fn solve_row_fma(
         _mm256_permute4x64_pd(w, 0b10_10_10_10),
         y,
     );
-    let mut out = [0.0; 4];
-    _mm256_storeu_pd(out.as_mut_ptr(), y);
-    Vector3::new(out[0], out[1], out[2])
+    lanes3(y)
 }
 
 /// A row of a triangular sweep: `S_i D_i⁻¹ (v − S_i Σ_k val[k] x[col[k]])`
@@ -1142,7 +1032,7 @@ fn solve_row_k<const FMA: bool>(
         // SAFETY: FMA is only set where the CPU has AVX2 and FMA
         return unsafe { solve_row_fma(col, val, lo, hi, x, v, dinv) };
     }
-    let sum = blocks_s::<FMA>(col, val, lo, hi, x);
+    let sum = blocks_mul_slices(FMA, col, val, lo, hi, x);
     f.apply(&(dinv * (v - f.apply(&sum))))
 }
 
@@ -1268,6 +1158,23 @@ pub(super) unsafe fn blocks_mul_fma(
     hi: usize,
     x: &[Vector3<f64>],
 ) -> Vector3<f64> {
+    lanes3(blocks_acc_fma(col, val, lo, hi, x))
+}
+
+/// [`blocks_mul_fma`]'s sum as a four-wide register (lane 3 to be dropped).
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn blocks_acc_fma(
+    col: &[u32],
+    val: &[Matrix3<f64>],
+    lo: usize,
+    hi: usize,
+    x: &[Vector3<f64>],
+) -> std::arch::x86_64::__m256d {
     use std::arch::x86_64::*;
     assert!(lo <= hi);
     assert!(hi <= val.len() && hi <= col.len());
@@ -1277,7 +1184,7 @@ pub(super) unsafe fn blocks_mul_fma(
     // the last block of the matrix: its third column is read masked (a
     // four-wide load would run one f64 past the end)
     let last = val.len().saturating_sub(1);
-    sum_blocks_fma(lo, hi, |k| {
+    sum_blocks_acc_fma(lo, hi, |k| {
         let j = *col.get_unchecked(k) as usize;
         assert!(j < nx);
         let m = vp.add(9 * k);
@@ -1310,8 +1217,22 @@ pub(super) unsafe fn blocks_mul_fma(
 pub(super) unsafe fn sum_blocks_fma(
     lo: usize,
     hi: usize,
-    mut block: impl FnMut(usize) -> std::arch::x86_64::__m256d,
+    block: impl FnMut(usize) -> std::arch::x86_64::__m256d,
 ) -> Vector3<f64> {
+    lanes3(sum_blocks_acc_fma(lo, hi, block))
+}
+
+/// [`sum_blocks_fma`]'s sum as a four-wide register (lane 3 to be dropped).
+///
+/// # Safety
+/// As [`sum_blocks_fma`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn sum_blocks_acc_fma(
+    lo: usize,
+    hi: usize,
+    mut block: impl FnMut(usize) -> std::arch::x86_64::__m256d,
+) -> std::arch::x86_64::__m256d {
     use std::arch::x86_64::*;
     let mut acc0 = _mm256_setzero_pd();
     let mut acc1 = _mm256_setzero_pd();
@@ -1324,8 +1245,18 @@ pub(super) unsafe fn sum_blocks_fma(
     if k < hi {
         acc0 = _mm256_add_pd(acc0, block(k));
     }
+    _mm256_add_pd(acc0, acc1)
+}
+
+/// Lanes 0–2 of a four-wide register as a 3-vector.
+///
+/// # Safety
+/// The CPU must have AVX (inlined into callers compiled with it).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn lanes3(v: std::arch::x86_64::__m256d) -> Vector3<f64> {
     let mut out = [0.0; 4];
-    _mm256_storeu_pd(out.as_mut_ptr(), _mm256_add_pd(acc0, acc1));
+    std::arch::x86_64::_mm256_storeu_pd(out.as_mut_ptr(), v);
     Vector3::new(out[0], out[1], out[2])
 }
 
@@ -1355,8 +1286,9 @@ pub(super) fn blocks_mul_best(
 }
 
 /// [`blocks_mul_best`] for a block CSR matrix given by its columns `col`
-/// and blocks `val`.
-#[inline]
+/// and blocks `val` (inlined, so that a constant `fma` in a caller compiled
+/// with AVX2 and FMA makes it the fused kernel, inlined too).
+#[inline(always)]
 pub(super) fn blocks_mul_slices(
     fma: bool,
     col: &[u32],

@@ -15,6 +15,21 @@ pub struct BlockMatrix {
     pub val: Vec<Matrix3<f64>>,
     /// Index of the diagonal block of each row.
     pub diag: Vec<usize>,
+    /// The pattern's two triangles ([`BlockMatrix::triangles`]), made the
+    /// first time they are asked for (the pattern does not change after
+    /// construction).
+    pub(super) triangles: std::sync::OnceLock<Triangles>,
+}
+
+/// Where the blocks below and above the diagonal of each row go in compact
+/// copies of the two triangles, and their columns: row i's lower blocks at
+/// `lptr[i]..lptr[i + 1]`, its upper ones at `uptr[i]..uptr[i + 1]`.
+#[derive(Debug, Clone)]
+pub struct Triangles {
+    pub lptr: Vec<u32>,
+    pub uptr: Vec<u32>,
+    pub lcol: Vec<u32>,
+    pub ucol: Vec<u32>,
 }
 
 impl BlockMatrix {
@@ -52,7 +67,31 @@ impl BlockMatrix {
             col,
             val: vec![Matrix3::zeros(); nnz],
             diag,
+            triangles: Default::default(),
         }
+    }
+
+    /// The pattern's lower and upper triangles, row by row ([`Triangles`]),
+    /// built once.
+    pub fn triangles(&self) -> &Triangles {
+        self.triangles.get_or_init(|| {
+            let (rp, diag) = (&self.row_ptr, &self.diag);
+            let mut t = Triangles {
+                lptr: Vec::with_capacity(self.n + 1),
+                uptr: Vec::with_capacity(self.n + 1),
+                lcol: Vec::new(),
+                ucol: Vec::new(),
+            };
+            for i in 0..self.n {
+                t.lptr.push(t.lcol.len() as u32);
+                t.uptr.push(t.ucol.len() as u32);
+                t.lcol.extend_from_slice(&self.col[rp[i]..diag[i]]);
+                t.ucol.extend_from_slice(&self.col[diag[i] + 1..rp[i + 1]]);
+            }
+            t.lptr.push(t.lcol.len() as u32);
+            t.uptr.push(t.ucol.len() as u32);
+            t
+        })
     }
 
     /// Position of block (i, j); panics if not in the pattern (a bug).
