@@ -261,8 +261,8 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
     );
     let by = s.steps_solved_by;
     println!(
-        "solver iters     mean {:.2}, max {} (steps solved by the block-Jacobi PCG {}, the multigrid {}, the Cholesky {})",
-        s.mean_solver_iterations, s.max_solver_iterations, by.pcg, by.amg, by.cholesky
+        "solver iters     mean {:.2}, max {} (steps solved by the block-Jacobi PCG {}, the Gauss–Seidel PCG {}, the multigrid {}, the Cholesky {})",
+        s.mean_solver_iterations, s.max_solver_iterations, by.pcg, by.sgs, by.amg, by.cholesky
     );
     match s.settle_time_s {
         Some(t) => println!(

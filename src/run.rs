@@ -84,6 +84,8 @@ pub struct Summary {
 pub struct SolvedSteps {
     /// The block-Jacobi PCG.
     pub pcg: u64,
+    /// The PCG preconditioned by symmetric block Gauss–Seidel (`sgs`).
+    pub sgs: u64,
     /// The multigrid PCG.
     pub amg: u64,
     /// The Cholesky factor.
@@ -94,6 +96,7 @@ impl SolvedSteps {
     fn count(&mut self, by: SolvedBy) {
         match by {
             SolvedBy::Pcg => self.pcg += 1,
+            SolvedBy::Sgs => self.sgs += 1,
             SolvedBy::Amg => self.amg += 1,
             SolvedBy::Cholesky => self.cholesky += 1,
         }

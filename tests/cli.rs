@@ -42,14 +42,55 @@ fn drape_writes_ply_energy_and_summary() {
                                  // small cloth the Cholesky is cheap, the block-Jacobi PCG's cap low)
     let by = &s["steps_solved_by"];
     let n = |k: &str| by[k].as_u64().unwrap();
-    assert_eq!(n("pcg") + n("amg") + n("cholesky"), 240, "{by}");
-    assert!(n("pcg") > 0 && n("cholesky") > 0 && n("amg") == 0, "{by}");
+    assert_eq!(n("pcg") + n("sgs") + n("amg") + n("cholesky"), 240, "{by}");
+    assert!(
+        n("pcg") > 0 && n("cholesky") > 0 && n("sgs") == 0 && n("amg") == 0,
+        "{by}"
+    );
     let line = format!(
-        "(steps solved by the block-Jacobi PCG {}, the multigrid 0, the Cholesky {})",
+        "(steps solved by the block-Jacobi PCG {}, the Gauss–Seidel PCG 0, the multigrid 0, the Cholesky {})",
         n("pcg"),
         n("cholesky")
     );
     assert!(stdout.contains(&line), "{stdout}");
+    // `--solver sgs`: every step on the Gauss–Seidel PCG, counted as such
+    // (they were once counted as the block-Jacobi PCG's)
+    let sgs = tmp("drape_sgs");
+    let o = support::garment_sim()
+        .args([
+            "drape",
+            "config/scenes/free_fall.yaml",
+            "--duration",
+            "0.2",
+            "--solver",
+            "sgs",
+            "--out",
+        ])
+        .arg(&sgs)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sgs.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(
+        (
+            &t["steps_solved_by"]["sgs"],
+            &t["steps_solved_by"]["pcg"],
+            &t["linear_solver"]
+        ),
+        (
+            &serde_json::json!(240),
+            &serde_json::json!(0),
+            &serde_json::json!("sgs")
+        ),
+        "{t}"
+    );
+    assert!(
+        String::from_utf8_lossy(&o.stdout)
+            .contains("(steps solved by the block-Jacobi PCG 0, the Gauss–Seidel PCG 240,"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
     assert_eq!(s["grid"][0], 11);
     // 121 vertices: below the size from which every core is used
     assert_eq!(s["threads"], 1);

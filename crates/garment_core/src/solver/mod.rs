@@ -295,6 +295,8 @@ pub enum SolvedBy {
     /// The block-Jacobi PCG.
     #[default]
     Pcg,
+    /// The PCG preconditioned by symmetric block Gauss–Seidel.
+    Sgs,
     /// The multigrid PCG.
     Amg,
     /// The Cholesky factor (single precision refined by the PCG, or exact).
@@ -929,7 +931,10 @@ impl Simulation {
     }
 
     fn solve_pcg(&mut self, cap: linear::Cap, precond: linear::Preconditioner) -> Result<usize> {
-        self.solved_by = SolvedBy::Pcg;
+        self.solved_by = match precond {
+            linear::Preconditioner::BlockJacobi => SolvedBy::Pcg,
+            linear::Preconditioner::Sgs => SolvedBy::Sgs,
+        };
         self.ws.pcg.solve(
             &self.ws.a,
             &self.ws.b,
