@@ -204,9 +204,26 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     );
     if let Some(bw) = &fit.body_wrench {
         let (f, m) = (bw.mean_force_n, bw.mean_torque_nm);
+        // the sewing's first steps slam the panels onto the body: its peak
+        // is named apart from the garment's as sewn
+        let after = match (
+            bw.peak_force_after_sewing_n,
+            bw.peak_force_after_sewing_time_s,
+        ) {
+            (Some(f), Some(t)) => format!("peak force after sewing {f:.3} N at t = {t:.2} s"),
+            _ => "no step after sewing".to_string(),
+        };
+        let sewing = if bw.peak_force_time_s <= r.sewing_s + 1e-12 {
+            format!(
+                " (while sewing {:.3} N at t = {:.2} s)",
+                bw.peak_force_n, bw.peak_force_time_s
+            )
+        } else {
+            String::new()
+        };
         println!(
             "on the body (mean of the last {} s): force ({:.3}, {:.3}, {:.3}) N ({:.3} of the \
-             weight downward), torque ({:.4}, {:.4}, {:.4}) N m; peak force {:.3} N at t = {:.2} s",
+             weight downward), torque ({:.4}, {:.4}, {:.4}) N m; {after}{sewing}",
             trial::WRENCH_MEAN_S,
             f[0],
             f[1],
@@ -215,8 +232,6 @@ pub fn trial(a: TrialArgs) -> Result<()> {
             m[0],
             m[1],
             m[2],
-            bw.peak_force_n,
-            bw.peak_force_time_s
         );
     }
     if let Some(bp) = &fit.body_pressure {

@@ -964,9 +964,15 @@ pub struct BodyWrenchFit {
     /// The mean force's downward part over the garment's weight: 1 when the
     /// body alone holds the garment at rest.
     pub mean_down_over_weight: f64,
-    /// Largest force over the run, N, and when, s.
+    /// Largest force over the run, N, and when, s. The sewing's first
+    /// steps slam the panels onto the body (docs/garments.md), so this is
+    /// usually a sewing step's.
     pub peak_force_n: f64,
     pub peak_force_time_s: f64,
+    /// Largest force once the sewing has ended, N, and when, s (`null`
+    /// without steps after it): what the garment as sewn does to the body.
+    pub peak_force_after_sewing_n: Option<f64>,
+    pub peak_force_after_sewing_time_s: Option<f64>,
 }
 
 /// Seconds at the end of a run over which [`BodyWrenchFit`] averages.
@@ -1003,9 +1009,9 @@ impl BodyPressureFit {
 }
 
 impl BodyWrenchFit {
-    /// From a run's wrench history (`None` if it has none) and the garment's
-    /// weight, N.
-    pub fn of(history: &[(f64, Wrench)], weight: f64) -> Option<BodyWrenchFit> {
+    /// From a run's wrench history (`None` if it has none), the garment's
+    /// weight, N, and the time the sewing ended, s.
+    pub fn of(history: &[(f64, Wrench)], weight: f64, sewn: f64) -> Option<BodyWrenchFit> {
         let &(t_end, last) = history.last()?;
         let tail: Vec<&Wrench> = history
             .iter()
@@ -1024,17 +1030,27 @@ impl BodyWrenchFit {
             m
         };
         let mf = mean(&|w| w.force);
-        let (peak_t, peak) = history
-            .iter()
-            .map(|(t, w)| (*t, Vector3::from(w.force).norm()))
-            .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+        let peak = |after: f64| {
+            history
+                .iter()
+                .filter(|(t, _)| *t > after + 1e-12)
+                .map(|(t, w)| (*t, Vector3::from(w.force).norm()))
+                .fold(None, |a: Option<(f64, f64)>, b| match a {
+                    Some(a) if a.1 >= b.1 => Some(a),
+                    _ => Some(b),
+                })
+        };
+        let (peak_t, peak_n) = peak(f64::NEG_INFINITY).unwrap_or((0.0, 0.0));
+        let after = peak(sewn);
         Some(BodyWrenchFit {
             last,
             mean_force_n: mf,
             mean_torque_nm: mean(&|w| w.torque),
             mean_down_over_weight: if weight > 0.0 { -mf[2] / weight } else { 0.0 },
-            peak_force_n: peak,
+            peak_force_n: peak_n,
             peak_force_time_s: peak_t,
+            peak_force_after_sewing_n: after.map(|a| a.1),
+            peak_force_after_sewing_time_s: after.map(|a| a.0),
         })
     }
 }
@@ -1323,7 +1339,7 @@ pub fn fit(
     }
     let on_body = body_handle(sim).and_then(|b| body_forces::body_pressure(sim, b));
     let fit = Fit {
-        body_wrench: BodyWrenchFit::of(&run.wrench, weight),
+        body_wrench: BodyWrenchFit::of(&run.wrench, weight, run.sewing_s),
         body_pressure: on_body.as_ref().map(BodyPressureFit::of),
         dressing: None,
         garment: trial.garment.name.clone(),

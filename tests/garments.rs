@@ -1194,6 +1194,21 @@ fn the_shipped_tshirt_trial_settles_on_the_body_in_equilibrium() {
     eprintln!("weight {w} N, force on the body {f:?} N");
     assert!((-f[2] / w - 1.0).abs() < 0.02, "{f:?} vs {w}");
     assert!(f[0].hypot(f[1]) < 0.02 * w, "{f:?}");
+    // the largest force on the body once sewn is taken after the sewing
+    // (whose first steps slam the panels on), and is at least the weight
+    // the body carries at the end
+    let bw = &fit["body_wrench"];
+    let (after, at) = (
+        bw["peak_force_after_sewing_n"].as_f64().unwrap(),
+        bw["peak_force_after_sewing_time_s"].as_f64().unwrap(),
+    );
+    let sewn = fit["run"]["sewing_s"].as_f64().unwrap();
+    eprintln!(
+        "peak force after sewing {after} N at {at} s; over the run {} N at {} s",
+        bw["peak_force_n"], bw["peak_force_time_s"]
+    );
+    assert!(at > sewn && after >= 0.99 * w, "{bw}");
+    assert!(after <= bw["peak_force_n"].as_f64().unwrap(), "{bw}");
     // on the shoulders (the body's are at 1.38–1.40 m), nothing inside
     on_the_body(&out, 1.38);
 }
