@@ -206,12 +206,12 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         let (f, m) = (bw.mean_force_n, bw.mean_torque_nm);
         // the sewing's first steps slam the panels onto the body: its peak
         // is named apart from the garment's as sewn
-        let after = match (
-            bw.peak_force_after_sewing_n,
-            bw.peak_force_after_sewing_time_s,
-        ) {
-            (Some(f), Some(t)) => format!("peak force after sewing {f:.3} N at t = {t:.2} s"),
-            _ => "no step after sewing".to_string(),
+        let after = match bw
+            .peak_force_after_sewing_n
+            .zip(bw.peak_force_after_sewing_time_s)
+        {
+            Some((f, t)) => format!("peak force after sewing {f:.3} N at t = {t:.2} s"),
+            None => "no step after sewing".to_string(),
         };
         let sewing = if bw.peak_force_time_s <= r.sewing_s + 1e-12 {
             format!(

@@ -6,26 +6,32 @@ fn tmp(name: &str) -> support::Scratch {
     support::Scratch::new(&format!("cli_{name}"))
 }
 
-#[test]
-fn drape_writes_ply_energy_and_summary() {
-    let out = tmp("drape");
+/// `drape` of the shipped free fall for 0.2 s into the scratch `name`, with
+/// `extra` arguments: it succeeds; its output directory, standard output and
+/// summary.json.
+fn free_fall(name: &str, extra: &[&str]) -> (support::Scratch, String, serde_json::Value) {
+    let out = tmp(name);
     let o = support::garment_sim()
-        .args([
-            "drape",
-            "config/scenes/free_fall.yaml",
-            "--duration",
-            "0.2",
-            "--out",
-        ])
+        .args(["drape", "config/scenes/free_fall.yaml", "--duration", "0.2"])
+        .args(extra)
+        .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
-    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stdout = String::from_utf8_lossy(&o.stdout).to_string();
     assert!(
         o.status.success(),
         "{stdout}\n{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    let s =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    (out, stdout, s)
+}
+
+#[test]
+fn drape_writes_ply_energy_and_summary() {
+    let (out, stdout, s) = free_fall("drape", &[]);
     for key in [
         "ms/step",
         "real-time factor",
@@ -35,8 +41,6 @@ fn drape_writes_ply_energy_and_summary() {
     ] {
         assert!(stdout.contains(key), "summary lacks {key}: {stdout}");
     }
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["steps"], 240); // dt = 1/1200 s
                                  // which solve gave each step's answer (`auto` chooses per step: on this
                                  // small cloth the Cholesky is cheap, the block-Jacobi PCG's cap low)
@@ -55,23 +59,7 @@ fn drape_writes_ply_energy_and_summary() {
     assert!(stdout.contains(&line), "{stdout}");
     // `--solver sgs`: every step on the Gauss–Seidel PCG, counted as such
     // (they were once counted as the block-Jacobi PCG's)
-    let sgs = tmp("drape_sgs");
-    let o = support::garment_sim()
-        .args([
-            "drape",
-            "config/scenes/free_fall.yaml",
-            "--duration",
-            "0.2",
-            "--solver",
-            "sgs",
-            "--out",
-        ])
-        .arg(&sgs)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let t: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(sgs.join("summary.json")).unwrap()).unwrap();
+    let (_, sgs_out, t) = free_fall("drape_sgs", &["--solver", "sgs"]);
     assert_eq!(
         (
             &t["steps_solved_by"]["sgs"],
@@ -86,10 +74,8 @@ fn drape_writes_ply_energy_and_summary() {
         "{t}"
     );
     assert!(
-        String::from_utf8_lossy(&o.stdout)
-            .contains("(steps solved by the block-Jacobi PCG 0, the Gauss–Seidel PCG 240,"),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
+        sgs_out.contains("(steps solved by the block-Jacobi PCG 0, the Gauss–Seidel PCG 240,"),
+        "{sgs_out}"
     );
     assert_eq!(s["grid"][0], 11);
     // 121 vertices: below the size from which every core is used

@@ -313,12 +313,9 @@ impl Pcg {
         let (mut delta0, mut rj, mut floor) = (0.0, 0.0, 0.0);
         for i in 0..n {
             self.pinv[i] = block_jacobi(&a.val[a.diag[i]]);
-            let fb = filter[i].apply(&b[i]);
-            delta0 += fb.dot(&(self.pinv[i] * fb));
-            if let Some(w) = self.scale.get(i) {
-                let fw = filter[i].apply(w);
-                floor += fw.dot(&(self.pinv[i] * fw));
-            }
+            let (d, g) = reference_terms(&filter[i], &b[i], self.scale.get(i), &self.pinv[i]);
+            delta0 += d;
+            floor += g;
             self.r[i] = filter[i].apply(&(b[i] - row_mul_best(fma, a, i, dv)));
             rj += self.r[i].dot(&(self.pinv[i] * self.r[i]));
         }
@@ -461,6 +458,25 @@ fn out_of_reach(it: usize, ratio2: f64, tol: f64, max_iter: usize) -> bool {
     per_iter >= 0.0 || tol.ln() / per_iter > max_iter as f64
 }
 
+/// One row's terms of the convergence test's reference, in the norm of the
+/// block-diagonal inverse `dinv`: the filtered right-hand side's
+/// `(S b)ᵀ D⁻¹ (S b)`, and gravity's impulse `w` ([`Pcg::set_scale`]; none:
+/// 0) the same way, the floor of that reference.
+#[inline(always)]
+fn reference_terms(
+    f: &Filter,
+    b: &Vector3<f64>,
+    w: Option<&Vector3<f64>>,
+    dinv: &Matrix3<f64>,
+) -> (f64, f64) {
+    let fb = f.apply(b);
+    let floor = w.map_or(0.0, |w| {
+        let fw = f.apply(w);
+        fw.dot(&(dinv * fw))
+    });
+    (fb.dot(&(dinv * fb)), floor)
+}
+
 /// The error that stops a solve after `it` iterations whose squared
 /// residual ratio is `ratio2`: at the cap `max_iter`, or, with `early`
 /// ([`Cap::Reachable`]), every 8 iterations once the cap is out of reach.
@@ -590,12 +606,9 @@ fn pcg_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         };
         dv[k] = g + zz[k];
         // δ0 = filter(b)ᵀ P⁻¹ filter(b)
-        let fb = f[k].apply(&bb[k]);
-        delta0 += fb.dot(&(pinv[k] * fb));
-        if let Some(w) = args.scale.get(lo + k) {
-            let fw = f[k].apply(w);
-            floor += fw.dot(&(pinv[k] * fw));
-        }
+        let (d, g) = reference_terms(&f[k], &bb[k], args.scale.get(lo + k), &pinv[k]);
+        delta0 += d;
+        floor += g;
     }
     sh.put(t, 0, delta0);
     // slot 2 is next written after the second barrier below
@@ -777,12 +790,9 @@ fn sgs_rows_impl<const FMA: bool>(args: &PcgArgs, sh: &Shared, t: usize) -> Resu
         };
         dblk[k] = fd;
         dinv[k] = block_jacobi(&fd);
-        let fb = f[k].apply(&bb[k]);
-        delta0 += fb.dot(&(dinv[k] * fb));
-        if let Some(w) = args.scale.get(i) {
-            let fw = f[k].apply(w);
-            floor += fw.dot(&(dinv[k] * fw));
-        }
+        let (d, g) = reference_terms(&f[k], &bb[k], args.scale.get(i), &dinv[k]);
+        delta0 += d;
+        floor += g;
         // the row's lower and upper blocks into their copies
         let (l0, u0) = (lptr[i] as usize, uptr[i] as usize);
         let (nl, nu) = (diag[i] - rp[i], rp[i + 1] - diag[i] - 1);
