@@ -384,53 +384,62 @@ fn large_steps_do_not_cross_a_thin_board() {
 #[test]
 fn contacts_come_to_rest_on_the_table() {
     // the shipped table drape; once the cloth rests, static friction holds
-    // every contact and nothing changes from step to step (before, half the
-    // contacts flipped between stick and slip every step, for ever)
+    // every contact (before, half the contacts flipped between stick and slip
+    // every step, for ever; later, a few contacts carrying a millionth of
+    // their weight flipped every other step on the solve's round-off, one
+    // thread or two, block-Jacobi, Gauss–Seidel or multigrid PCG alike)
     use garment_sim::scene::Overrides;
     let sc = Scene::load(Path::new("config/scenes/table_drape.yaml")).unwrap();
-    for (spacing, dt, duration) in [(0.02, 1e-3, 4.0), (0.01, 1.0 / 120.0, 4.0)] {
+    for (spacing, dt, threads) in [
+        (0.02, 1e-3, None),
+        (0.01, 1.0 / 120.0, Some(1)),
+        (0.01, 1.0 / 120.0, Some(2)),
+    ] {
         let mut sim = sc
             .build(&Overrides {
                 spacing: Some(spacing),
                 dt: Some(dt),
+                threads,
                 ..Default::default()
             })
             .unwrap();
-        let steps = (duration / dt).round() as usize;
+        let steps = (4.0 / dt).round() as usize;
         let tail = (0.5 / dt).round() as usize;
         let mut seen = std::collections::BTreeSet::new();
         let mut last = (0, 0);
-        let mut iterations = 0;
+        let (mut iterations, mut changes) = (0, 0);
         for k in 0..steps {
             let s = sim.step().unwrap();
             if k >= steps - tail {
                 seen.insert((s.contacts, s.stuck));
                 iterations += s.iterations;
+                changes += usize::from((s.contacts, s.stuck) != last);
             }
             last = (s.contacts, s.stuck);
         }
         let mean = iterations as f64 / tail as f64;
+        let what = format!("{spacing} m at dt = {dt:.5} s, threads {threads:?}");
         println!(
-            "{spacing} m at dt = {dt:.5} s: over the last 0.5 s (contacts, stuck) took the values {seen:?}, {mean:.1} solver iterations per step"
+            "{what}: over the last 0.5 s (contacts, stuck) took the values {seen:?} and changed in {changes} of {tail} steps, {mean:.1} solver iterations per step"
         );
         // at rest the solvers' test is floored by gravity's impulse: a few
         // iterations, not the hundreds a test relative to the tiny
         // right-hand side asked for (260–290 per step at 1 cm)
-        assert!(
-            mean < 30.0,
-            "{spacing} m: {mean} iterations per step at rest"
-        );
+        assert!(mean < 30.0, "{what}: {mean} iterations per step at rest");
         assert!(
             last.0 > 100,
             "the cloth lies on the board ({} contacts)",
             last.0
         );
-        assert_eq!(
-            seen.len(),
-            1,
-            "{spacing} m: the contacts still change at rest: {seen:?}"
+        // a chattering contact changes every step or two (15–21 of these 60
+        // steps, and hundreds before); a cloth that settles may still let
+        // one contact slip once, where its slowly changing load reaches the
+        // friction cone (a slip and the stick after it: two changes)
+        assert!(
+            changes <= 2,
+            "{what}: the contacts still change at rest ({changes} of {tail} steps): {seen:?}"
         );
-        assert_eq!(last.0, last.1, "{spacing} m: every contact held at rest");
+        assert_eq!(last.0, last.1, "{what}: every contact held at rest");
     }
 }
 

@@ -1221,6 +1221,8 @@ impl Simulation {
         let solved = vertices::Solved {
             h,
             cloth_thickness: cloth_t,
+            floor: FRICTION_FLOOR * self.params.gravity.norm() * h,
+            mass: &self.cloth.mass,
             a: &self.ws.a,
             b: &self.ws.b,
             dv: &self.dv,
@@ -1636,6 +1638,11 @@ impl Simulation {
 /// turning at 1 rad/s, by ω² r h = 1.25 mm/s at r = 15 cm and h = 1/120 s,
 /// so the relative velocity left after a step is seldom under this speed.)
 pub const STICK_SPEED: f64 = 1e-3;
+
+/// Contact forces below this fraction of a vertex's weight are below what
+/// the solve resolves: a contact stays pressed, and static friction holds,
+/// within it.
+pub const FRICTION_FLOOR: f64 = 1e-3;
 
 /// Coulomb friction state of a vertex in contact.
 #[derive(Debug, Clone, Copy, Default)]

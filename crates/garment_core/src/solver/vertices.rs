@@ -7,7 +7,7 @@
 
 use super::linear::Filter;
 use super::sparse::BlockMatrix;
-use super::{FrictionState, Pin, STICK_SPEED};
+use super::{FrictionState, Pin, FRICTION_FLOOR, STICK_SPEED};
 use crate::collision::{Obstacle, Proximity};
 use crate::deforming::HIT_TOLERANCE;
 use nalgebra::Vector3;
@@ -136,7 +136,12 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             let rel = s.v[i] - velocity;
             let vrel = rel.dot(&n);
             // pressed against it by last step's force (resting contact)
-            let pressed = s.force[i].dot(&n) < 0.0;
+            let floor = FRICTION_FLOOR * s.mass[i] * s.gravity.norm();
+            let pressed = if o.friction[k].impulse > 0.0 || o.friction[k].stick {
+                s.force[i].dot(&n) < floor
+            } else {
+                s.force[i].dot(&n) < 0.0
+            };
             // beyond the margin: reached within this step at the present speed
             let landing = gap >= 0.1 * e;
             if landing || vrel < 0.0 || pressed || gap < 0.0 {
@@ -145,7 +150,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 // a slow vertex sticks if static friction can hold it against the
                 // force that drives it along the surface (else it creeps on)
                 let along = driving - n * driving.dot(&n);
-                let holds = along.norm() * h <= mu * o.friction[k].impulse;
+                let holds = along.norm() * h <= mu * o.friction[k].impulse + floor * h;
                 if o.friction[k].stick && mu > 0.0 && !landing && holds {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
@@ -210,6 +215,9 @@ pub(super) fn kinetic_friction(
 pub(super) struct Solved<'a> {
     pub h: f64,
     pub cloth_thickness: f64,
+    /// [`FRICTION_FLOOR`] times gravity's impulse per kilogram over the step.
+    pub floor: f64,
+    pub mass: &'a [f64],
     pub a: &'a BlockMatrix,
     pub b: &'a [Vector3<f64>],
     pub dv: &'a [Vector3<f64>],
@@ -255,7 +263,7 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
             st.impulse = rn.max(0.0);
             st.stick = if s.filter[i] == Filter::Fixed {
                 // static friction holds while the tangential impulse stays in the cone
-                rn > 0.0 && (r - nrm * rn).norm() <= mu * rn
+                (r - nrm * rn).norm() <= mu * rn.max(0.0) + s.floor * s.mass[i]
             } else {
                 // slow; or, on a moving surface, its sliding reversed over
                 // the step (it passed through rest relative to the surface,
