@@ -135,7 +135,9 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
         if let Some((n, velocity, mu, gap, e)) = contact {
             let rel = s.v[i] - velocity;
             let vrel = rel.dot(&n);
-            // pressed against it by last step's force (resting contact)
+            // pressed against it by last step's force (resting contact); one
+            // in contact last step stays so unless pulled off by more than
+            // the friction floor, a force the solve does not resolve
             let floor = FRICTION_FLOOR * s.mass[i] * s.gravity.norm();
             let pressed = if o.friction[k].impulse > 0.0 || o.friction[k].stick {
                 s.force[i].dot(&n) < floor
@@ -262,7 +264,9 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
             let st = &mut o.friction[k];
             st.impulse = rn.max(0.0);
             st.stick = if s.filter[i] == Filter::Fixed {
-                // static friction holds while the tangential impulse stays in the cone
+                // static friction holds while the tangential impulse stays in
+                // the cone, widened by the friction floor (the impulses of a
+                // contact that carries next to nothing are the solve's error)
                 (r - nrm * rn).norm() <= mu * rn.max(0.0) + s.floor * s.mass[i]
             } else {
                 // slow; or, on a moving surface, its sliding reversed over
