@@ -206,20 +206,20 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         let (f, m) = (bw.mean_force_n, bw.mean_torque_nm);
         // the sewing's first steps slam the panels onto the body: its peak
         // is named apart from the garment's as sewn
-        let after = match bw
+        let after = bw
             .peak_force_after_sewing_n
-            .zip(bw.peak_force_after_sewing_time_s)
-        {
-            Some((f, t)) => format!("peak force after sewing {f:.3} N at t = {t:.2} s"),
-            None => "no step after sewing".to_string(),
-        };
-        let sewing = if bw.peak_force_time_s <= r.sewing_s + 1e-12 {
-            format!(
+            .zip(bw.peak_force_after_sewing_time_s);
+        // the run's peak is a sewing step's unless it is the one after sewing
+        let sewing = match after {
+            Some((_, t)) if t == bw.peak_force_time_s => String::new(),
+            _ => format!(
                 " (while sewing {:.3} N at t = {:.2} s)",
                 bw.peak_force_n, bw.peak_force_time_s
-            )
-        } else {
-            String::new()
+            ),
+        };
+        let after = match after {
+            Some((f, t)) => format!("peak force after sewing {f:.3} N at t = {t:.2} s"),
+            None => "no step after sewing".to_string(),
         };
         println!(
             "on the body (mean of the last {} s): force ({:.3}, {:.3}, {:.3}) N ({:.3} of the \

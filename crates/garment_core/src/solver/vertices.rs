@@ -68,6 +68,7 @@ pub(super) struct ConstraintRows<'a> {
 /// kinetic friction force, and its contact for the update after the solve.
 pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
     let h = s.h;
+    let g = s.gravity.norm();
     for k in 0..o.filter.len() {
         let i = o.first + k;
         o.filter[k] = Filter::Free;
@@ -138,12 +139,9 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             // pressed against it by last step's force (resting contact); one
             // in contact last step stays so unless pulled off by more than
             // the friction floor, a force the solve does not resolve
-            let floor = FRICTION_FLOOR * s.mass[i] * s.gravity.norm();
-            let pressed = if o.friction[k].impulse > 0.0 || o.friction[k].stick {
-                s.force[i].dot(&n) < floor
-            } else {
-                s.force[i].dot(&n) < 0.0
-            };
+            let floor = FRICTION_FLOOR * s.mass[i] * g;
+            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
+            let pressed = s.force[i].dot(&n) < if held { floor } else { 0.0 };
             // beyond the margin: reached within this step at the present speed
             let landing = gap >= 0.1 * e;
             if landing || vrel < 0.0 || pressed || gap < 0.0 {
@@ -152,7 +150,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 // a slow vertex sticks if static friction can hold it against the
                 // force that drives it along the surface (else it creeps on)
                 let along = driving - n * driving.dot(&n);
-                let holds = along.norm() * h <= mu * o.friction[k].impulse + floor * h;
+                let holds = in_cone(along.norm() * h, o.friction[k].impulse, mu, floor * h);
                 if o.friction[k].stick && mu > 0.0 && !landing && holds {
                     // static friction: the vertex moves with the obstacle
                     o.filter[k] = Filter::Fixed;
@@ -190,6 +188,15 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             o.friction[k] = FrictionState::default();
         }
     }
+}
+
+/// Coulomb's cone widened by the friction floor: whether static friction
+/// holds a tangential impulse `t` against the normal impulse `n` (none if
+/// negative) with the coefficient `mu`, within `floor`, the impulse of
+/// [`FRICTION_FLOOR`] times the vertex's weight over the step.
+#[inline]
+fn in_cone(t: f64, n: f64, mu: f64, floor: f64) -> bool {
+    t <= mu * n.max(0.0) + floor
 }
 
 /// Kinetic friction on a vertex sliding at tangential velocity `vt`
@@ -267,7 +274,7 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
                 // static friction holds while the tangential impulse stays in
                 // the cone, widened by the friction floor (the impulses of a
                 // contact that carries next to nothing are the solve's error)
-                (r - nrm * rn).norm() <= mu * rn.max(0.0) + s.floor * s.mass[i]
+                in_cone((r - nrm * rn).norm(), rn, mu, s.floor * s.mass[i])
             } else {
                 // slow; or, on a moving surface, its sliding reversed over
                 // the step (it passed through rest relative to the surface,
