@@ -1221,7 +1221,7 @@ impl Simulation {
         let solved = vertices::Solved {
             h,
             cloth_thickness: cloth_t,
-            floor: FRICTION_FLOOR * self.params.gravity.norm() * h,
+            gravity: self.params.gravity.norm(),
             mass: &self.cloth.mass,
             a: &self.ws.a,
             b: &self.ws.b,

@@ -139,7 +139,7 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
             // pressed against it by last step's force (resting contact); one
             // in contact last step stays so unless pulled off by more than
             // the friction floor, a force the solve does not resolve
-            let floor = FRICTION_FLOOR * s.mass[i] * g;
+            let floor = floor_force(s.mass[i], g);
             let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
             let pressed = s.force[i].dot(&n) < if held { floor } else { 0.0 };
             // beyond the margin: reached within this step at the present speed
@@ -190,6 +190,14 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
     }
 }
 
+/// [`FRICTION_FLOOR`] times the weight of a vertex of mass `m` under
+/// gravity of norm `g`, N: the force below which a contact's forces are
+/// taken as the solve's error.
+#[inline]
+fn floor_force(m: f64, g: f64) -> f64 {
+    FRICTION_FLOOR * m * g
+}
+
 /// Coulomb's cone widened by the friction floor: whether static friction
 /// holds a tangential impulse `t` against the normal impulse `n` (none if
 /// negative) with the coefficient `mu`, within `floor`, the impulse of
@@ -224,8 +232,8 @@ pub(super) fn kinetic_friction(
 pub(super) struct Solved<'a> {
     pub h: f64,
     pub cloth_thickness: f64,
-    /// [`FRICTION_FLOOR`] times gravity's impulse per kilogram over the step.
-    pub floor: f64,
+    /// Gravity's norm, m/s² (for the friction floor, [`floor_force`]).
+    pub gravity: f64,
     pub mass: &'a [f64],
     pub a: &'a BlockMatrix,
     pub b: &'a [Vector3<f64>],
@@ -274,7 +282,12 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
                 // static friction holds while the tangential impulse stays in
                 // the cone, widened by the friction floor (the impulses of a
                 // contact that carries next to nothing are the solve's error)
-                in_cone((r - nrm * rn).norm(), rn, mu, s.floor * s.mass[i])
+                in_cone(
+                    (r - nrm * rn).norm(),
+                    rn,
+                    mu,
+                    floor_force(s.mass[i], s.gravity) * h,
+                )
             } else {
                 // slow; or, on a moving surface, its sliding reversed over
                 // the step (it passed through rest relative to the surface,
