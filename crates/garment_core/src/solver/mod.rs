@@ -977,14 +977,16 @@ impl Simulation {
 
     /// The filtered PCG preconditioned by the multigrid hierarchy, refilled
     /// for this step.
+    /// Where the hierarchy's first coarse level is swept, not solved exactly
+    /// ([`amg::Amg::exact_bottom`]; the 0.5 cm table drape, the garments), it
+    /// stops at [`AMG_SWEPT_TOLERANCE`] times the tolerance.
     fn solve_amg(&mut self, cap: linear::Cap) -> Result<usize> {
-        let tol = self.params.cg_tolerance;
-        self.solve_amg_to(cap, tol)
-    }
-
-    fn solve_amg_to(&mut self, cap: linear::Cap, tol: f64) -> Result<usize> {
         self.solved_by = SolvedBy::Amg;
-        self.amg()?;
+        let tol = if self.amg()?.exact_bottom() {
+            self.params.cg_tolerance
+        } else {
+            self.params.cg_tolerance * AMG_SWEPT_TOLERANCE
+        };
         let m = self.ws.amg.as_mut().expect("multigrid built");
         m.setup(&self.ws.a, &self.ws.filter, &self.cloth.mass, &self.cloth.x)?;
         let solved = self.ws.pcg.solve_factor(
@@ -1063,16 +1065,12 @@ impl Simulation {
     /// `auto`'s solve where the block-Jacobi PCG needs more than `cap`
     /// iterations: the multigrid PCG within the cycles that cost as much as
     /// `cap` block-Jacobi iterations; else, or if it does not converge
-    /// within them, the Cholesky ([`Simulation::solve_factored`]). Where the
-    /// hierarchy's first coarse level is swept, not solved exactly
-    /// ([`amg::Amg::exact_bottom`]; the 0.5 cm table drape, the garments),
-    /// the multigrid stops at a hundredth of the tolerance
-    /// ([`AMG_SWEPT_TOLERANCE`]).
+    /// within them, the Cholesky ([`Simulation::solve_factored`]).
     fn solve_heavy(&mut self, cap: usize) -> Result<usize> {
         if self.steps < self.auto.next_amg {
             return self.solve_factored();
         }
-        let exact = self.amg()?.exact_bottom();
+        self.amg()?;
         let m = self.ws.amg.as_mut().expect("multigrid built");
         if self.auto.amg_last.map(|s| s + 1) != Some(self.steps) {
             // its kept coarse levels are of a step before the last
@@ -1080,12 +1078,7 @@ impl Simulation {
         }
         let cycle = m.cycle_cost();
         let cycles = ((cap as f64 / cycle.max(1.0)).floor() as usize).max(1);
-        let tol = if exact {
-            self.params.cg_tolerance
-        } else {
-            self.params.cg_tolerance * AMG_SWEPT_TOLERANCE
-        };
-        let solved = self.solve_amg_to(linear::Cap::Hard(cycles), tol);
+        let solved = self.solve_amg(linear::Cap::Hard(cycles));
         self.auto.amg_last = Some(self.steps);
         match solved {
             Ok(it) => {
@@ -1668,12 +1661,12 @@ pub const F32_REFINE_CAP: usize = 20;
 /// at first: each failed try doubles the gap, up to [`AUTO_PROBE_MAX`].
 pub const AUTO_PROBE: u64 = 25;
 
-/// Where the multigrid's first coarse level is swept, `auto` stops its
-/// solves at this fraction of the tolerance. At the tolerance itself the
-/// 0.5 cm table drape at dt = 1/120 s never comes to rest: it slides on at
-/// 7–8 mm/s after 3 s, where the block-Jacobi PCG's and the Cholesky's drapes
-/// settle at 1.37 s; at a hundredth it settles at 1.34 s, in as many
-/// iterations a step (docs/benchmarks.md, "`auto`"). A lead, not shown:
+/// Where the multigrid's first coarse level is swept, its solves (in `auto`
+/// and `amg`) stop at this fraction of the tolerance. At the tolerance itself
+/// the 0.5 cm table drape at dt = 1/120 s never comes to rest: it slides on
+/// at 7–8 mm/s after 3 s, where the block-Jacobi PCG's and the Cholesky's
+/// drapes settle at 1.37 s; at a hundredth it settles at 1.33–1.35 s, in as
+/// many iterations a step (docs/benchmarks.md, "`auto`"). A lead, not shown:
 /// stick or slip is decided on a contact's constraint impulse, which the
 /// filtered residual's test does not bound.
 pub const AMG_SWEPT_TOLERANCE: f64 = 1e-2;
