@@ -61,6 +61,16 @@ pub struct DrapeArgs {
     /// file's `cloth.hinges`, skewed when absent; docs/drape.md).
     #[arg(long)]
     pub hinges: Option<HingesFile>,
+    /// Write the linear system of these steps (indices from 0, comma-separated) into
+    /// OUT/system-STEP/: the matrix and right-hand side in Matrix Market, the constraint
+    /// filter, the solve's first guess and answer per vertex in CSV (docs/benchmarks.md).
+    #[arg(
+        long,
+        value_name = "STEP",
+        value_delimiter = ',',
+        conflicts_with = "bag"
+    )]
+    pub write_system: Vec<u64>,
     #[command(flatten)]
     pub bag: BagArgs,
     #[command(flatten)]
@@ -169,6 +179,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         obstacle_edges,
         cell_shear,
         hinges,
+        write_system,
         bag,
         live,
     } = a;
@@ -207,15 +218,30 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         }
         None => None,
     };
-    let mut also = |s: &garment_sim::solver::Simulation| match live_run.as_mut() {
-        Some(r) => r.observe(s),
-        None => Ok(run::Control::Continue),
+    let mut also = |s: &garment_sim::solver::Simulation| {
+        if let Some(sys) = s.captured_system() {
+            let dir = out.join(format!("system-{}", sys.step));
+            garment_sim::system_file::write_system(&dir, sys)?;
+            eprintln!(
+                "wrote            {}/ (step {}, {} iterations)",
+                dir.display(),
+                sys.step,
+                sys.iterations
+            );
+        }
+        match live_run.as_mut() {
+            Some(r) => r.observe(s),
+            None => Ok(run::Control::Continue),
+        }
     };
     let mut pr = progress_printer(format!("drape {}", scene.display()));
     let (s, recorded) = match &bag.bag {
-        None if view.is_none() => (run::drape(&sc, &ov, &out, &mut pr)?.1, None),
+        None if view.is_none() && write_system.is_empty() => {
+            (run::drape(&sc, &ov, &out, &mut pr)?.1, None)
+        }
         None => {
-            let sim = sc.build(&ov)?;
+            let mut sim = sc.build(&ov)?;
+            sim.capture_systems(&write_system);
             (
                 run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
                 None,
@@ -231,6 +257,12 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
             (r.summary.clone(), Some(r))
         }
     };
+    for &k in write_system.iter().filter(|&&k| k >= s.steps) {
+        eprintln!(
+            "--write-system: step {k} not reached (the run took {} steps, from 0)",
+            s.steps
+        );
+    }
     let e = &s.final_energies;
     println!("scene            {}", s.scene);
     println!("fabric           {}", s.fabric);

@@ -46,6 +46,10 @@ pub struct TrialArgs {
     /// auto when absent; docs/drape.md).
     #[arg(long)]
     solver: Option<LinearSolverKind>,
+    /// Write the linear system of these steps (indices from 0, sewing included,
+    /// comma-separated) into OUT/system-STEP/, as `drape --write-system` does.
+    #[arg(long, value_name = "STEP", value_delimiter = ',')]
+    write_system: Vec<u64>,
 }
 
 pub fn trial(a: TrialArgs) -> Result<()> {
@@ -62,9 +66,16 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         solver: a.solver,
     };
     if t.file.dressing.is_some() {
+        anyhow::ensure!(
+            a.write_system.is_empty(),
+            "--write-system: not for a dressing trial ({})",
+            a.trial.display()
+        );
         return dress(&t, &ov, &a);
     }
     let (mut sim, g) = t.build(&ov)?;
+    sim.capture_systems(&a.write_system);
+    let mut written: Result<()> = Ok(());
     eprintln!(
         "garment {}: {} panels, {} seams ({} stitches), {} vertices, {:.0} g of {}; body {} \
          triangles; dt = {} s",
@@ -91,20 +102,35 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &t.file.sewing,
         &t.file.settle,
         a.max_time,
-        &mut |_, phase, x, of| match phase {
-            "sewing" => sew(x, of),
-            "motion" => {
-                if !moving {
-                    // the drape is over
-                    drape(1.0, 1.0);
-                    moving = true;
+        &mut |s, phase, x, of| {
+            if let (Some(sys), true) = (s.captured_system(), written.is_ok()) {
+                let dir = a.out.join(format!("system-{}", sys.step));
+                written = garment_sim::system_file::write_system(&dir, sys);
+                if written.is_ok() {
+                    eprintln!(
+                        "wrote {}/ (step {}, {} iterations)",
+                        dir.display(),
+                        sys.step,
+                        sys.iterations
+                    );
                 }
-                motion(x, of)
             }
-            _ => drape(x, of),
+            match phase {
+                "sewing" => sew(x, of),
+                "motion" => {
+                    if !moving {
+                        // the drape is over
+                        drape(1.0, 1.0);
+                        moving = true;
+                    }
+                    motion(x, of)
+                }
+                _ => drape(x, of),
+            }
         },
         &|| stop.load(Ordering::Relaxed),
     )?;
+    written?;
     if moving {
         motion(1.0, 1.0);
     } else {

@@ -8,7 +8,8 @@
 //! Jacobians, implicit step); it reads no files. Above it: [`io`] reads
 //! fabric files, KES curves and OBJ meshes, [`motion`] body motions (mesh
 //! sequences, glTF skinned animations), [`scene`] builds a simulation
-//! from YAML; [`run`] writes shapes, curves and summaries; [`capture`] reads
+//! from YAML; [`run`] writes shapes, curves and summaries, [`system_file`] a
+//! step's linear system for solvers outside it; [`capture`] reads
 //! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
 //! experiments, [`plot`] draws their curves as PNG and [`render`] pictures
 //! of a drape; [`msgs`] are the ROS 2 messages (types, schemas, built from a
@@ -37,4 +38,5 @@ pub mod render;
 pub mod ros;
 pub mod run;
 pub mod scene;
+pub mod system_file;
 pub mod trial;

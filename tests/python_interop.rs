@@ -2,9 +2,10 @@
 //! C3D files with `ezc3d` (tests/c3d_interop.py), the ROS 2 interface
 //! definitions with `rosbags` (tests/msg_defs.py), and the shipped body motions
 //! against the frames Blender evaluated and the turn's closed form
-//! (tests/anny_motion.py). Their Python packages come from
-//! tests/requirements.txt, which .ci/run installs; without them these tests
-//! fail and say what to install (they never pass silently).
+//! (tests/anny_motion.py), and the linear systems `drape --write-system`
+//! writes, read and solved by SciPy (tests/system_file.py). Their Python
+//! packages come from tests/requirements.txt, which .ci/run installs; without
+//! them these tests fail and say what to install (they never pass silently).
 
 mod support;
 
@@ -25,4 +26,20 @@ fn ros2_interface_definitions_parse_with_rosbags() {
 #[test]
 fn the_shipped_body_motion_skins_as_blender_does() {
     pytest("tests/anny_motion.py", "numpy, pytest", "4 passed");
+}
+
+#[test]
+fn written_linear_systems_read_and_solve_in_scipy() {
+    let dir = support::Scratch::new("system_file");
+    let bin = std::ffi::OsString::from(support::garment_sim_path());
+    support::pytest(
+        "tests/system_file.py",
+        "numpy, scipy, pytest",
+        false,
+        &[
+            ("GARMENT_SIM_BIN", &bin),
+            ("GARMENT_SIM_TMP", dir.as_os_str()),
+        ],
+        "2 passed",
+    );
 }

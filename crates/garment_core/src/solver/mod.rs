@@ -417,7 +417,46 @@ pub struct Simulation {
     pinned: Vec<Option<usize>>,
     /// Which solver `auto` is on.
     auto: AutoChoice,
+    /// Steps whose linear system is kept ([`Simulation::capture_systems`]).
+    capture_at: Vec<u64>,
+    /// The last step's system, if it was one of `capture_at`.
+    captured: Option<Box<LinearSystem>>,
     ws: Workspace,
+}
+
+/// One step's linear system as the solvers saw it, kept by
+/// [`Simulation::capture_systems`]: `A Δv = b` under the filter (`Δv_i =
+/// S_i Δv_i + z_i`), the first guess the solve started from and the answer
+/// it gave, with what a solver outside this program needs to rebuild the
+/// test and the multigrid's near-null space (positions, masses, gravity).
+#[derive(Debug, Clone)]
+pub struct LinearSystem {
+    /// Steps taken before this one (the step's index from 0).
+    pub step: u64,
+    /// Simulated time at the step's start, s.
+    pub time: f64,
+    pub dt: f64,
+    pub gravity: Vector3<f64>,
+    /// The relative tolerance the solve was asked for ([`Params::cg_tolerance`]).
+    pub tolerance: f64,
+    /// The system matrix `A = (1 − hα) M + Σ_k (h² − h β_k) K̃_k` (see the
+    /// module's documentation), kg.
+    pub a: BlockMatrix,
+    /// The right-hand side `h (f0 + h ∂f/∂x v0 + ∂f/∂x y)` with the kinetic
+    /// friction's impulse, N·s.
+    pub b: Vec<Vector3<f64>>,
+    pub filter: Vec<Filter>,
+    /// The prescribed part of Δv, m/s.
+    pub z: Vec<Vector3<f64>>,
+    /// The solve's first guess (the last step's Δv), m/s.
+    pub guess: Vec<Vector3<f64>>,
+    /// The solve's answer, m/s.
+    pub dv: Vec<Vector3<f64>>,
+    /// Positions at the step's start, m, and masses, kg.
+    pub x: Vec<Vector3<f64>>,
+    pub mass: Vec<f64>,
+    pub solved_by: SolvedBy,
+    pub iterations: usize,
 }
 
 /// Where `auto` mode stands (see [`LinearSolverKind::Auto`]).
@@ -553,6 +592,8 @@ impl Clone for Simulation {
             friction_force: self.friction_force.clone(),
             pinned: self.pinned.clone(),
             auto: self.auto,
+            capture_at: self.capture_at.clone(),
+            captured: self.captured.clone(),
             ws,
         }
     }
@@ -598,6 +639,8 @@ impl Simulation {
                 amg_last: None,
                 amg_price: None,
             },
+            capture_at: Vec::new(),
+            captured: None,
             ws,
         })
     }
@@ -681,6 +724,20 @@ impl Simulation {
     /// the wall clock.
     pub fn rest_threads(&self) {
         self.ws.team.rest();
+    }
+
+    /// Keeps the linear system of each of the steps `at` (step indices from
+    /// 0: the step taken when [`Simulation::steps`] equals one of them), for
+    /// [`Simulation::captured_system`] after that step. To study a step's
+    /// solve outside this program (`garment_sim drape --write-system`).
+    pub fn capture_systems(&mut self, at: &[u64]) {
+        self.capture_at = at.to_vec();
+    }
+
+    /// The last step's linear system, if [`Simulation::capture_systems`]
+    /// asked for that step.
+    pub fn captured_system(&self) -> Option<&LinearSystem> {
+        self.captured.as_deref()
     }
 
     /// The integrator's parameters.
@@ -875,6 +932,11 @@ impl Simulation {
             return Err(self.diverged(i, "force"));
         }
         // 3. solve
+        self.captured = None;
+        let guess = self
+            .capture_at
+            .contains(&self.steps)
+            .then(|| self.dv.clone());
         let t_solve = Instant::now();
         let solved = match self.params.linear_solver {
             LinearSolverKind::Pcg => self.solve_pcg(
@@ -891,6 +953,25 @@ impl Simulation {
         };
         let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
         let solve_s = t_solve.elapsed().as_secs_f64();
+        if let Some(guess) = guess {
+            self.captured = Some(Box::new(LinearSystem {
+                step: self.steps,
+                time: self.time,
+                dt: h,
+                gravity: self.params.gravity,
+                tolerance: self.params.cg_tolerance,
+                a: self.ws.a.clone(),
+                b: self.ws.b.clone(),
+                filter: self.ws.filter.clone(),
+                z: self.ws.z.clone(),
+                guess,
+                dv: self.dv.clone(),
+                x: self.cloth.x.clone(),
+                mass: self.cloth.mass.clone(),
+                solved_by: self.solved_by,
+                iterations,
+            }));
+        }
         // positions, velocities and time are unchanged yet: a failed step
         // leaves them as they were (the hysteresis memory was advanced to
         // these positions by the assembly, as the next step's would be)

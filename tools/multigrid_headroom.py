@@ -1,0 +1,136 @@
+"""Other multigrid solvers on a step's own linear system, under garment_sim's test.
+
+Reads a directory that `garment_sim drape --write-system STEP` wrote and solves its
+filtered system with the PCG preconditioned by PyAMG's smoothed aggregation (Bell,
+Olson & Schroder, https://github.com/pyamg/pyamg) in several variants, from the
+solve's own first guess, stopped by garment_sim's test (system.json,
+"stopping_test"), and prints their iteration counts beside garment_sim's.
+docs/benchmarks.md ("How far a multigrid goes") gives the figures and the commands.
+
+    pip install pyamg scipy numpy
+    python3 tools/multigrid_headroom.py out/system-60 [--tolerance 1e-6]
+"""
+
+import argparse
+import json
+import pathlib
+
+import numpy as np
+import pyamg
+import scipy.io as sio
+import scipy.sparse as sp
+
+
+def load(d):
+    meta = json.loads((d / "system.json").read_text())
+    a = sp.csr_matrix(sio.mmread(str(d / "A.mtx")))
+    b = np.asarray(sio.mmread(str(d / "b.mtx"))).reshape(-1)
+    v = np.genfromtxt(d / "vertices.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
+    return meta, a, b, v
+
+
+def projectors(v):
+    """Per vertex the 3 x 3 filter S_i: I (free), I - n n^T (normal), 0 (fixed)."""
+    n = len(v)
+    s = np.zeros((n, 3, 3))
+    for i, f in enumerate(v["filter"]):
+        if f == "free":
+            s[i] = np.eye(3)
+        elif f == "normal":
+            nv = np.array([v["normal_x"][i], v["normal_y"][i], v["normal_z"][i]])
+            s[i] = np.eye(3) - np.outer(nv, nv)
+    return s
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("system", type=pathlib.Path)
+    ap.add_argument("--tolerance", type=float, help="default: system.json's")
+    ap.add_argument("--max-iterations", type=int, default=500)
+    args = ap.parse_args()
+    meta, a, b, v = load(args.system)
+    n = meta["vertices"]
+    tol = args.tolerance or meta["tolerance"]
+    m = np.asarray(v["mass_kg"], dtype=float)
+    sblk = projectors(v)
+    s = sp.block_diag(list(sblk), format="csr")
+    xyz = lambda p: np.stack([v[p + "_x"], v[p + "_y"], v[p + "_z"]], axis=1).reshape(-1)
+    z, guess = xyz("z"), xyz("guess")
+    pos = np.stack([v["x"], v["y"], v["z"]], axis=1)
+    # the filtered matrix of garment_sim's preconditioners: S A S + (I - S) m
+    eye = sp.identity(3 * n, format="csr")
+    af = (s @ a @ s + (eye - s) @ sp.diags(np.repeat(m, 3)) @ (eye - s)).tocsr()
+    af.eliminate_zeros()
+    afb = af.tobsr(blocksize=(3, 3))
+    # garment_sim's test: r^T D^-1 r <= tol^2 max((S b)^T D^-1 (S b), (S w)^T D^-1 (S w)),
+    # D the 3 x 3 diagonal blocks of A (unfiltered)
+    dblk = np.stack([a[3 * i:3 * i + 3, 3 * i:3 * i + 3].toarray() for i in range(n)])
+    dinv = np.linalg.inv(dblk)
+    norm2 = lambda r: float(np.einsum("ni,nij,nj->", r.reshape(n, 3), dinv, r.reshape(n, 3)))
+    g = np.array(meta["gravity_m_s2"]) * meta["dt_s"]
+    w = s @ np.outer(m, g).reshape(-1)
+    ref = max(norm2(s @ b), norm2(w))
+    x0 = s @ guess + z
+    rhs = s @ (b - a @ z)
+
+    def pcg(prec):
+        dv = x0 - z
+        r = rhs - af @ dv
+        r = s @ r
+        for it in range(args.max_iterations + 1):
+            if norm2(r) <= tol * tol * ref:
+                return it
+            c = s @ prec(r)
+            rc = r @ c
+            if it == 0:
+                p = c
+            else:
+                p = c + (rc / rc_old) * p
+            q = s @ (af @ p)
+            alpha = rc / (p @ q)
+            dv = dv + alpha * p
+            r = r - alpha * q
+            rc_old = rc
+        return None
+
+    # near-null space: translations and rotations about the centroid
+    bmodes = np.zeros((3 * n, 6))
+    for c in range(3):
+        bmodes[c::3, c] = 1.0
+    centred = pos - pos.mean(axis=0)
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1.0
+        bmodes[:, 3 + k] = np.cross(e, centred).reshape(-1)
+    sweep = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 1})
+    sweep2 = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 2})
+    variants = [
+        ("two levels, aggregates on every link (as garment_sim's)", dict(strength=None, max_levels=2)),
+        ("two levels, aggregates on strong links (symmetric, 0.05)",
+         dict(strength=("symmetric", {"theta": 0.05}), max_levels=2)),
+        ("two levels, evolution strength", dict(strength="evolution", max_levels=2)),
+        ("two levels, two sweeps each way", dict(strength=None, max_levels=2,
+                                                 presmoother=sweep2, postsmoother=sweep2)),
+        ("levels down to 300 unknowns", dict(strength=None, max_coarse=300)),
+        ("levels down to 300, evolution strength", dict(strength="evolution", max_coarse=300)),
+    ]
+    print(f"{args.system}: step {meta['step']}, dt = {meta['dt_s']:.6g} s, {n} vertices, "
+          f"filters {dict(zip(*np.unique(v['filter'], return_counts=True)))}")
+    print(f"  garment_sim ({meta['solved_by']}): {meta['iterations']} iterations at tolerance "
+          f"{meta['tolerance']:g} (the multigrid: {meta['tolerance'] / 100:g} where its first "
+          f"coarse level is swept, as on the 0.5 cm drape and the garments)")
+    jac = [pcg(lambda r: np.einsum("nij,nj->ni", dinv, r.reshape(n, 3)).reshape(-1))]
+    print(f"  block-Jacobi PCG: {jac[0] if jac[0] is not None else '> ' + str(args.max_iterations)} iterations at tolerance {tol:g}")
+    for name, kw in variants:
+        kw.setdefault("presmoother", sweep)
+        kw.setdefault("postsmoother", sweep)
+        ml = pyamg.smoothed_aggregation_solver(afb, B=bmodes, coarse_solver="splu", **kw)
+        it = pcg(ml.aspreconditioner(cycle="V"))
+        sizes = [lvl.A.shape[0] for lvl in ml.levels]
+        print(f"  PyAMG, {name}: {it if it is not None else '> ' + str(args.max_iterations)} "
+              f"iterations (unknowns per level {sizes}, operator complexity "
+              f"{ml.operator_complexity():.2f})")
+
+
+if __name__ == "__main__":
+    main()
