@@ -15,19 +15,20 @@ Run:  pip install pytest numpy scipy  &&  GARMENT_SIM_BIN=target/release/garment
       python -m pytest tests/system_file.py -v
 """
 
-import json
 import os
 import pathlib
 import subprocess
+import sys
 
 import pytest
 
 np = pytest.importorskip("numpy")
 sp = pytest.importorskip("scipy.sparse")
 spla = pytest.importorskip("scipy.sparse.linalg")
-sio = pytest.importorskip("scipy.io")
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tools"))
+from system_files import load, vec  # noqa: E402  (the reader tools/ shares)
 BIN = os.environ.get("GARMENT_SIM_BIN", str(REPO / "target/release/garment_sim"))
 TMP = pathlib.Path(os.environ.get("GARMENT_SIM_TMP", "/tmp"))
 
@@ -40,18 +41,6 @@ def drape(name, scene, steps, *args):
         check=True, capture_output=True, cwd=REPO, text=True,
     )
     return out, run.stderr
-
-
-def read(d):
-    meta = json.loads((d / "system.json").read_text())
-    a = sp.csr_matrix(sio.mmread(str(d / "A.mtx")))
-    b = np.asarray(sio.mmread(str(d / "b.mtx"))).reshape(-1)
-    v = np.genfromtxt(d / "vertices.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
-    return meta, a, b, v
-
-
-def vec(v, p):
-    return np.stack([v[p + "_x"], v[p + "_y"], v[p + "_z"]], axis=1)
 
 
 def free_basis(v):
@@ -78,7 +67,7 @@ def free_basis(v):
 
 
 def check(d, filters):
-    meta, a, b, v = read(d)
+    meta, a, b, v = load(d)
     n = meta["vertices"]
     assert a.shape == (3 * n, 3 * n) and b.shape == (3 * n,)
     assert a.nnz <= 9 * meta["blocks"]
@@ -89,7 +78,7 @@ def check(d, filters):
     # A − M is positive semi-definite
     lam = np.linalg.eigvalsh((a - sp.diags(m)).toarray())
     assert lam[0] >= -1e-9 * amax, lam[0]
-    z, dv = vec(v, "z").reshape(-1), vec(v, "dv").reshape(-1)
+    z, dv = vec(v, "z"), vec(v, "dv")
     q = free_basis(v)
     s = q @ q.T
     # the constraint filter: dv = S dv + z

@@ -12,21 +12,12 @@ docs/benchmarks.md ("How far a multigrid goes") gives the figures and the comman
 """
 
 import argparse
-import json
 import pathlib
 
 import numpy as np
 import pyamg
-import scipy.io as sio
 import scipy.sparse as sp
-
-
-def load(d):
-    meta = json.loads((d / "system.json").read_text())
-    a = sp.csr_matrix(sio.mmread(str(d / "A.mtx")))
-    b = np.asarray(sio.mmread(str(d / "b.mtx"))).reshape(-1)
-    v = np.genfromtxt(d / "vertices.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
-    return meta, a, b, v
+from system_files import load, vec
 
 
 def projectors(v):
@@ -54,9 +45,8 @@ def main():
     m = np.asarray(v["mass_kg"], dtype=float)
     sblk = projectors(v)
     s = sp.block_diag(list(sblk), format="csr")
-    xyz = lambda p: np.stack([v[p + "_x"], v[p + "_y"], v[p + "_z"]], axis=1).reshape(-1)
-    z, guess = xyz("z"), xyz("guess")
-    pos = np.stack([v["x"], v["y"], v["z"]], axis=1)
+    z, guess = vec(v, "z"), vec(v, "guess")
+    pos = vec(v, "").reshape(n, 3)
     # the filtered matrix of garment_sim's preconditioners: S A S + (I - S) m
     eye = sp.identity(3 * n, format="csr")
     af = (s @ a @ s + (eye - s) @ sp.diags(np.repeat(m, 3)) @ (eye - s)).tocsr()
