@@ -218,16 +218,22 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         }
         None => None,
     };
+    // a system that cannot be written (a full disk) is reported and fails
+    // the command at the end; the drape and its outputs go on
+    let mut written: Result<()> = Ok(());
     let mut also = |s: &garment_sim::solver::Simulation| {
-        if let Some(sys) = s.captured_system() {
+        if let (Some(sys), true) = (s.captured_system(), written.is_ok()) {
             let dir = out.join(format!("system-{}", sys.step));
-            garment_sim::system_file::write_system(&dir, sys)?;
-            eprintln!(
-                "wrote            {}/ (step {}, {} iterations)",
-                dir.display(),
-                sys.step,
-                sys.iterations
-            );
+            written = garment_sim::system_file::write_system(&dir, sys);
+            match &written {
+                Ok(()) => eprintln!(
+                    "wrote            {}/ (step {}, {} iterations)",
+                    dir.display(),
+                    sys.step,
+                    sys.iterations
+                ),
+                Err(e) => eprintln!("--write-system: {e:#}; the drape goes on"),
+            }
         }
         match live_run.as_mut() {
             Some(r) => r.observe(s),
@@ -390,6 +396,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         (Some(f), None) => Err(f),
         // the outputs are written; the bag is not whole
         (None, Some(e)) => anyhow::bail!("{e}"),
-        (None, None) => Ok(()),
+        // the outputs are written; a system asked for is not
+        (None, None) => written,
     }
 }

@@ -130,7 +130,15 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         },
         &|| stop.load(Ordering::Relaxed),
     )?;
-    written?;
+    if let Err(e) = &written {
+        eprintln!("--write-system: {e:#}; the trial's own outputs are written all the same");
+    }
+    for &k in a.write_system.iter().filter(|&&k| k >= sim.steps) {
+        eprintln!(
+            "--write-system: step {k} not reached (the trial took {} steps, from 0)",
+            sim.steps
+        );
+    }
     if moving {
         motion(1.0, 1.0);
     } else {
@@ -293,7 +301,8 @@ pub fn trial(a: TrialArgs) -> Result<()> {
             fit.run.steps,
             &a.out,
         )),
-        None => Ok(()),
+        // a system that could not be written fails the command, after the rest
+        None => written,
     }
 }
 

@@ -40,6 +40,6 @@ fn written_linear_systems_read_and_solve_in_scipy() {
             ("GARMENT_SIM_BIN", &bin),
             ("GARMENT_SIM_TMP", dir.as_os_str()),
         ],
-        "2 passed",
+        "3 passed",
     );
 }

@@ -129,3 +129,19 @@ def test_a_pinned_cloths_system():
                    "--duration", "0.2")
     meta = check(out / "system-50", ["free", "fixed"])
     assert meta["step"] == 50 and meta["iterations"] > 0
+
+
+def test_a_system_that_cannot_be_written_fails_the_command_after_the_drape():
+    out = TMP / "system_blocked"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "system-3").write_text("a file where the directory should go\n")
+    run = subprocess.run(
+        [BIN, "drape", str(REPO / "config/scenes/free_fall.yaml"), "--duration", "0.05",
+         "--out", str(out), "--write-system", "3"],
+        capture_output=True, cwd=REPO, text=True,
+    )
+    assert run.returncode != 0, run.stdout
+    assert "system-3" in run.stderr and "the drape goes on" in run.stderr, run.stderr
+    # the drape's own outputs are all there
+    for f in ("final.ply", "final.png", "energy.csv", "summary.json"):
+        assert (out / f).stat().st_size > 0, f
