@@ -7,6 +7,7 @@ use garment_sim::pattern::HingesFile;
 use garment_sim::run;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
+use garment_sim::system_file::SystemWriter;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -218,23 +219,9 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         }
         None => None,
     };
-    // a system that cannot be written (a full disk) is reported and fails
-    // the command at the end; the drape and its outputs go on
-    let mut written: Result<()> = Ok(());
+    let mut systems = SystemWriter::new(&out, &write_system);
     let mut also = |s: &garment_sim::solver::Simulation| {
-        if let (Some(sys), true) = (s.captured_system(), written.is_ok()) {
-            let dir = out.join(format!("system-{}", sys.step));
-            written = garment_sim::system_file::write_system(&dir, sys);
-            match &written {
-                Ok(()) => eprintln!(
-                    "wrote            {}/ (step {}, {} iterations)",
-                    dir.display(),
-                    sys.step,
-                    sys.iterations
-                ),
-                Err(e) => eprintln!("--write-system: {e:#}; the drape goes on"),
-            }
-        }
+        systems.observe(s);
         match live_run.as_mut() {
             Some(r) => r.observe(s),
             None => Ok(run::Control::Continue),
@@ -242,9 +229,6 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
     };
     let mut pr = progress_printer(format!("drape {}", scene.display()));
     let (s, recorded) = match &bag.bag {
-        None if view.is_none() && write_system.is_empty() => {
-            (run::drape(&sc, &ov, &out, &mut pr)?.1, None)
-        }
         None => {
             let mut sim = sc.build(&ov)?;
             sim.capture_systems(&write_system);
@@ -263,12 +247,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
             (r.summary.clone(), Some(r))
         }
     };
-    for &k in write_system.iter().filter(|&&k| k >= s.steps) {
-        eprintln!(
-            "--write-system: step {k} not reached (the run took {} steps, from 0)",
-            s.steps
-        );
-    }
+    let written = systems.finish(s.steps);
     let e = &s.final_energies;
     println!("scene            {}", s.scene);
     println!("fabric           {}", s.fabric);

@@ -3,6 +3,7 @@
 use anyhow::Result;
 use garment_sim::render::{full_scale, FieldPicture, Surface};
 use garment_sim::solver::LinearSolverKind;
+use garment_sim::system_file::SystemWriter;
 use garment_sim::trial::{self, Trial, TrialOverrides};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -75,7 +76,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     }
     let (mut sim, g) = t.build(&ov)?;
     sim.capture_systems(&a.write_system);
-    let mut written: Result<()> = Ok(());
+    let mut systems = SystemWriter::new(&a.out, &a.write_system);
     eprintln!(
         "garment {}: {} panels, {} seams ({} stitches), {} vertices, {:.0} g of {}; body {} \
          triangles; dt = {} s",
@@ -103,18 +104,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         &t.file.settle,
         a.max_time,
         &mut |s, phase, x, of| {
-            if let (Some(sys), true) = (s.captured_system(), written.is_ok()) {
-                let dir = a.out.join(format!("system-{}", sys.step));
-                written = garment_sim::system_file::write_system(&dir, sys);
-                if written.is_ok() {
-                    eprintln!(
-                        "wrote {}/ (step {}, {} iterations)",
-                        dir.display(),
-                        sys.step,
-                        sys.iterations
-                    );
-                }
-            }
+            systems.observe(s);
             match phase {
                 "sewing" => sew(x, of),
                 "motion" => {
@@ -130,15 +120,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         },
         &|| stop.load(Ordering::Relaxed),
     )?;
-    if let Err(e) = &written {
-        eprintln!("--write-system: {e:#}; the trial's own outputs are written all the same");
-    }
-    for &k in a.write_system.iter().filter(|&&k| k >= sim.steps) {
-        eprintln!(
-            "--write-system: step {k} not reached (the trial took {} steps, from 0)",
-            sim.steps
-        );
-    }
+    let written = systems.finish(sim.steps);
     if moving {
         motion(1.0, 1.0);
     } else {

@@ -6,9 +6,62 @@
 //! measure other multigrid solvers on the drapes' own systems.
 
 use crate::io::write_atomic;
-use crate::solver::{Filter, LinearSystem};
+use crate::solver::{Filter, LinearSystem, Simulation};
 use anyhow::{Context, Result};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+/// `--write-system` of `drape` and `trial`: writes the systems a simulation
+/// kept ([`Simulation::capture_systems`] with the same steps) into
+/// `OUT/system-STEP/` after their steps. A system that cannot be written (a
+/// full disk) is reported at once and fails the command at the end, after
+/// the run and its own outputs.
+pub struct SystemWriter {
+    out: PathBuf,
+    steps: Vec<u64>,
+    written: Result<()>,
+}
+
+impl SystemWriter {
+    /// For the steps `steps` (indices from 0), into `out`.
+    pub fn new(out: &Path, steps: &[u64]) -> SystemWriter {
+        SystemWriter {
+            out: out.to_path_buf(),
+            steps: steps.to_vec(),
+            written: Ok(()),
+        }
+    }
+
+    /// After each step: writes its system if it was one asked for (none
+    /// after a failure).
+    pub fn observe(&mut self, sim: &Simulation) {
+        let Some(sys) = sim.captured_system() else {
+            return;
+        };
+        if self.written.is_err() {
+            return;
+        }
+        let dir = self.out.join(format!("system-{}", sys.step));
+        self.written = write_system(&dir, sys);
+        match &self.written {
+            Ok(()) => eprintln!(
+                "wrote system     {}/ (step {}, {} iterations)",
+                dir.display(),
+                sys.step,
+                sys.iterations
+            ),
+            Err(e) => eprintln!("--write-system: {e:#}; the run goes on"),
+        }
+    }
+
+    /// After a run of `taken` steps: names the steps it did not reach;
+    /// the write's error, if one failed.
+    pub fn finish(self, taken: u64) -> Result<()> {
+        for k in self.steps.iter().filter(|&&k| k >= taken) {
+            eprintln!("--write-system: step {k} not reached (the run took {taken} steps, from 0)");
+        }
+        self.written
+    }
+}
 
 /// Writes `s` into the directory `dir` (created if missing): `A.mtx`,
 /// `b.mtx`, `vertices.csv` and `system.json` (see the module's text). Row

@@ -17,20 +17,7 @@ import pathlib
 import numpy as np
 import pyamg
 import scipy.sparse as sp
-from system_files import load, vec
-
-
-def projectors(v):
-    """Per vertex the 3 x 3 filter S_i: I (free), I - n n^T (normal), 0 (fixed)."""
-    n = len(v)
-    s = np.zeros((n, 3, 3))
-    for i, f in enumerate(v["filter"]):
-        if f == "free":
-            s[i] = np.eye(3)
-        elif f == "normal":
-            nv = np.array([v["normal_x"][i], v["normal_y"][i], v["normal_z"][i]])
-            s[i] = np.eye(3) - np.outer(nv, nv)
-    return s
+from system_files import diagonal_inverses, filter_matrix, load, stopping_test, vec
 
 
 def main():
@@ -43,8 +30,7 @@ def main():
     n = meta["vertices"]
     tol = args.tolerance or meta["tolerance"]
     m = np.asarray(v["mass_kg"], dtype=float)
-    sblk = projectors(v)
-    s = sp.block_diag(list(sblk), format="csr")
+    s = filter_matrix(v)
     z, guess = vec(v, "z"), vec(v, "guess")
     pos = vec(v, "").reshape(n, 3)
     # the filtered matrix of garment_sim's preconditioners: S A S + (I - S) m
@@ -52,14 +38,7 @@ def main():
     af = (s @ a @ s + (eye - s) @ sp.diags(np.repeat(m, 3)) @ (eye - s)).tocsr()
     af.eliminate_zeros()
     afb = af.tobsr(blocksize=(3, 3))
-    # garment_sim's test: r^T D^-1 r <= tol^2 max((S b)^T D^-1 (S b), (S w)^T D^-1 (S w)),
-    # D the 3 x 3 diagonal blocks of A (unfiltered)
-    dblk = np.stack([a[3 * i:3 * i + 3, 3 * i:3 * i + 3].toarray() for i in range(n)])
-    dinv = np.linalg.inv(dblk)
-    norm2 = lambda r: float(np.einsum("ni,nij,nj->", r.reshape(n, 3), dinv, r.reshape(n, 3)))
-    g = np.array(meta["gravity_m_s2"]) * meta["dt_s"]
-    w = s @ np.outer(m, g).reshape(-1)
-    ref = max(norm2(s @ b), norm2(w))
+    norm2, ref = stopping_test(meta, a, b, v)
     x0 = s @ guess + z
     rhs = s @ (b - a @ z)
 
@@ -82,6 +61,9 @@ def main():
             r = r - alpha * q
             rc_old = rc
         return None
+
+    def shown(it):
+        return it if it is not None else f"> {args.max_iterations}"
 
     # near-null space: translations and rotations about the centroid
     bmodes = np.zeros((3 * n, 6))
@@ -109,15 +91,16 @@ def main():
     print(f"  garment_sim ({meta['solved_by']}): {meta['iterations']} iterations at tolerance "
           f"{meta['tolerance']:g} (the multigrid: {meta['tolerance'] / 100:g} where its first "
           f"coarse level is swept, as on the 0.5 cm drape and the garments)")
-    jac = [pcg(lambda r: np.einsum("nij,nj->ni", dinv, r.reshape(n, 3)).reshape(-1))]
-    print(f"  block-Jacobi PCG: {jac[0] if jac[0] is not None else '> ' + str(args.max_iterations)} iterations at tolerance {tol:g}")
+    dinv = diagonal_inverses(a)
+    jac = pcg(lambda r: np.einsum("nij,nj->ni", dinv, r.reshape(n, 3)).reshape(-1))
+    print(f"  block-Jacobi PCG: {shown(jac)} iterations at tolerance {tol:g}")
     for name, kw in variants:
         kw.setdefault("presmoother", sweep)
         kw.setdefault("postsmoother", sweep)
         ml = pyamg.smoothed_aggregation_solver(afb, B=bmodes, coarse_solver="splu", **kw)
         it = pcg(ml.aspreconditioner(cycle="V"))
         sizes = [lvl.A.shape[0] for lvl in ml.levels]
-        print(f"  PyAMG, {name}: {it if it is not None else '> ' + str(args.max_iterations)} "
+        print(f"  PyAMG, {name}: {shown(it)} "
               f"iterations (unknowns per level {sizes}, operator complexity "
               f"{ml.operator_complexity():.2f})")
 
