@@ -87,6 +87,20 @@ pub struct SewingFile {
     pub drag: f64,
     #[serde(default = "SewingFile::d_factor")]
     pub stiffness_factor: f64,
+    /// The stitches' pull while sewing, all together, in weights of the
+    /// garment: each stitch pulls with at most its share (by stiffness) of
+    /// `max_force` times the garment's weight, however wide its gap.
+    #[serde(default = "SewingFile::d_max_force")]
+    pub max_force: f64,
+    /// The sewing ends once every stitch's gap is at most this, m (or at
+    /// `duration`).
+    #[serde(default = "SewingFile::d_closed")]
+    pub closed: f64,
+    /// Coulomb coefficient between the cloth and the body while sewing (the
+    /// body's own `friction` holds from the drape on): the panels slide
+    /// over the skin as their seams close.
+    #[serde(default)]
+    pub friction: f64,
 }
 
 impl SewingFile {
@@ -102,6 +116,15 @@ impl SewingFile {
     fn d_factor() -> f64 {
         0.02
     }
+    /// Twenty times the garment's weight (the sewing's body force stays
+    /// within a few weights; a tighter bound leaves seams open where the
+    /// cloth must wrap the body).
+    fn d_max_force() -> f64 {
+        20.0
+    }
+    fn d_closed() -> f64 {
+        1e-3
+    }
 }
 
 impl Default for SewingFile {
@@ -111,6 +134,9 @@ impl Default for SewingFile {
             gravity: false,
             drag: Self::d_drag(),
             stiffness_factor: Self::d_factor(),
+            max_force: Self::d_max_force(),
+            closed: Self::d_closed(),
+            friction: 0.0,
         }
     }
 }
@@ -444,28 +470,21 @@ impl Trial {
             &masses,
         )
         .with_context(|| format!("garment {}", self.garment.source.display()))?;
-        // no panel may start inside the body
-        let mut worst: Option<(usize, f64)> = None;
-        for (i, p) in g.cloth.x.iter().enumerate() {
-            let d = self.body.proximity(p).distance;
-            if d < 0.0 && worst.is_none_or(|(_, w)| d < w) {
-                worst = Some((i, d));
-            }
-        }
-        if let Some((i, d)) = worst {
-            let panel = &g.panels[g.panel_of(i)];
-            let p = g.cloth.x[i];
-            bail!(
-                "garment {}: panel {:?} starts inside the body: its vertex {} at ({:.3}, {:.3}, \
-                 {:.3}) m lies {:.1} cm under the skin; move the panel (its placement) or the \
-                 body (body.pose)",
-                self.garment.source.display(),
-                panel.name,
-                i - panel.first,
-                p.x,
-                p.y,
-                p.z,
-                -100.0 * d
+        // a panel placed partly inside the body (a pattern drafted for
+        // another body) is brought out whole before it is sewn
+        let mut g = g;
+        let moved = bring_out(&mut g, &self.body)
+            .with_context(|| format!("garment {}", self.garment.source.display()))?;
+        for m in &moved {
+            eprintln!(
+                "note: panel {:?} started {:.1} cm under the skin: moved {:.1} cm out along \
+                 ({:.2}, {:.2}, {:.2}) before sewing",
+                g.panels[m.panel].name,
+                100.0 * m.depth,
+                100.0 * m.distance,
+                m.direction.x,
+                m.direction.y,
+                m.direction.z
             );
         }
         let params = Params {
@@ -485,6 +504,110 @@ impl Trial {
         Ok((sim, g))
     }
 }
+
+/// A panel moved out of the body before sewing.
+#[derive(Debug, Clone)]
+pub struct PanelMove {
+    pub panel: usize,
+    /// How deep under the skin its deepest vertex started, m.
+    pub depth: f64,
+    /// How far it moved, m, and along which unit direction.
+    pub distance: f64,
+    pub direction: Vector3<f64>,
+}
+
+/// Farthest a panel is moved out of the body, m.
+pub const MAX_BRING_OUT: f64 = 0.3;
+
+/// Moves every panel with a vertex inside the body out of it, rigidly
+/// (the panel stays flat, at rest), along the depth-weighted mean of the
+/// body's outward normals at its vertices inside, by the least multiple of
+/// 2.5 mm that puts all its vertices at least the body's thickness outside
+/// the skin. A panel that no move within [`MAX_BRING_OUT`] frees is an
+/// error naming it.
+pub fn bring_out(g: &mut Garment, body: &Obstacle) -> Result<Vec<PanelMove>> {
+    let clear = body.thickness.max(1e-3);
+    let mut moves = Vec::new();
+    for (k, p) in g.panels.iter().enumerate() {
+        let range = p.first..p.first + p.count;
+        let mut push = Vector3::zeros();
+        let mut depth: f64 = 0.0;
+        let mut worst = None;
+        for i in range.clone() {
+            let q = body.proximity(&g.cloth.x[i]);
+            if q.distance < 0.0 {
+                push += q.normal * -q.distance;
+                if -q.distance > depth {
+                    depth = -q.distance;
+                    worst = Some(i);
+                }
+            }
+        }
+        let Some(worst) = worst else { continue };
+        let direction = push.try_normalize(1e-12).unwrap_or(Vector3::z());
+        let free = |d: f64| {
+            range
+                .clone()
+                .all(|i| body.proximity(&(g.cloth.x[i] + direction * d)).distance >= clear)
+        };
+        let steps = (MAX_BRING_OUT / 2.5e-3).round() as usize;
+        let Some(d) = (1..=steps).map(|n| n as f64 * 2.5e-3).find(|&d| free(d)) else {
+            let x = g.cloth.x[worst];
+            bail!(
+                "panel {:?} starts inside the body (its vertex {} at ({:.3}, {:.3}, {:.3}) m lies \
+                 {:.1} cm under the skin) and no move of up to {:.0} cm along the body's normals \
+                 frees it: move the panel (its placement) or the body (body.pose)",
+                p.name,
+                worst - p.first,
+                x.x,
+                x.y,
+                x.z,
+                100.0 * depth,
+                100.0 * MAX_BRING_OUT
+            );
+        };
+        moves.push(PanelMove {
+            panel: k,
+            depth,
+            distance: d,
+            direction,
+        });
+    }
+    for m in &moves {
+        let p = &g.panels[m.panel];
+        for x in &mut g.cloth.x[p.first..p.first + p.count] {
+            *x += m.direction * m.distance;
+        }
+    }
+    Ok(moves)
+}
+
+/// Sets the stitches' stiffness for the next sewing step: `factor` times
+/// their own (`own`: stiffness and damping), scaled down together so that
+/// their pull at the current gaps, `Σ k |g|`, is at most `bound` (N). The
+/// pull keeps the linear law's shape (a wider gap pulls harder) and its
+/// sum is bounded however wide the gaps.
+fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f64) {
+    let pull: f64 = (sim.cloth.seams.iter().zip(own))
+        .map(|(s, &(k, _))| factor * k * s.gap(&sim.cloth.x).norm())
+        .sum();
+    let scale = factor * if pull > bound { bound / pull } else { 1.0 };
+    for (s, &(k, d)) in sim.cloth.seams.iter_mut().zip(own) {
+        s.k = k * scale;
+        s.d = d * scale;
+    }
+}
+
+/// The widest gap of any stitch, m.
+fn largest_gap(sim: &Simulation) -> f64 {
+    (sim.cloth.seams.iter())
+        .map(|s| s.gap(&sim.cloth.x).norm())
+        .fold(0.0, f64::max)
+}
+
+/// The garment's weight in the sewing's bound is its mass times standard
+/// gravity, m/s² (whatever the scene's gravity).
+pub const STANDARD_GRAVITY: f64 = 9.80665;
 
 /// The id of a trial's body among the simulation's obstacles.
 pub const BODY_ID: &str = "body";
@@ -714,6 +837,30 @@ pub fn run_to_failure(
         "",
         "a factor on the seams' stiffness",
     )?;
+    crate::limits::check_range(
+        "sewing.friction",
+        sew.friction,
+        0.0,
+        2.0,
+        "",
+        "a Coulomb coefficient",
+    )?;
+    crate::limits::check_range(
+        "sewing.closed",
+        sew.closed,
+        0.0,
+        0.1,
+        "m",
+        "a seam gap at which the sewing ends",
+    )?;
+    crate::limits::check_range(
+        "sewing.max_force",
+        sew.max_force,
+        0.1,
+        1e3,
+        "garment weights",
+        "the stitches' pull in all while sewing",
+    )?;
     let max_time = max_time.unwrap_or(st.max_time);
     crate::limits::check_range(
         "settle.max_time",
@@ -744,9 +891,18 @@ pub fn run_to_failure(
     for f in sim.fabrics_mut() {
         f.damping.alpha = f.damping.alpha.min(-sew.drag);
     }
-    for s in sim.cloth.seams.iter_mut() {
-        s.k *= sew.stiffness_factor;
-        s.d *= sew.stiffness_factor;
+    let bound = sew.max_force * sim.cloth.total_mass() * STANDARD_GRAVITY;
+    // the panels close over the skin with the sewing's friction, then the
+    // garment rests on it with the body's own
+    let frictions: Vec<(Handle<Obstacle>, f64)> = sim
+        .obstacles()
+        .with_handles()
+        .map(|(h, o)| (h, o.friction))
+        .collect();
+    for &(h, _) in &frictions {
+        if let Some(o) = sim.obstacle_mut(h) {
+            o.friction = sew.friction;
+        }
     }
     let sew_steps = (sew.duration / sim.params().dt).round() as u64;
     let mut failure = None;
@@ -779,13 +935,22 @@ pub fn run_to_failure(
         if stop() {
             break;
         }
+        bound_sewing(sim, &own, sew.stiffness_factor, bound);
         if let Err(e) = step(sim, &mut steps, &mut acc) {
             failure = Some(e);
             break;
         }
         progress(sim, "sewing", sim.time, sew.duration);
+        if largest_gap(sim) <= sew.closed {
+            break;
+        }
     }
     let sewing_s = sim.time;
+    for &(h, f) in &frictions {
+        if let Some(o) = sim.obstacle_mut(h) {
+            o.friction = f;
+        }
+    }
     // 2. drape
     sim.set_params(Params {
         gravity,

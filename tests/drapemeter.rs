@@ -192,6 +192,7 @@ fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
             } else {
                 HingeLayout::Skewed
             },
+            corners: Vec::new(),
         })
         .unwrap();
         (0..8)

@@ -336,6 +336,7 @@ pub fn run(
         } else {
             HingeLayout::Skewed
         },
+        corners: Vec::new(),
     })?;
     let flat: Vec<Vector3<f64>> = cloth.x.clone();
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();

@@ -8,6 +8,7 @@
 //! frame maps warp to +x, weft to +y and the face normal to +z; `pose` places it
 //! in the world.
 
+use crate::conform;
 use crate::fabric::LawState;
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Vector3};
@@ -579,6 +580,10 @@ pub enum Border {
     /// The staircase plus nodes outside moved onto the outline (see
     /// [`Cloth::panel`]).
     OnOutline,
+    /// [`Border::OnOutline`] for a garment panel: every corner of
+    /// [`PanelSpec::corners`] is a vertex, and no element spans a part of
+    /// the plane outside the outline ([`crate::conform`]).
+    Conforming,
 }
 
 /// A warp/weft panel: its outline in material coordinates, the grid that
@@ -598,6 +603,9 @@ pub struct PanelSpec {
     pub areal_mass: f64,
     pub border: Border,
     pub hinges: HingeLayout,
+    /// Points of the outline that must be vertices (material coordinates),
+    /// with [`Border::Conforming`]: a pattern's corners.
+    pub corners: Vec<[f64; 2]>,
 }
 
 impl PanelSpec {
@@ -617,6 +625,7 @@ impl PanelSpec {
             areal_mass,
             border: Border::Staircase,
             hinges: HingeLayout::Skewed,
+            corners: Vec::new(),
         }
     }
 
@@ -630,6 +639,7 @@ impl PanelSpec {
             areal_mass,
             border: Border::Staircase,
             hinges: HingeLayout::Skewed,
+            corners: Vec::new(),
         }
     }
 }
@@ -809,6 +819,13 @@ impl Cloth {
     /// with their one triangle. `nx`, `ny` are those of the bounding grid;
     /// [`Cloth::grid_vertex`] maps its nodes to vertices.
     pub fn panel(spec: &PanelSpec) -> Result<Cloth> {
+        Cloth::panel_with_corners(spec).map(|(cloth, _)| cloth)
+    }
+
+    /// [`Cloth::panel`], and the vertex each of [`PanelSpec::corners`] is
+    /// (with [`Border::Conforming`]; `None` for a corner whose node had no
+    /// link to the rest of the panel and was dropped).
+    pub fn panel_with_corners(spec: &PanelSpec) -> Result<(Cloth, Vec<Option<usize>>)> {
         let PanelSpec {
             outline,
             spacing,
@@ -819,7 +836,8 @@ impl Cloth {
         let (spacing, areal_mass) = (*spacing, *areal_mass);
         // every cell whole (a rectangle)
         let whole = matches!(outline, Outline::Rectangle { .. });
-        let snap = spec.border == Border::OnOutline && !whole;
+        let conform = spec.border == Border::Conforming && !whole;
+        let snap = (spec.border == Border::OnOutline || conform) && !whole;
         let (lc, lt, origin, i0, j0, nx, ny);
         if let Outline::Rectangle { size } = outline {
             for (k, n) in ["size.warp", "size.weft"].iter().enumerate() {
@@ -897,6 +915,20 @@ impl Cloth {
                 }
             }
         }
+        let corner_nodes = if conform {
+            conform::place_corners(
+                &spec.corners,
+                &node_uv,
+                nx,
+                ny,
+                lc,
+                lt,
+                &mut grid_vertex,
+                &mut material,
+            )
+        } else {
+            Vec::new()
+        };
         if snap {
             snap_border(
                 &poly,
@@ -908,6 +940,10 @@ impl Cloth {
                 &mut grid_vertex,
                 &mut material,
             );
+        }
+        let links = conform.then(|| conform::Links::new(&poly, &node_uv, nx, ny, lc, lt));
+        if let Some(links) = &links {
+            conform::drop_unlinked(links, nx, ny, &mut grid_vertex, &mut material);
         }
         if material.len() < 4 {
             bail!(
@@ -981,11 +1017,57 @@ impl Cloth {
         // rest length: the grid's, or from the material positions when nodes
         // were moved onto the border
         let rest = |a: usize, b: usize, nominal: f64| if snap { dist(a, b) } else { nominal };
-        // hinge edge length and mean wing height over the edge line
+        // a link between two kept grid nodes: always, but where a conforming
+        // border drops the links that leave the outline
+        let node = |i: i64, j: i64| j as usize * nx + i as usize;
+        let linked = |(i, j): (i64, i64), (p, q): (i64, i64)| -> bool {
+            match (&links, gv(i, j), gv(p, q)) {
+                (Some(l), Some(a), Some(b)) => {
+                    l.inside(node(i, j), node(p, q), material[a], material[b])
+                }
+                (None, Some(_), Some(_)) => true,
+                _ => false,
+            }
+        };
+        // a triangle of kept, linked corners, counter-clockwise in the
+        // material plane where the border conforms
+        let triangle = |c: [(i64, i64); 3]| -> Option<[usize; 3]> {
+            let v = [
+                gv(c[0].0, c[0].1)?,
+                gv(c[1].0, c[1].1)?,
+                gv(c[2].0, c[2].1)?,
+            ];
+            if links.is_some() {
+                let ok = (0..3).all(|k| linked(c[k], c[(k + 1) % 3]))
+                    && conform::orient(material[v[0]], material[v[1]], material[v[2]])
+                        > 1e-3 * lc * lt;
+                if !ok {
+                    return None;
+                }
+            }
+            Some(v)
+        };
+        // a whole cell of four kept corners: its shear pair exists when it is
+        // linked all round (and convex, where the border conforms)
+        let whole_cell = |i: i64, j: i64| -> bool {
+            let c = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)];
+            if !c.iter().all(|&(p, q)| gv(p, q).is_some()) {
+                return false;
+            }
+            if links.is_none() {
+                return true;
+            }
+            let m = c.map(|(p, q)| material[gv(p, q).unwrap()]);
+            (0..4).all(|k| linked(c[k], c[(k + 1) % 4]))
+                && linked(c[0], c[2])
+                && linked(c[1], c[3])
+                && (0..4)
+                    .all(|k| conform::orient(m[k], m[(k + 1) % 4], m[(k + 2) % 4]) > 1e-3 * lc * lt)
+        };
         for j in 0..ny as i64 {
             for i in 0..nx as i64 {
                 let Some(a) = gv(i, j) else { continue };
-                if let Some(b) = gv(i + 1, j) {
+                if let Some(b) = gv(i + 1, j).filter(|_| linked((i, j), (i + 1, j))) {
                     tension.push(TensionSpring {
                         a,
                         b,
@@ -1002,7 +1084,7 @@ impl Cloth {
                         corrected: true,
                     });
                 }
-                if let Some(b) = gv(i, j + 1) {
+                if let Some(b) = gv(i, j + 1).filter(|_| linked((i, j), (i, j + 1))) {
                     tension.push(TensionSpring {
                         a,
                         b,
@@ -1020,6 +1102,42 @@ impl Cloth {
                     });
                 }
                 let (b, c, d) = (gv(i + 1, j), gv(i + 1, j + 1), gv(i, j + 1));
+                if links.is_some() {
+                    if whole_cell(i, j) {
+                        let (b, c, d) = (b.unwrap(), c.unwrap(), d.unwrap());
+                        for (p, q) in [(a, c), (b, d)] {
+                            shear.push(ShearSpring {
+                                a: p,
+                                b: q,
+                                lc,
+                                lt,
+                                l0: rest(p, q, l0),
+                            });
+                        }
+                        if (i + j) % 2 == 0 {
+                            triangles.push([a, b, c]);
+                            triangles.push([a, c, d]);
+                        } else {
+                            triangles.push([a, b, d]);
+                            triangles.push([b, c, d]);
+                        }
+                    } else {
+                        // the cell's part inside: its triangles that are
+                        let (p00, p10, p11, p01) = ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1));
+                        for pair in [
+                            [[p00, p10, p11], [p00, p11, p01]],
+                            [[p00, p10, p01], [p10, p11, p01]],
+                        ] {
+                            let t: Vec<[usize; 3]> =
+                                pair.iter().filter_map(|&c| triangle(c)).collect();
+                            if !t.is_empty() {
+                                triangles.extend(t);
+                                break;
+                            }
+                        }
+                    }
+                    continue;
+                }
                 match (b, c, d) {
                     (Some(b), Some(c), Some(d)) => {
                         shear.push(ShearSpring {
@@ -1054,6 +1172,14 @@ impl Cloth {
         // a three-corner cell missing corner (i, j) itself
         for j in 0..ny as i64 - 1 {
             for i in 0..nx as i64 - 1 {
+                if links.is_some() {
+                    if gv(i, j).is_none() {
+                        if let Some(t) = triangle([(i + 1, j), (i + 1, j + 1), (i, j + 1)]) {
+                            triangles.push(t);
+                        }
+                    }
+                    continue;
+                }
                 if gv(i, j).is_none() {
                     if let (Some(b), Some(c), Some(d)) =
                         (gv(i + 1, j), gv(i + 1, j + 1), gv(i, j + 1))
@@ -1063,12 +1189,28 @@ impl Cloth {
                 }
             }
         }
-        let hinges = layout_hinges(spec.hinges, nx, ny, &gv, &material, snap, lc, lt);
+        let mut hinges = layout_hinges(spec.hinges, nx, ny, &gv, &material, snap, lc, lt);
+        if links.is_some() {
+            // a hinge folds about a spring, each wing tied to it by another
+            let springs: std::collections::HashSet<(usize, usize)> = tension
+                .iter()
+                .map(|s| (s.a.min(s.b), s.a.max(s.b)))
+                .collect();
+            let tied = |p: usize, q: usize| springs.contains(&(p.min(q), p.max(q)));
+            hinges.retain(|h| {
+                let [a, b, w0, w1] = h.v;
+                tied(a, b) && (tied(a, w0) || tied(b, w0)) && (tied(a, w1) || tied(b, w1))
+            });
+        }
         let x = material
             .iter()
             .map(|m| (pose * Point3::new(m[0], m[1], 0.0)).coords)
             .collect();
-        Ok(Cloth {
+        let corners = corner_nodes
+            .iter()
+            .map(|&k| (grid_vertex[k] != REMOVED).then_some(grid_vertex[k]))
+            .collect();
+        let cloth = Cloth {
             nx,
             ny,
             lc,
@@ -1091,7 +1233,8 @@ impl Cloth {
             grid_vertex: if whole { Vec::new() } else { grid_vertex },
             seams: Vec::new(),
             vertex_fabric: Vec::new(),
-        })
+        };
+        Ok((cloth, corners))
     }
 
     /// Replaces the diagonal spring pairs of every cell ([`ShearSpring`],

@@ -198,31 +198,12 @@ impl Garment {
             if !(s.damping.is_finite() && s.damping >= 0.0) {
                 bail!("seam {k}: damping {} s must be ≥ 0", s.damping);
             }
-            // each edge's border vertices, their fractions stretched to run
-            // 0 → 1 from the first to the last (a corner the grid did not keep
-            // leaves the first a little way along): the ends of the two edges
-            // meet
-            let span = |ev: &[(usize, f64)]| -> Vec<(usize, f64)> {
-                let (t0, t1) = match (ev.first(), ev.last()) {
-                    (Some(a), Some(b)) if b.1 > a.1 => (a.1, b.1),
-                    _ => return ev.to_vec(),
-                };
-                ev.iter().map(|&(v, t)| (v, (t - t0) / (t1 - t0))).collect()
-            };
+            // each edge runs from its start corner (fraction 0) to its end
+            // corner (1), with the border vertices between
             let (ea, eb) = (
-                &span(&panels[s.a.0].edge_vertices[s.a.1]),
-                &span(&panels[s.b.0].edge_vertices[s.b.1]),
+                &panels[s.a.0].edge_vertices[s.a.1],
+                &panels[s.b.0].edge_vertices[s.b.1],
             );
-            for (side, (p, e), ev) in [("a", s.a, ea), ("b", s.b, eb)] {
-                if ev.is_empty() {
-                    bail!(
-                        "seam {k}: edge {e} of panel {:?} (side {side}) has {} border vertices at \
-                         spacing {spacing} m; it needs one: use a finer spacing",
-                        panels[p].name,
-                        ev.len()
-                    );
-                }
-            }
             // which end of b meets a's start: the nearer one where the
             // pattern places them
             let end = |ev: &[(usize, f64)], last: bool| {
@@ -374,9 +355,12 @@ fn cut_panel(
             Default::default(),
             UnitQuaternion::from_euler_angles(0.0, 0.0, theta),
         );
-    let cloth = Cloth::panel(&PanelSpec {
-        border: Border::OnOutline,
+    // every edge's start is a corner (the end of the one before it)
+    let corners: Vec<[f64; 2]> = cut.edges.iter().map(|e| to_uv(e[0])).collect();
+    let (cloth, corner_vertex) = Cloth::panel_with_corners(&PanelSpec {
+        border: Border::Conforming,
         hinges: cut.hinges,
+        corners,
         ..PanelSpec::new(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
     })
     .map_err(|e| anyhow::anyhow!("panel {name:?}: {e}"))?;
@@ -397,31 +381,62 @@ fn cut_panel(
         }
     }
     let lengths: Vec<f64> = (0..cut.edges.len()).map(|e| cut.edge_length(e)).collect();
-    let mut edge_vertices = vec![Vec::new(); cut.edges.len()];
+    let ne = cut.edges.len();
+    // each corner's vertex: the one the grid placed there or, for a corner
+    // whose node was dropped, the nearest border vertex
+    let corner_vertex: Vec<usize> = corner_vertex
+        .iter()
+        .zip(&cut.edges)
+        .map(|(&cv, e)| {
+            cv.unwrap_or_else(|| {
+                let c = e[0];
+                (0..uv.len())
+                    .filter(|&v| border[v])
+                    .min_by(|&a, &b| {
+                        let d = |v: usize| (uv[v][0] - c[0]).powi(2) + (uv[v][1] - c[1]).powi(2);
+                        d(a).total_cmp(&d(b))
+                    })
+                    .unwrap_or(0)
+            })
+        })
+        .collect();
+    let is_corner = {
+        let mut f = vec![false; uv.len()];
+        for &v in &corner_vertex {
+            f[v] = true;
+        }
+        f
+    };
+    // each edge: its start corner, the border vertices whose nearest point
+    // of the outline lies within it, its end corner
+    let mut edge_vertices: Vec<Vec<(usize, f64)>> = (0..ne)
+        .map(|e| vec![(first + corner_vertex[e], 0.0)])
+        .collect();
     for (v, &p) in uv.iter().enumerate() {
-        if !border[v] {
+        if !border[v] || is_corner[v] {
             continue;
         }
-        // the nearest edge (every edge as near: a corner is on two), and the
-        // fraction of its length there
         let near: Vec<(f64, f64)> = cut
             .edges
             .iter()
             .enumerate()
             .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
             .collect();
-        let d = near.iter().map(|n| n.0).fold(f64::INFINITY, f64::min);
-        if d > 0.75 * spacing {
+        let (e, &(d, t)) = near
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+            .expect("a panel has edges");
+        // a vertex off the outline (the staircase where no node could be
+        // moved onto it), or one nearest a corner, which has its own vertex
+        if d > 0.75 * spacing || t <= 0.0 || t >= 1.0 {
             continue;
         }
-        for (e, &(de, t)) in near.iter().enumerate() {
-            if de <= d + 1e-6 * spacing {
-                edge_vertices[e].push((first + v, t));
-            }
-        }
+        edge_vertices[e].push((first + v, t));
     }
-    for ev in &mut edge_vertices {
-        ev.sort_by(|a, b| a.1.total_cmp(&b.1));
+    for (e, ev) in edge_vertices.iter_mut().enumerate() {
+        ev[1..].sort_by(|a, b| a.1.total_cmp(&b.1));
+        ev.push((first + corner_vertex[(e + 1) % ne], 1.0));
     }
     let area = crate::cloth::polygon_area(&poly).abs();
     let grid_vertex = (0..cloth.ny)
@@ -558,6 +573,107 @@ mod tests {
         // stiffness sums to the seam's: 1000 N/m per m × 0.2 m
         let k: f64 = g.cloth.seams.iter().map(|s| s.k).sum();
         assert!((k - 200.0).abs() < 1e-9, "{k}");
+    }
+
+    /// A panel with a dart (a notch 18 cm deep, 4.4 cm open) and a facing
+    /// edge of 5.7 mm, cut at 0.5 to 3 cm: every corner is a vertex where
+    /// the pattern puts it, every edge runs from its start corner to its end
+    /// corner, no spring bridges the dart's notch, the mass is the areal
+    /// mass times the outline's area, and the dart's legs sew.
+    #[test]
+    fn a_panel_with_a_dart_and_a_short_edge_is_cut_to_its_corners_at_any_spacing() {
+        let pts = [
+            [0.0, 0.0],
+            [0.3, 0.0],
+            [0.3, 0.4],
+            [0.172, 0.4],
+            [0.15, 0.22],
+            [0.128, 0.4],
+            [0.004, 0.4],
+            [0.0, 0.396],
+        ];
+        let n = pts.len();
+        let cut = PanelCut {
+            hinges: HingeLayout::Skewed,
+            name: "darted".into(),
+            edges: (0..n).map(|k| vec![pts[k], pts[(k + 1) % n]]).collect(),
+            grain: [0.0, 1.0],
+            placement: Isometry3::identity(),
+        };
+        let shoelace: f64 = (0..n)
+            .map(|k| pts[k][0] * pts[(k + 1) % n][1] - pts[(k + 1) % n][0] * pts[k][1])
+            .sum::<f64>()
+            / 2.0;
+        for spacing in [0.005, 0.01, 0.02, 0.03] {
+            let dart = SeamSpec {
+                a: (0, 3),
+                b: (0, 4),
+                stiffness: 1000.0,
+                damping: 0.0,
+            };
+            let g = Garment::build(std::slice::from_ref(&cut), &[dart], spacing, 0.2)
+                .unwrap_or_else(|e| panic!("{spacing} m: {e:#}"));
+            let p = &g.panels[0];
+            let at = |v: usize| p.uv[v - p.first];
+            for (e, ev) in p.edge_vertices.iter().enumerate() {
+                let (s, t) = (pts[e], pts[(e + 1) % n]);
+                let (v0, v1) = (ev[0], ev[ev.len() - 1]);
+                assert_eq!((v0.1, v1.1), (0.0, 1.0), "{spacing} m, edge {e}");
+                // the corners merged on the 5.7 mm edge at 3 cm (under a
+                // quarter spacing) share the first corner's place
+                let near = |q: [f64; 2], c: [f64; 2]| {
+                    ((q[0] - c[0]).powi(2) + (q[1] - c[1]).powi(2)).sqrt()
+                        <= if e == 5 || e == 6 || e == 7 {
+                            0.25 * spacing
+                        } else {
+                            1e-12
+                        }
+                };
+                assert!(
+                    near(at(v0.0), s),
+                    "{spacing} m, edge {e} starts at {:?}, not {s:?}",
+                    at(v0.0)
+                );
+                assert!(
+                    near(at(v1.0), t),
+                    "{spacing} m, edge {e} ends at {:?}, not {t:?}",
+                    at(v1.0)
+                );
+                assert!(
+                    ev.windows(2).all(|w| w[0].1 <= w[1].1),
+                    "{spacing} m, edge {e}"
+                );
+            }
+            // the dart's tip is a vertex, exactly
+            assert!(p.uv.iter().any(|q| q == &[0.15, 0.22]), "{spacing} m");
+            // no tension spring crosses the notch (the line u = 0.15 above
+            // the tip, at v > 0.22)
+            for sp in &g.cloth.tension {
+                let (a, b) = (p.uv[sp.a], p.uv[sp.b]);
+                if (a[0] - 0.15) * (b[0] - 0.15) < 0.0 {
+                    let f = (0.15 - a[0]) / (b[0] - a[0]);
+                    let v = a[1] + f * (b[1] - a[1]);
+                    assert!(
+                        v <= 0.22 + 1e-9,
+                        "{spacing} m: a spring crosses the notch at v = {v}"
+                    );
+                }
+            }
+            let mass = g.cloth.total_mass();
+            assert!(
+                (mass / (0.2 * shoelace) - 1.0).abs() < 0.05,
+                "{spacing} m: {mass} kg against {}",
+                0.2 * shoelace
+            );
+            // every stitch of the dart joins the two legs: at the tip both
+            // sides are the one tip vertex, so its gap there is zero
+            assert!(!g.seams[0].stitches.is_empty());
+            let tip = g.cloth.seams[g.seams[0].stitches.clone()]
+                .iter()
+                .map(|st| st.gap(&g.cloth.x).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(tip < 1e-12, "{spacing} m: {tip}");
+        }
     }
 
     #[test]

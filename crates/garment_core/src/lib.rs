@@ -13,6 +13,7 @@
 pub mod bvh;
 pub mod cloth;
 pub mod collision;
+pub mod conform;
 pub mod deforming;
 pub mod fabric;
 pub mod garment;
