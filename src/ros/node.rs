@@ -3,7 +3,8 @@
 //!
 //! One thread runs the loop ([`Node::run`]): apply parameter changes, take
 //! messages, serve services, step, publish, pace; a second spins ros2-client
-//! (discovery, parameter services). The parameters are in [`super::params`]. Names below are relative to
+//! (discovery, parameter services); two more write the log (stderr and
+//! `/rosout`, [`super::intake`]: the loop never waits on either). The parameters are in [`super::params`]. Names below are relative to
 //! the node namespace (`-r __ns:=/x`), `~/` to the node (`/x/garment_sim`):
 //!
 //! | name | type | |
@@ -27,6 +28,7 @@
 
 use super::args::{self, RosArgs, Value};
 use super::control::{self, ObstacleRegistry};
+use super::intake::{Log, Outcome, TopicLog};
 use super::params::{self, Settings, PARAMETERS};
 use crate::bag::SimRecorder;
 use crate::msgs::publish;
@@ -35,7 +37,7 @@ use crate::scene::Scene;
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
 use ros2_client::{
-    rosout, Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, ParameterValue,
+    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, ParameterValue,
     QosProfile, ServiceMapping, ServiceTypeName,
 };
 use std::path::PathBuf;
@@ -424,7 +426,10 @@ struct Counters {
 /// endpoints, and what the loop carries from one pass to the next.
 struct Node {
     ros: ros2_client::Node,
-    log: ros2_client::NodeLoggingHandle,
+    /// stderr and `/rosout`, written by their own threads.
+    log: Log,
+    /// Each input topic's lines, bounded in rate.
+    topic_logs: Vec<TopicLog>,
     io: Endpoints,
     names: Names,
     fq: String,
@@ -526,11 +531,15 @@ impl Node {
                 let _ = futures::executor::block_on(spinner.spin());
             })?;
         let stop = crate::run::stop_flag()?;
-        let log = ros.logging_handle();
+        let log = Log::new(Some(ros.logging_handle()));
+        let topic_logs = [&names.obstacles, &names.pins, &names.body, &names.body_mesh]
+            .map(|t| TopicLog::new(t))
+            .to_vec();
         let t0 = loaded.sim.time;
         let node = Node {
             ros,
             log,
+            topic_logs,
             io,
             fq,
             recorder,
@@ -583,14 +592,13 @@ impl Node {
         Ok(node)
     }
 
+    /// A line on stderr and `/rosout` (queued: never waits).
     fn info(&self, m: &str) {
-        eprintln!("[garment_sim] {m}");
-        rosout!(self.log, ros2_client::log::LogLevel::Info, "{}", m);
+        self.log.info(m);
     }
 
     fn warn(&self, m: &str) {
-        eprintln!("[garment_sim] warning: {m}");
-        rosout!(self.log, ros2_client::log::LogLevel::Warn, "{}", m);
+        self.log.warn(m);
     }
 
     /// The loop: apply parameter changes, take messages, serve services,
@@ -646,13 +654,14 @@ impl Node {
 
     /// Applies the obstacle, body and pin messages that arrived since the last
     /// pass, at most `max_messages_per_step` per topic (the rest are dropped
-    /// and counted); refused ones are logged and counted.
+    /// and counted); refused and undecodable ones are counted, and logged at
+    /// a bounded rate ([`TopicLog`]).
     fn take_messages(&mut self) {
         let cap = self.settings.max_messages_per_step as usize;
         let obstacles = &self.io.obstacles;
         let taken = drain(|| obstacles.take().map(|m| m.map(|(m, _)| m)), cap);
         let topic = self.names.obstacles.clone();
-        let handled = self.apply_taken(taken, &topic, |node, m| {
+        let applied = self.apply_taken(taken, &topic, |node, m| {
             control::apply_obstacle(
                 &mut node.loaded.sim,
                 &mut node.loaded.registry,
@@ -661,7 +670,8 @@ impl Node {
                 node.settings.max_mesh_triangles as usize,
             )
         });
-        if handled > 0 {
+        // the obstacles changed: published at once (refused ones change nothing)
+        if applied > 0 {
             self.publish_now = true;
         }
         let bodies = &self.io.body;
@@ -695,6 +705,12 @@ impl Node {
                 &node.settings.frame_id,
             )
         });
+        let now = Instant::now();
+        for k in 0..self.topic_logs.len() {
+            if let Some((level, line)) = self.topic_logs[k].summary(now) {
+                self.log.line(level, &line);
+            }
+        }
         let c = &mut self.counters;
         if c.dropped_now > 0 && c.last_drop_log.elapsed() > Duration::from_secs(1) {
             c.last_error = format!(
@@ -711,8 +727,8 @@ impl Node {
 
     /// Applies what [`drain`] took from one topic with `apply`: messages
     /// beyond the cap are counted as dropped, undecodable ones (CDR of another
-    /// type or cut short) and refused ones are logged and counted as
-    /// rejected. Returns how many were applied or refused.
+    /// type or cut short) and refused ones are counted as rejected. Returns
+    /// how many were applied.
     fn apply_taken<M>(
         &mut self,
         (got, undecodable): (Vec<Option<M>>, Vec<String>),
@@ -720,19 +736,24 @@ impl Node {
         apply: impl Fn(&mut Self, &M) -> std::result::Result<String, String>,
     ) -> usize {
         for e in undecodable {
-            self.report(Err(format!("undecodable message (CDR): {e}")), topic);
+            self.report(Outcome::Undecodable(e), topic);
         }
         if got.iter().any(|m| m.is_some()) {
             let l = &self.loaded;
             self.recovery.before_change(&l.sim, &l.registry);
         }
-        let mut handled = 0;
+        let mut applied = 0;
         for m in got {
             match m {
                 Some(m) => {
-                    let applied = apply(self, &m);
-                    self.report(applied, topic);
-                    handled += 1;
+                    let outcome = match apply(self, &m) {
+                        Ok(what) => {
+                            applied += 1;
+                            Outcome::Applied(what)
+                        }
+                        Err(why) => Outcome::Refused(why),
+                    };
+                    self.report(outcome, topic);
                 }
                 None => {
                     self.counters.dropped += 1;
@@ -740,29 +761,57 @@ impl Node {
                 }
             }
         }
-        handled
+        applied
     }
 
-    /// Logs what a message did, or counts and logs its refusal.
-    fn report(&mut self, applied: std::result::Result<String, String>, topic: &str) {
-        match applied {
-            Ok(what) if what.is_empty() => {}
-            Ok(what) => self.info(&what),
-            Err(e) => {
+    /// Counts a refusal, and logs what a message did through its topic's
+    /// [`TopicLog`].
+    fn report(&mut self, outcome: Outcome, topic: &str) {
+        match &outcome {
+            Outcome::Applied(_) => {}
+            Outcome::Refused(why) => {
                 self.counters.rejected += 1;
-                self.warn(&format!("rejected message on {topic}: {e}"));
-                self.counters.last_error = e;
+                self.counters.last_error = why.clone();
+            }
+            Outcome::Undecodable(why) => {
+                self.counters.rejected += 1;
+                self.counters.last_error = format!("undecodable message (CDR) on {topic}: {why}");
             }
         }
+        let now = Instant::now();
+        let line = match self.topic_logs.iter_mut().find(|l| l.topic() == topic) {
+            Some(l) => l.note(now, outcome),
+            None => Some((super::intake::Level::Warn, format!("{topic}: {outcome:?}"))),
+        };
+        if let Some((level, line)) = line {
+            self.log.line(level, &line);
+        }
     }
 
-    /// Answers `~/reset`, `~/set_paused` and `~/step`.
+    /// Answers `~/reset`, `~/set_paused` and `~/step`, at most
+    /// `max_messages_per_step` requests of each a pass (the rest wait for
+    /// the next); the `~/reset` requests of a pass share one reload.
     fn serve(&mut self) {
-        while let Ok(Some((id, _))) = self.io.reset.receive_request() {
-            let resp = self.reset();
-            let _ = self.io.reset.send_response(id, resp);
+        let cap = self.settings.max_messages_per_step as usize;
+        let mut resets = Vec::new();
+        while resets.len() < cap {
+            match self.io.reset.receive_request() {
+                Ok(Some((id, _))) => resets.push(id),
+                _ => break,
+            }
         }
-        while let Ok(Some((id, req))) = self.io.set_paused.receive_request() {
+        if !resets.is_empty() {
+            let resp = self.reset();
+            for id in resets {
+                let _ = self.io.reset.send_response(id, resp.clone());
+            }
+        }
+        let mut served = 0;
+        while served < cap {
+            let Ok(Some((id, req))) = self.io.set_paused.receive_request() else {
+                break;
+            };
+            served += 1;
             let _ = self
                 .ros
                 .set_parameter("paused", ParameterValue::Boolean(req.data));
@@ -778,7 +827,12 @@ impl Node {
                 },
             );
         }
-        while let Ok(Some((id, req))) = self.io.step.receive_request() {
+        served = 0;
+        while served < cap {
+            let Ok(Some((id, req))) = self.io.step.receive_request() else {
+                break;
+            };
+            served += 1;
             let now = msgs::Time::from_secs(self.loaded.sim.time);
             if !self.settings.paused {
                 let _ = self.io.step.send_response(
@@ -1074,12 +1128,17 @@ impl Node {
                 Err(e) => self.warn(&format!("bag {bag}: {e:#}")),
             }
         }
-        std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
+        let now = Instant::now();
+        for l in &mut self.topic_logs {
+            if let Some((level, line)) = l.summary_now(now) {
+                self.log.line(level, &line);
+            }
+        }
         let wall = self.wall_start.elapsed().as_secs_f64();
         let steps = sim.steps.saturating_sub(self.steps_start).max(1);
         let c = &self.counters;
-        eprintln!(
-            "[garment_sim] stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
+        self.log.info(&format!(
+            "stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
              {} messages rejected, {} dropped, {} failed steps recovered; {} publications, \
              {:.3} ms each",
             sim.time,
@@ -1091,7 +1150,10 @@ impl Node {
             self.recovery.recovered,
             c.publishes,
             1e3 * c.publish_s / c.publishes.max(1) as f64
-        );
+        ));
+        // what is queued, unless stderr or /rosout stays blocked
+        self.log.finish(Duration::from_secs(2));
+        std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
     }
 }
 
