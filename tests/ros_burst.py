@@ -14,6 +14,9 @@ valid obstacle sent right after the burst take effect (the cloud shows the pinne
 vertex at its target and the cloth lifted by the obstacle). At the end, what the
 node wrote on stderr: a few lines a second, adding up to what was sent.
 
+And a subscriber that stops acknowledging (its process stopped) does not hold the
+node's loop.
+
 Run by tests/ros_burst.rs inside a network namespace it makes (loopback only). The
 node binary is in GARMENT_SIM_BIN."""
 
@@ -326,3 +329,72 @@ def test_bursts_of_bad_messages_neither_stall_nor_flood_the_node(tmp_path):
     # a few lines a second: two topics, each at most 5 lines and a summary a second
     assert len(lines) < 256 + 20 * after_drain, len(lines)
     assert f"{sent} messages rejected, 0 dropped" in out, out[-2000:]
+
+
+# A subscriber of /clock and the clouds in a process of its own, stopped by the test.
+SUBSCRIBER = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+from ros_interop import RELIABLE, Clock, PointCloud2
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+dp = DomainParticipant(0)
+rs = [DataReader(dp, Topic(dp, "rt" + n, ty), qos=RELIABLE) for n, ty in (("/clock", Clock), ("/cloth/points", PointCloud2))]
+while not all(r.get_matched_publications() for r in rs):
+    time.sleep(0.05)
+print("matched", flush=True)
+while True:
+    for r in rs:
+        r.take(N=1000)
+    time.sleep(0.01)
+"""
+
+
+def test_a_subscriber_that_stops_does_not_hold_the_node(tmp_path):
+    """A subscriber process stopped (SIGSTOP) acknowledges nothing: the node's reliable
+    /clock writer fills its send window (8192 samples, about 8 s at 1 kHz) before the
+    subscriber's lease runs out. The node's clouds keep coming at its pace for 12 s
+    (each second against the pace before), and it logs what it could not send."""
+    import signal
+    import sys
+
+    n = BlockedNode("-p", f"scene:={hanging_scene(tmp_path)}", "-p", f"publish_rate:={PUBLISH_RATE}",
+                    "-p", "threads:=1")
+    n.drain()
+    sub = subprocess.Popen([sys.executable, "-c", SUBSCRIBER, os.path.dirname(os.path.abspath(__file__))],
+                           stdout=subprocess.PIPE, text=True)
+    watch = None
+    try:
+        watch = Watch(n.dp)
+        assert sub.stdout.readline().strip() == "matched"
+        watch.wait("the node's first clouds", lambda: True if len(watch.clouds) > 10 else None, 60)
+
+        def cloud_pace(a, b):
+            c = watch.clouds_between(a, b)
+            return (c[-1][1] - c[0][1]) / (c[-1][0] - c[0][0]) if len(c) > 1 else 0.0
+
+        a = time.time()
+        time.sleep(2.0)
+        before = cloud_pace(a, time.time())
+        sub.send_signal(signal.SIGSTOP)
+        paces = []
+        for _ in range(12):
+            a = time.time()
+            time.sleep(1.0)
+            paces.append(cloud_pace(a, time.time()))
+        print(f"cloud pace {before:.3f} before the subscriber stopped, then each second: "
+              f"{[round(p, 3) for p in paces]}", flush=True)
+        assert all(0.5 < p / before < 2.0 for p in paces), (before, paces)
+    finally:
+        sub.send_signal(signal.SIGCONT)
+        sub.kill()
+        sub.wait()
+        if watch:
+            watch.stopped = True
+        code, out = n.stop()
+    assert code == 0, out
+    # the window did fill: the samples that found it full were counted and logged
+    unsent = re.findall(r"(\d+) messages \(samples or service replies\) not sent", out)
+    print(f"not sent: {unsent}")
+    assert unsent, out[-3000:]

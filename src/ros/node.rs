@@ -41,7 +41,7 @@ use ros2_client::{
     QosProfile, ServiceMapping, ServiceTypeName,
 };
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -306,42 +306,94 @@ pub fn run(ros_args: &[String]) -> Result<()> {
 
 /// The node's publishers, subscriptions and services.
 struct Endpoints {
-    points: ros2_client::Publisher<msgs::PointCloud2>,
-    mesh: ros2_client::Publisher<msgs::Marker>,
-    obstacle_markers: ros2_client::Publisher<msgs::MarkerArray>,
-    body_wrench: ros2_client::Publisher<msgs::WrenchStamped>,
-    body_points: ros2_client::Publisher<msgs::PointCloud2>,
-    diagnostics: ros2_client::Publisher<msgs::DiagnosticArray>,
-    clock: ros2_client::Publisher<msgs::Clock>,
-    scene_description: ros2_client::Publisher<msgs::StringMsg>,
+    points: Out<msgs::PointCloud2>,
+    mesh: Out<msgs::Marker>,
+    obstacle_markers: Out<msgs::MarkerArray>,
+    body_wrench: Out<msgs::WrenchStamped>,
+    body_points: Out<msgs::PointCloud2>,
+    diagnostics: Out<msgs::DiagnosticArray>,
+    clock: Out<msgs::Clock>,
+    scene_description: Out<msgs::StringMsg>,
     obstacles: ros2_client::Subscription<msgs::Obstacle>,
     pins: ros2_client::Subscription<msgs::Pin>,
     body: ros2_client::Subscription<msgs::Body>,
     body_mesh: ros2_client::Subscription<msgs::MeshGeometryStamped>,
-    reset: ros2_client::Server<msgs::TriggerRequest, msgs::TriggerResponse>,
-    set_paused: ros2_client::Server<msgs::SetBoolRequest, msgs::SetBoolResponse>,
-    step: ros2_client::Server<msgs::StepRequest, msgs::StepResponse>,
+    reset: Serve<msgs::TriggerRequest, msgs::TriggerResponse>,
+    set_paused: Serve<msgs::SetBoolRequest, msgs::SetBoolResponse>,
+    step: Serve<msgs::StepRequest, msgs::StepResponse>,
+    /// Samples and service replies not sent: a reliable subscriber's send
+    /// window is full (it does not acknowledge what it receives).
+    unsent: Arc<AtomicU64>,
+}
+
+/// A publisher that never waits (see [`Endpoints::create`]) and counts in
+/// `unsent` what it could not send.
+struct Out<M: serde::Serialize> {
+    publisher: ros2_client::Publisher<M>,
+    unsent: Arc<AtomicU64>,
+}
+
+impl<M: serde::Serialize> Out<M> {
+    fn publish(&self, m: M) {
+        if self.publisher.publish(m).is_err() {
+            self.unsent.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// A service server whose replies never wait and are counted in `unsent`
+/// when they cannot be sent.
+struct Serve<Q: ros2_client::Message, R: ros2_client::Message> {
+    server: ros2_client::Server<Q, R>,
+    unsent: Arc<AtomicU64>,
+}
+
+impl<Q: ros2_client::Message + 'static, R: ros2_client::Message + 'static> Serve<Q, R> {
+    fn receive_request(&self) -> ros2_client::ReadResult<Option<(ros2_client::RmwRequestId, Q)>> {
+        self.server.receive_request()
+    }
+
+    fn send_response(&self, id: ros2_client::RmwRequestId, r: R) {
+        if self.server.send_response(id, r).is_err() {
+            self.unsent.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 impl Endpoints {
     fn create(node: &mut ros2_client::Node, names: &Names) -> Result<Endpoints> {
+        // A subscriber that stops acknowledging (a stopped process) fills a
+        // reliable writer's send window (RustDDS: 8192 samples, 8 s of
+        // /clock); a write then fails at once instead of waiting (100 ms a
+        // write by default): the loop never waits on a subscriber, and what
+        // is not sent is counted and logged (`Endpoints::unsent`).
         let reliable = QosProfile::publisher_default()
+            .reliability(ros2_client::qos::Reliability::Reliable {
+                when_full: ros2_client::qos::WhenFull::Fail,
+            })
             .history(ros2_client::qos::History::KeepLast { depth: 10 });
-        let clock_qos = QosProfile::publisher_default()
+        let clock_qos = reliable
+            .clone()
             .history(ros2_client::qos::History::KeepLast { depth: 1 });
         let sub_qos = reliable
             .clone()
             .history(ros2_client::qos::History::KeepLast { depth: 100 });
-        let latched = QosProfile::publisher_default()
+        let latched = reliable
+            .clone()
             .durability(ros2_client::qos::Durability::TransientLocal)
             .history(ros2_client::qos::History::KeepLast { depth: 1 });
+        let unsent = Arc::new(AtomicU64::new(0));
         macro_rules! publisher {
             ($t:ty, $n:expr, $q:expr) => {{
                 let topic = node
                     .create_topic(&name($n)?, type_name(<$t>::NAME), &$q)
                     .map_err(|e| anyhow!("topic {}: {e:?}", $n))?;
-                node.create_publisher::<$t>(&topic, None)
-                    .map_err(|e| anyhow!("publisher {}: {e:?}", $n))?
+                Out {
+                    publisher: node
+                        .create_publisher::<$t>(&topic, None)
+                        .map_err(|e| anyhow!("publisher {}: {e:?}", $n))?,
+                    unsent: unsent.clone(),
+                }
             }};
         }
         macro_rules! subscription {
@@ -355,14 +407,18 @@ impl Endpoints {
         }
         macro_rules! server {
             ($req:ty, $resp:ty, $n:expr, $pkg:expr, $ty:expr) => {{
-                node.create_server::<$req, $resp>(
-                    ServiceMapping::Enhanced,
-                    &name($n)?,
-                    &ServiceTypeName::new($pkg, $ty),
-                    reliable.clone(),
-                    reliable.clone(),
-                )
-                .map_err(|e| anyhow!("service {}: {e:?}", $n))?
+                Serve {
+                    server: node
+                        .create_server::<$req, $resp>(
+                            ServiceMapping::Enhanced,
+                            &name($n)?,
+                            &ServiceTypeName::new($pkg, $ty),
+                            reliable.clone(),
+                            reliable.clone(),
+                        )
+                        .map_err(|e| anyhow!("service {}: {e:?}", $n))?,
+                    unsent: unsent.clone(),
+                }
             }};
         }
         Ok(Endpoints {
@@ -399,6 +455,7 @@ impl Endpoints {
                 "garment_sim_msgs",
                 "Step"
             ),
+            unsent,
         })
     }
 }
@@ -412,6 +469,10 @@ struct Counters {
     /// Dropped since the last log line about it.
     dropped_now: u64,
     last_drop_log: Instant,
+    /// Samples and service replies not sent ([`Endpoints::unsent`]) at the
+    /// last log line about them.
+    unsent_logged: u64,
+    last_unsent_log: Instant,
     last_error: String,
     /// Step times summed since the last publication.
     step_ms_sum: f64,
@@ -490,7 +551,7 @@ impl Node {
             )
             .map_err(|e| anyhow!("cannot create node: {e:?}"))?;
         let io = Endpoints::create(&mut ros, &names)?;
-        let _ = io.scene_description.publish(msgs::StringMsg {
+        io.scene_description.publish(msgs::StringMsg {
             data: loaded.description.clone(),
         });
         let topics = crate::bag::TopicNames {
@@ -552,6 +613,8 @@ impl Node {
                 dropped: 0,
                 dropped_now: 0,
                 last_drop_log: Instant::now() - Duration::from_secs(10),
+                unsent_logged: 0,
+                last_unsent_log: Instant::now() - Duration::from_secs(10),
                 last_error: String::new(),
                 step_ms_sum: 0.0,
                 step_count: 0,
@@ -711,6 +774,19 @@ impl Node {
                 self.log.line(level, &line);
             }
         }
+        let unsent = self.io.unsent.load(Ordering::Relaxed);
+        let c = &mut self.counters;
+        if unsent > c.unsent_logged && c.last_unsent_log.elapsed() > Duration::from_secs(1) {
+            let m = format!(
+                "{} messages (samples or service replies) not sent: a subscriber does not \
+                 acknowledge what it receives and its reliable window is full; the node does \
+                 not wait for it ({unsent} since the start)",
+                unsent - c.unsent_logged
+            );
+            c.unsent_logged = unsent;
+            c.last_unsent_log = Instant::now();
+            self.warn(&m);
+        }
         let c = &mut self.counters;
         if c.dropped_now > 0 && c.last_drop_log.elapsed() > Duration::from_secs(1) {
             c.last_error = format!(
@@ -803,7 +879,7 @@ impl Node {
         if !resets.is_empty() {
             let resp = self.reset();
             for id in resets {
-                let _ = self.io.reset.send_response(id, resp.clone());
+                self.io.reset.send_response(id, resp.clone());
             }
         }
         let mut served = 0;
@@ -819,7 +895,7 @@ impl Node {
             self.pace_origin = (Instant::now(), self.loaded.sim.time);
             let what = if req.data { "paused" } else { "running" };
             self.info(what);
-            let _ = self.io.set_paused.send_response(
+            self.io.set_paused.send_response(
                 id,
                 msgs::SetBoolResponse {
                     success: true,
@@ -835,7 +911,7 @@ impl Node {
             served += 1;
             let now = msgs::Time::from_secs(self.loaded.sim.time);
             if !self.settings.paused {
-                let _ = self.io.step.send_response(
+                self.io.step.send_response(
                     id,
                     msgs::StepResponse {
                         success: false,
@@ -846,7 +922,7 @@ impl Node {
             } else {
                 if let Some(old) = self.step_reply.replace(id) {
                     // a second request before the first is done: answer the first now
-                    let _ = self.io.step.send_response(
+                    self.io.step.send_response(
                         old,
                         msgs::StepResponse {
                             success: true,
@@ -879,7 +955,7 @@ impl Node {
             Ok(l) => {
                 self.loaded = l;
                 self.recovery.forget();
-                let _ = self.io.scene_description.publish(msgs::StringMsg {
+                self.io.scene_description.publish(msgs::StringMsg {
                     data: self.loaded.description.clone(),
                 });
                 self.frames = publish::FrameClock::new(self.loaded.sim.time);
@@ -962,13 +1038,13 @@ impl Node {
         self.pending_steps = self.pending_steps.saturating_sub(1);
         let sim = &self.loaded.sim;
         if sim.steps.is_multiple_of(clock_every) {
-            let _ = self.io.clock.publish(msgs::Clock {
+            self.io.clock.publish(msgs::Clock {
                 clock: msgs::Time::from_secs(sim.time),
             });
         }
         if self.pending_steps == 0 {
             if let Some(id) = self.step_reply.take() {
-                let _ = self.io.step.send_response(
+                self.io.step.send_response(
                     id,
                     msgs::StepResponse {
                         success: true,
@@ -1060,17 +1136,17 @@ impl Node {
             }
         }
         let io = &self.io;
-        let _ = io.points.publish(cloud);
-        let _ = io.mesh.publish(mesh);
-        let _ = io.obstacle_markers.publish(obstacles);
+        io.points.publish(cloud);
+        io.mesh.publish(mesh);
+        io.obstacle_markers.publish(obstacles);
         if let Some((wrench, points)) = on_body {
-            let _ = io.body_wrench.publish(wrench);
+            io.body_wrench.publish(wrench);
             if let Some(p) = points {
-                let _ = io.body_points.publish(p);
+                io.body_points.publish(p);
             }
         }
-        let _ = io.diagnostics.publish(diag);
-        let _ = io.clock.publish(clock);
+        io.diagnostics.publish(diag);
+        io.clock.publish(clock);
         let c = &mut self.counters;
         c.publish_s += t_pub.elapsed().as_secs_f64();
         c.publishes += 1;
@@ -1100,7 +1176,7 @@ impl Node {
     /// The last `/clock`, the bag closed with the final state, a summary.
     fn finish(mut self) {
         let sim = &self.loaded.sim;
-        let _ = self.io.clock.publish(msgs::Clock {
+        self.io.clock.publish(msgs::Clock {
             clock: msgs::Time::from_secs(sim.time),
         });
         if let Some(mut rec) = self.recorder.take() {
