@@ -4,7 +4,8 @@
 //! One thread runs the loop ([`Node::run`]): apply parameter changes, take
 //! messages, serve services, step, publish, pace; a second spins ros2-client
 //! (discovery, parameter services); two more write the log (stderr and
-//! `/rosout`, [`super::intake`]: the loop never waits on either). The parameters are in [`super::params`]. Names below are relative to
+//! `/rosout`, [`super::intake`]: the loop never waits on either). The
+//! parameters are in [`super::params`]. Names below are relative to
 //! the node namespace (`-r __ns:=/x`), `~/` to the node (`/x/garment_sim`):
 //!
 //! | name | type | |
@@ -769,8 +770,8 @@ impl Node {
             )
         });
         let now = Instant::now();
-        for k in 0..self.topic_logs.len() {
-            if let Some((level, line)) = self.topic_logs[k].summary(now) {
+        for l in &mut self.topic_logs {
+            if let Some((level, line)) = l.summary(now) {
                 self.log.line(level, &line);
             }
         }
