@@ -3,7 +3,9 @@
 //!
 //! One thread runs the loop ([`Node::run`]): apply parameter changes, take
 //! messages, serve services, step, publish, pace; a second spins ros2-client
-//! (discovery, parameter services). The parameters are in [`super::params`]. Names below are relative to
+//! (discovery, parameter services); two more write the log (stderr and
+//! `/rosout`, [`super::intake`]: the loop never waits on either). The
+//! parameters are in [`super::params`]. Names below are relative to
 //! the node namespace (`-r __ns:=/x`), `~/` to the node (`/x/garment_sim`):
 //!
 //! | name | type | |
@@ -27,6 +29,7 @@
 
 use super::args::{self, RosArgs, Value};
 use super::control::{self, ObstacleRegistry};
+use super::intake::{Log, Outcome, TopicLog};
 use super::params::{self, Settings, PARAMETERS};
 use crate::bag::SimRecorder;
 use crate::msgs::publish;
@@ -35,11 +38,11 @@ use crate::scene::Scene;
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
 use ros2_client::{
-    rosout, Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, ParameterValue,
+    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, ParameterValue,
     QosProfile, ServiceMapping, ServiceTypeName,
 };
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -304,42 +307,94 @@ pub fn run(ros_args: &[String]) -> Result<()> {
 
 /// The node's publishers, subscriptions and services.
 struct Endpoints {
-    points: ros2_client::Publisher<msgs::PointCloud2>,
-    mesh: ros2_client::Publisher<msgs::Marker>,
-    obstacle_markers: ros2_client::Publisher<msgs::MarkerArray>,
-    body_wrench: ros2_client::Publisher<msgs::WrenchStamped>,
-    body_points: ros2_client::Publisher<msgs::PointCloud2>,
-    diagnostics: ros2_client::Publisher<msgs::DiagnosticArray>,
-    clock: ros2_client::Publisher<msgs::Clock>,
-    scene_description: ros2_client::Publisher<msgs::StringMsg>,
+    points: Out<msgs::PointCloud2>,
+    mesh: Out<msgs::Marker>,
+    obstacle_markers: Out<msgs::MarkerArray>,
+    body_wrench: Out<msgs::WrenchStamped>,
+    body_points: Out<msgs::PointCloud2>,
+    diagnostics: Out<msgs::DiagnosticArray>,
+    clock: Out<msgs::Clock>,
+    scene_description: Out<msgs::StringMsg>,
     obstacles: ros2_client::Subscription<msgs::Obstacle>,
     pins: ros2_client::Subscription<msgs::Pin>,
     body: ros2_client::Subscription<msgs::Body>,
     body_mesh: ros2_client::Subscription<msgs::MeshGeometryStamped>,
-    reset: ros2_client::Server<msgs::TriggerRequest, msgs::TriggerResponse>,
-    set_paused: ros2_client::Server<msgs::SetBoolRequest, msgs::SetBoolResponse>,
-    step: ros2_client::Server<msgs::StepRequest, msgs::StepResponse>,
+    reset: Serve<msgs::TriggerRequest, msgs::TriggerResponse>,
+    set_paused: Serve<msgs::SetBoolRequest, msgs::SetBoolResponse>,
+    step: Serve<msgs::StepRequest, msgs::StepResponse>,
+    /// Samples and service replies not sent: a reliable subscriber's send
+    /// window is full (it does not acknowledge what it receives).
+    unsent: Arc<AtomicU64>,
+}
+
+/// A publisher that never waits (see [`Endpoints::create`]) and counts in
+/// `unsent` what it could not send.
+struct Out<M: serde::Serialize> {
+    publisher: ros2_client::Publisher<M>,
+    unsent: Arc<AtomicU64>,
+}
+
+impl<M: serde::Serialize> Out<M> {
+    fn publish(&self, m: M) {
+        if self.publisher.publish(m).is_err() {
+            self.unsent.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+/// A service server whose replies never wait and are counted in `unsent`
+/// when they cannot be sent.
+struct Serve<Q: ros2_client::Message, R: ros2_client::Message> {
+    server: ros2_client::Server<Q, R>,
+    unsent: Arc<AtomicU64>,
+}
+
+impl<Q: ros2_client::Message + 'static, R: ros2_client::Message + 'static> Serve<Q, R> {
+    fn receive_request(&self) -> ros2_client::ReadResult<Option<(ros2_client::RmwRequestId, Q)>> {
+        self.server.receive_request()
+    }
+
+    fn send_response(&self, id: ros2_client::RmwRequestId, r: R) {
+        if self.server.send_response(id, r).is_err() {
+            self.unsent.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 impl Endpoints {
     fn create(node: &mut ros2_client::Node, names: &Names) -> Result<Endpoints> {
+        // A subscriber that stops acknowledging (a stopped process) fills a
+        // reliable writer's send window (RustDDS: 8192 samples, 8 s of
+        // /clock); a write then fails at once instead of waiting (100 ms a
+        // write by default): the loop never waits on a subscriber, and what
+        // is not sent is counted and logged (`Endpoints::unsent`).
         let reliable = QosProfile::publisher_default()
+            .reliability(ros2_client::qos::Reliability::Reliable {
+                when_full: ros2_client::qos::WhenFull::Fail,
+            })
             .history(ros2_client::qos::History::KeepLast { depth: 10 });
-        let clock_qos = QosProfile::publisher_default()
+        let clock_qos = reliable
+            .clone()
             .history(ros2_client::qos::History::KeepLast { depth: 1 });
         let sub_qos = reliable
             .clone()
             .history(ros2_client::qos::History::KeepLast { depth: 100 });
-        let latched = QosProfile::publisher_default()
+        let latched = reliable
+            .clone()
             .durability(ros2_client::qos::Durability::TransientLocal)
             .history(ros2_client::qos::History::KeepLast { depth: 1 });
+        let unsent = Arc::new(AtomicU64::new(0));
         macro_rules! publisher {
             ($t:ty, $n:expr, $q:expr) => {{
                 let topic = node
                     .create_topic(&name($n)?, type_name(<$t>::NAME), &$q)
                     .map_err(|e| anyhow!("topic {}: {e:?}", $n))?;
-                node.create_publisher::<$t>(&topic, None)
-                    .map_err(|e| anyhow!("publisher {}: {e:?}", $n))?
+                Out {
+                    publisher: node
+                        .create_publisher::<$t>(&topic, None)
+                        .map_err(|e| anyhow!("publisher {}: {e:?}", $n))?,
+                    unsent: unsent.clone(),
+                }
             }};
         }
         macro_rules! subscription {
@@ -353,14 +408,18 @@ impl Endpoints {
         }
         macro_rules! server {
             ($req:ty, $resp:ty, $n:expr, $pkg:expr, $ty:expr) => {{
-                node.create_server::<$req, $resp>(
-                    ServiceMapping::Enhanced,
-                    &name($n)?,
-                    &ServiceTypeName::new($pkg, $ty),
-                    reliable.clone(),
-                    reliable.clone(),
-                )
-                .map_err(|e| anyhow!("service {}: {e:?}", $n))?
+                Serve {
+                    server: node
+                        .create_server::<$req, $resp>(
+                            ServiceMapping::Enhanced,
+                            &name($n)?,
+                            &ServiceTypeName::new($pkg, $ty),
+                            reliable.clone(),
+                            reliable.clone(),
+                        )
+                        .map_err(|e| anyhow!("service {}: {e:?}", $n))?,
+                    unsent: unsent.clone(),
+                }
             }};
         }
         Ok(Endpoints {
@@ -397,6 +456,7 @@ impl Endpoints {
                 "garment_sim_msgs",
                 "Step"
             ),
+            unsent,
         })
     }
 }
@@ -410,6 +470,10 @@ struct Counters {
     /// Dropped since the last log line about it.
     dropped_now: u64,
     last_drop_log: Instant,
+    /// Samples and service replies not sent ([`Endpoints::unsent`]) at the
+    /// last log line about them.
+    unsent_logged: u64,
+    last_unsent_log: Instant,
     last_error: String,
     /// Step times summed since the last publication.
     step_ms_sum: f64,
@@ -424,7 +488,10 @@ struct Counters {
 /// endpoints, and what the loop carries from one pass to the next.
 struct Node {
     ros: ros2_client::Node,
-    log: ros2_client::NodeLoggingHandle,
+    /// stderr and `/rosout`, written by their own threads.
+    log: Log,
+    /// Each input topic's lines, bounded in rate.
+    topic_logs: Vec<TopicLog>,
     io: Endpoints,
     names: Names,
     fq: String,
@@ -485,7 +552,7 @@ impl Node {
             )
             .map_err(|e| anyhow!("cannot create node: {e:?}"))?;
         let io = Endpoints::create(&mut ros, &names)?;
-        let _ = io.scene_description.publish(msgs::StringMsg {
+        io.scene_description.publish(msgs::StringMsg {
             data: loaded.description.clone(),
         });
         let topics = crate::bag::TopicNames {
@@ -526,11 +593,15 @@ impl Node {
                 let _ = futures::executor::block_on(spinner.spin());
             })?;
         let stop = crate::run::stop_flag()?;
-        let log = ros.logging_handle();
+        let log = Log::new(Some(ros.logging_handle()));
+        let topic_logs = [&names.obstacles, &names.pins, &names.body, &names.body_mesh]
+            .map(|t| TopicLog::new(t))
+            .to_vec();
         let t0 = loaded.sim.time;
         let node = Node {
             ros,
             log,
+            topic_logs,
             io,
             fq,
             recorder,
@@ -543,6 +614,8 @@ impl Node {
                 dropped: 0,
                 dropped_now: 0,
                 last_drop_log: Instant::now() - Duration::from_secs(10),
+                unsent_logged: 0,
+                last_unsent_log: Instant::now() - Duration::from_secs(10),
                 last_error: String::new(),
                 step_ms_sum: 0.0,
                 step_count: 0,
@@ -583,14 +656,13 @@ impl Node {
         Ok(node)
     }
 
+    /// A line on stderr and `/rosout` (queued: never waits).
     fn info(&self, m: &str) {
-        eprintln!("[garment_sim] {m}");
-        rosout!(self.log, ros2_client::log::LogLevel::Info, "{}", m);
+        self.log.info(m);
     }
 
     fn warn(&self, m: &str) {
-        eprintln!("[garment_sim] warning: {m}");
-        rosout!(self.log, ros2_client::log::LogLevel::Warn, "{}", m);
+        self.log.warn(m);
     }
 
     /// The loop: apply parameter changes, take messages, serve services,
@@ -646,13 +718,14 @@ impl Node {
 
     /// Applies the obstacle, body and pin messages that arrived since the last
     /// pass, at most `max_messages_per_step` per topic (the rest are dropped
-    /// and counted); refused ones are logged and counted.
+    /// and counted); refused and undecodable ones are counted, and logged at
+    /// a bounded rate ([`TopicLog`]).
     fn take_messages(&mut self) {
         let cap = self.settings.max_messages_per_step as usize;
         let obstacles = &self.io.obstacles;
         let taken = drain(|| obstacles.take().map(|m| m.map(|(m, _)| m)), cap);
         let topic = self.names.obstacles.clone();
-        let handled = self.apply_taken(taken, &topic, |node, m| {
+        let applied = self.apply_taken(taken, &topic, |node, m| {
             control::apply_obstacle(
                 &mut node.loaded.sim,
                 &mut node.loaded.registry,
@@ -661,7 +734,8 @@ impl Node {
                 node.settings.max_mesh_triangles as usize,
             )
         });
-        if handled > 0 {
+        // the obstacles changed: published at once (refused ones change nothing)
+        if applied > 0 {
             self.publish_now = true;
         }
         let bodies = &self.io.body;
@@ -695,6 +769,25 @@ impl Node {
                 &node.settings.frame_id,
             )
         });
+        let now = Instant::now();
+        for l in &mut self.topic_logs {
+            if let Some((level, line)) = l.summary(now) {
+                self.log.line(level, &line);
+            }
+        }
+        let unsent = self.io.unsent.load(Ordering::Relaxed);
+        let c = &mut self.counters;
+        if unsent > c.unsent_logged && c.last_unsent_log.elapsed() > Duration::from_secs(1) {
+            let m = format!(
+                "{} messages (samples or service replies) not sent: a subscriber does not \
+                 acknowledge what it receives and its reliable window is full; the node does \
+                 not wait for it ({unsent} since the start)",
+                unsent - c.unsent_logged
+            );
+            c.unsent_logged = unsent;
+            c.last_unsent_log = Instant::now();
+            self.warn(&m);
+        }
         let c = &mut self.counters;
         if c.dropped_now > 0 && c.last_drop_log.elapsed() > Duration::from_secs(1) {
             c.last_error = format!(
@@ -711,8 +804,8 @@ impl Node {
 
     /// Applies what [`drain`] took from one topic with `apply`: messages
     /// beyond the cap are counted as dropped, undecodable ones (CDR of another
-    /// type or cut short) and refused ones are logged and counted as
-    /// rejected. Returns how many were applied or refused.
+    /// type or cut short) and refused ones are counted as rejected. Returns
+    /// how many were applied.
     fn apply_taken<M>(
         &mut self,
         (got, undecodable): (Vec<Option<M>>, Vec<String>),
@@ -720,19 +813,24 @@ impl Node {
         apply: impl Fn(&mut Self, &M) -> std::result::Result<String, String>,
     ) -> usize {
         for e in undecodable {
-            self.report(Err(format!("undecodable message (CDR): {e}")), topic);
+            self.report(Outcome::Undecodable(e), topic);
         }
         if got.iter().any(|m| m.is_some()) {
             let l = &self.loaded;
             self.recovery.before_change(&l.sim, &l.registry);
         }
-        let mut handled = 0;
+        let mut applied = 0;
         for m in got {
             match m {
                 Some(m) => {
-                    let applied = apply(self, &m);
-                    self.report(applied, topic);
-                    handled += 1;
+                    let outcome = match apply(self, &m) {
+                        Ok(what) => {
+                            applied += 1;
+                            Outcome::Applied(what)
+                        }
+                        Err(why) => Outcome::Refused(why),
+                    };
+                    self.report(outcome, topic);
                 }
                 None => {
                     self.counters.dropped += 1;
@@ -740,29 +838,57 @@ impl Node {
                 }
             }
         }
-        handled
+        applied
     }
 
-    /// Logs what a message did, or counts and logs its refusal.
-    fn report(&mut self, applied: std::result::Result<String, String>, topic: &str) {
-        match applied {
-            Ok(what) if what.is_empty() => {}
-            Ok(what) => self.info(&what),
-            Err(e) => {
+    /// Counts a refusal, and logs what a message did through its topic's
+    /// [`TopicLog`].
+    fn report(&mut self, outcome: Outcome, topic: &str) {
+        match &outcome {
+            Outcome::Applied(_) => {}
+            Outcome::Refused(why) => {
                 self.counters.rejected += 1;
-                self.warn(&format!("rejected message on {topic}: {e}"));
-                self.counters.last_error = e;
+                self.counters.last_error = why.clone();
+            }
+            Outcome::Undecodable(why) => {
+                self.counters.rejected += 1;
+                self.counters.last_error = format!("undecodable message (CDR) on {topic}: {why}");
             }
         }
+        let now = Instant::now();
+        let line = match self.topic_logs.iter_mut().find(|l| l.topic() == topic) {
+            Some(l) => l.note(now, outcome),
+            None => Some((super::intake::Level::Warn, format!("{topic}: {outcome:?}"))),
+        };
+        if let Some((level, line)) = line {
+            self.log.line(level, &line);
+        }
     }
 
-    /// Answers `~/reset`, `~/set_paused` and `~/step`.
+    /// Answers `~/reset`, `~/set_paused` and `~/step`, at most
+    /// `max_messages_per_step` requests of each a pass (the rest wait for
+    /// the next); the `~/reset` requests of a pass share one reload.
     fn serve(&mut self) {
-        while let Ok(Some((id, _))) = self.io.reset.receive_request() {
-            let resp = self.reset();
-            let _ = self.io.reset.send_response(id, resp);
+        let cap = self.settings.max_messages_per_step as usize;
+        let mut resets = Vec::new();
+        while resets.len() < cap {
+            match self.io.reset.receive_request() {
+                Ok(Some((id, _))) => resets.push(id),
+                _ => break,
+            }
         }
-        while let Ok(Some((id, req))) = self.io.set_paused.receive_request() {
+        if !resets.is_empty() {
+            let resp = self.reset();
+            for id in resets {
+                self.io.reset.send_response(id, resp.clone());
+            }
+        }
+        let mut served = 0;
+        while served < cap {
+            let Ok(Some((id, req))) = self.io.set_paused.receive_request() else {
+                break;
+            };
+            served += 1;
             let _ = self
                 .ros
                 .set_parameter("paused", ParameterValue::Boolean(req.data));
@@ -770,7 +896,7 @@ impl Node {
             self.pace_origin = (Instant::now(), self.loaded.sim.time);
             let what = if req.data { "paused" } else { "running" };
             self.info(what);
-            let _ = self.io.set_paused.send_response(
+            self.io.set_paused.send_response(
                 id,
                 msgs::SetBoolResponse {
                     success: true,
@@ -778,10 +904,15 @@ impl Node {
                 },
             );
         }
-        while let Ok(Some((id, req))) = self.io.step.receive_request() {
+        served = 0;
+        while served < cap {
+            let Ok(Some((id, req))) = self.io.step.receive_request() else {
+                break;
+            };
+            served += 1;
             let now = msgs::Time::from_secs(self.loaded.sim.time);
             if !self.settings.paused {
-                let _ = self.io.step.send_response(
+                self.io.step.send_response(
                     id,
                     msgs::StepResponse {
                         success: false,
@@ -792,7 +923,7 @@ impl Node {
             } else {
                 if let Some(old) = self.step_reply.replace(id) {
                     // a second request before the first is done: answer the first now
-                    let _ = self.io.step.send_response(
+                    self.io.step.send_response(
                         old,
                         msgs::StepResponse {
                             success: true,
@@ -825,7 +956,7 @@ impl Node {
             Ok(l) => {
                 self.loaded = l;
                 self.recovery.forget();
-                let _ = self.io.scene_description.publish(msgs::StringMsg {
+                self.io.scene_description.publish(msgs::StringMsg {
                     data: self.loaded.description.clone(),
                 });
                 self.frames = publish::FrameClock::new(self.loaded.sim.time);
@@ -908,13 +1039,13 @@ impl Node {
         self.pending_steps = self.pending_steps.saturating_sub(1);
         let sim = &self.loaded.sim;
         if sim.steps.is_multiple_of(clock_every) {
-            let _ = self.io.clock.publish(msgs::Clock {
+            self.io.clock.publish(msgs::Clock {
                 clock: msgs::Time::from_secs(sim.time),
             });
         }
         if self.pending_steps == 0 {
             if let Some(id) = self.step_reply.take() {
-                let _ = self.io.step.send_response(
+                self.io.step.send_response(
                     id,
                     msgs::StepResponse {
                         success: true,
@@ -1006,17 +1137,17 @@ impl Node {
             }
         }
         let io = &self.io;
-        let _ = io.points.publish(cloud);
-        let _ = io.mesh.publish(mesh);
-        let _ = io.obstacle_markers.publish(obstacles);
+        io.points.publish(cloud);
+        io.mesh.publish(mesh);
+        io.obstacle_markers.publish(obstacles);
         if let Some((wrench, points)) = on_body {
-            let _ = io.body_wrench.publish(wrench);
+            io.body_wrench.publish(wrench);
             if let Some(p) = points {
-                let _ = io.body_points.publish(p);
+                io.body_points.publish(p);
             }
         }
-        let _ = io.diagnostics.publish(diag);
-        let _ = io.clock.publish(clock);
+        io.diagnostics.publish(diag);
+        io.clock.publish(clock);
         let c = &mut self.counters;
         c.publish_s += t_pub.elapsed().as_secs_f64();
         c.publishes += 1;
@@ -1046,7 +1177,7 @@ impl Node {
     /// The last `/clock`, the bag closed with the final state, a summary.
     fn finish(mut self) {
         let sim = &self.loaded.sim;
-        let _ = self.io.clock.publish(msgs::Clock {
+        self.io.clock.publish(msgs::Clock {
             clock: msgs::Time::from_secs(sim.time),
         });
         if let Some(mut rec) = self.recorder.take() {
@@ -1074,12 +1205,17 @@ impl Node {
                 Err(e) => self.warn(&format!("bag {bag}: {e:#}")),
             }
         }
-        std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
+        let now = Instant::now();
+        for l in &mut self.topic_logs {
+            if let Some((level, line)) = l.summary_now(now) {
+                self.log.line(level, &line);
+            }
+        }
         let wall = self.wall_start.elapsed().as_secs_f64();
         let steps = sim.steps.saturating_sub(self.steps_start).max(1);
         let c = &self.counters;
-        eprintln!(
-            "[garment_sim] stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
+        self.log.info(&format!(
+            "stopped at t = {:.3} s after {} steps in {:.2} s wall ({:.3} ms per step); \
              {} messages rejected, {} dropped, {} failed steps recovered; {} publications, \
              {:.3} ms each",
             sim.time,
@@ -1091,7 +1227,10 @@ impl Node {
             self.recovery.recovered,
             c.publishes,
             1e3 * c.publish_s / c.publishes.max(1) as f64
-        );
+        ));
+        // what is queued, unless stderr or /rosout stays blocked
+        self.log.finish(Duration::from_secs(2));
+        std::thread::sleep(Duration::from_millis(200)); // let rosout and the last samples go
     }
 }
 
