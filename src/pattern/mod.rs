@@ -149,9 +149,10 @@ pub struct GarmentDef {
     pub source: PathBuf,
 }
 
-/// Largest plausible garment panel side, m (a pattern in mm or cm read as
-/// metres is far larger).
-pub const MAX_PANEL_SIZE: f64 = 3.0;
+/// Largest plausible garment panel side, m: a full-circle maxi skirt for a
+/// tall wearer is about 3.5 m across; a pattern in mm or cm read as metres
+/// is far larger.
+pub const MAX_PANEL_SIZE: f64 = 8.0;
 /// Smallest plausible panel side, m.
 pub const MIN_PANEL_SIZE: f64 = 0.01;
 /// Stitched edges whose lengths differ by more than this factor are refused

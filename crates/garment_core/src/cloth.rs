@@ -1058,7 +1058,12 @@ impl Cloth {
                 return true;
             }
             let m = c.map(|(p, q)| material[gv(p, q).unwrap()]);
-            (0..4).all(|k| linked(c[k], c[(k + 1) % 4]))
+            // no side under a quarter spacing, no diagonal under half its
+            // grid length: a cell squashed by a moved corner carries no shear
+            let short = (0..4).any(|k| conform::dist(m[k], m[(k + 1) % 4]) < 0.25 * lc.min(lt))
+                || conform::dist(m[0], m[2]).min(conform::dist(m[1], m[3])) < 0.5 * l0;
+            !short
+                && (0..4).all(|k| linked(c[k], c[(k + 1) % 4]))
                 && linked(c[0], c[2])
                 && linked(c[1], c[3])
                 && (0..4)
@@ -1197,9 +1202,19 @@ impl Cloth {
                 .map(|s| (s.a.min(s.b), s.a.max(s.b)))
                 .collect();
             let tied = |p: usize, q: usize| springs.contains(&(p.min(q), p.max(q)));
+            // and each wing stands at least a quarter spacing off the edge's
+            // line (a wing moved onto it would make the hinge's curvature
+            // θ / h unbounded)
+            let off = |h: &Hinge, w: usize| {
+                let (p, q, m) = (material[h.v[0]], material[h.v[1]], material[w]);
+                conform::orient(p, q, m).abs() / conform::dist(p, q)
+            };
             hinges.retain(|h| {
                 let [a, b, w0, w1] = h.v;
-                tied(a, b) && (tied(a, w0) || tied(b, w0)) && (tied(a, w1) || tied(b, w1))
+                tied(a, b)
+                    && (tied(a, w0) || tied(b, w0))
+                    && (tied(a, w1) || tied(b, w1))
+                    && off(h, w0).min(off(h, w1)) >= 0.25 * lc.min(lt)
             });
         }
         let x = material

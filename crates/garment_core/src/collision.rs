@@ -339,7 +339,18 @@ impl Obstacle {
 
     /// Signed distance, outward normal and closest point of the surface to
     /// `p`, and the velocity the obstacle carries `p` with.
+    /// A point that is not finite has no nearest surface: its distance
+    /// and the rest are NaN.
     pub fn proximity(&self, p: &Vector3<f64>) -> Proximity {
+        if !p.iter().all(|c| c.is_finite()) {
+            let nan = Vector3::repeat(f64::NAN);
+            return Proximity {
+                distance: f64::NAN,
+                normal: nan,
+                point: nan,
+                velocity: nan,
+            };
+        }
         if let Some(b) = &self.deforming {
             let c = b.closest(p);
             return Proximity {
