@@ -473,9 +473,9 @@ def main():
 
     if args.garmentcode_yaml:
         with open(args.garmentcode_yaml, "w", encoding="utf-8") as f:
-            f.write("# GarmentCode body measurements of assets/bodies/anny/body.obj (cm, degrees),\n")
-            f.write("# written by: python3 tools/measure_body.py assets/bodies/anny/body.obj "
-                    "--garmentcode-yaml assets/bodies/anny/garmentcode_body.yaml\n")
+            f.write(f"# GarmentCode body measurements of {args.obj} (cm, degrees),\n")
+            f.write(f"# written by: python3 tools/measure_body.py {args.obj} "
+                    f"--garmentcode-yaml {args.garmentcode_yaml}\n")
             f.write("body:\n")
             for k in sorted(body):
                 f.write(f"  {k}: {r(body[k], 3)}\n")
