@@ -484,6 +484,12 @@ impl Scene {
         }
         pos("output_rate", f.output_rate)?;
         pos("settle_speed", f.settle_speed)?;
+        limits::check_cloth_grid(
+            "cloth.size",
+            f.cloth.size,
+            "cloth.spacing",
+            f.cloth.spacing.pair(),
+        )?;
         pos("cloth.thickness", f.cloth.thickness)?;
         let (lo, hi) = limits::CLOTH_THICKNESS;
         limits::check_range(
@@ -612,6 +618,14 @@ impl Scene {
             let (nx, ny) = grid.dims();
             limits::check_memory(nx, ny, crate::io::available_memory()).with_context(ctx)?;
         }
+        // the spacing the command line gives, and the cells of either
+        let spacing_field = if ov.spacing.is_some() {
+            "--spacing"
+        } else {
+            "cloth.spacing"
+        };
+        limits::check_cloth_grid("cloth.size", grid.size, spacing_field, grid.spacing)
+            .with_context(ctx)?;
         let cloth = Cloth::panel(&PanelSpec {
             hinges: self.hinges(ov).layout(),
             ..PanelSpec::rectangle(&grid, self.fabric.areal_mass)

@@ -735,6 +735,79 @@ fn a_grid_larger_than_memory_is_refused_with_the_estimate() {
     assert!(peak > 0.0 && peak < est, "peak {peak} B, estimate {est} B");
 }
 
+/// A cloth whose size or spacing lies below MIN_CLOTH_SPACING (1 mm) is
+/// refused when the scene is loaded or built, naming the file, the field
+/// (cloth.size, cloth.spacing, --spacing, or the cells they give) and the
+/// bound, instead of failing at its first step with a spring's internals;
+/// a 1 cm cloth at exactly 1 mm is built.
+#[test]
+fn a_cloth_below_the_smallest_spacing_is_refused_naming_the_field_and_bound() {
+    use garment_sim::limits::MIN_CLOTH_SPACING;
+    use garment_sim::scene::{Overrides, Scene};
+    let d = support::Scratch::new("min_spacing");
+    let out = d.join("out").display().to_string();
+    let raw = |name: &str, size: &str, spacing: &str| -> String {
+        let p = d.join(format!("{name}.yaml"));
+        std::fs::write(
+            &p,
+            format!(
+                "cloth:\n  fabric: {}\n  size: {size}\n  spacing: {spacing}\n  \
+                 pose: {{ position: [0, 0, 1] }}\ndt: 0.002\nduration: 0.05\n",
+                acrylic().display()
+            ),
+        )
+        .unwrap();
+        p.display().to_string()
+    };
+    let bound = format!("≥ {MIN_CLOTH_SPACING} m");
+    let tiny = raw("tiny", "[1e-9, 1e-9]", "1e-10");
+    refused(
+        &["drape", &tiny, "--out", &out],
+        &[
+            "tiny.yaml",
+            "cloth.size (warp) = 1e-9 m",
+            &bound,
+            "MIN_CLOTH_SPACING",
+        ],
+    );
+    let fine = raw("fine", "[0.5, 0.5]", "1e-4");
+    refused(
+        &["drape", &fine, "--out", &out],
+        &[
+            "fine.yaml",
+            "cloth.spacing (warp) = 0.0001 m",
+            &bound,
+            "MIN_CLOTH_SPACING",
+        ],
+    );
+    // 1.6 mm at 1 mm: two cells of 0.8 mm
+    let cells = raw("cells", "[0.01, 0.0016]", "0.001");
+    refused(
+        &["drape", &cells, "--out", &out],
+        &[
+            "cells.yaml",
+            "cloth.size (weft) = 0.0016 m at cloth.spacing = 0.001 m gives cells of 0.0008 m",
+            "MIN_CLOTH_SPACING",
+        ],
+    );
+    let small = raw("small", "[0.01, 0.01]", "0.001");
+    refused(
+        &["drape", &small, "--spacing", "5e-4", "--out", &out],
+        &[
+            "small.yaml",
+            "--spacing (warp) = 0.0005 m",
+            &bound,
+            "MIN_CLOTH_SPACING",
+        ],
+    );
+    // at the bound: built, 11 × 11 vertices
+    let sim = Scene::load(Path::new(&small))
+        .unwrap()
+        .build(&Overrides::default())
+        .unwrap();
+    assert_eq!(sim.cloth.x.len(), 121);
+}
+
 /// A scene of 400 KB of nested brackets is refused at once (before the YAML
 /// parser, which takes minutes on it), naming the file and the line.
 #[test]

@@ -339,3 +339,99 @@ fn noise_free_files_give_back_alpha_and_betas() {
         t.rms_m
     );
 }
+
+/// A capture whose marker jumps to 1e30 m (a corrupt sample), or whose
+/// coordinates are millimetres written as metres, is refused when it is
+/// read, naming the file, the marker (label), the frame (its number in the
+/// file) and the bound, MAX_CAPTURE_DISTANCE, instead of an error about
+/// the viscous window (one frame at 1e32 m/s) or a fit that never ends;
+/// `identify` on frames in memory names the frame and marker index.
+#[test]
+fn a_capture_beyond_the_capture_volume_is_refused_naming_file_marker_and_bound() {
+    use garment_sim::capture::{write_capture_csv, Capture};
+    use garment_sim::limits::MAX_CAPTURE_DISTANCE;
+    let (frames, fabric) = capture();
+    let n = frames[0].len();
+    let cap = |f: &dyn Fn(usize, usize, Vector3<f64>) -> Vector3<f64>| Capture {
+        labels: (0..n)
+            .map(|k| format!("M{:02}_{:02}", k % 11, k / 11))
+            .collect(),
+        rate_hz: 120.0,
+        units: "m".into(),
+        first_frame: 1,
+        frames: frames
+            .iter()
+            .enumerate()
+            .map(|(k, fr)| {
+                fr.iter()
+                    .enumerate()
+                    .map(|(m, p)| Some(f(k, m, *p)))
+                    .collect()
+            })
+            .collect(),
+    };
+    let dir = support::Scratch::new("identify_far");
+    let bound = format!("{MAX_CAPTURE_DISTANCE} m");
+    // marker 47 (M03_04) at x = 1e30 m from index 60 on (file frame 61)
+    let jump = dir.join("jump.csv");
+    write_capture_csv(
+        &jump,
+        &cap(&|k, m, p| {
+            if m == 47 && k >= 60 {
+                Vector3::new(1e30, p.y, p.z)
+            } else {
+                p
+            }
+        }),
+    )
+    .unwrap();
+    // every coordinate in millimetres, the file saying metres
+    let mm = dir.join("mm.csv");
+    write_capture_csv(&mm, &cap(&|_, _, p| p * 1000.0)).unwrap();
+    for (file, needles) in [
+        (
+            &jump,
+            vec![
+                "jump.csv",
+                "marker 47 (\"M03_04\")",
+                "frame 61",
+                "1e30",
+                &bound,
+                "MAX_CAPTURE_DISTANCE",
+            ],
+        ),
+        (
+            &mm,
+            vec![
+                "mm.csv",
+                "marker 0 (\"M00_00\")",
+                "frame 1 ",
+                &bound,
+                "MAX_CAPTURE_DISTANCE",
+            ],
+        ),
+    ] {
+        let out = support::garment_sim()
+            .arg("identify")
+            .arg(file)
+            .args(["--fabric", "config/fabrics/acrylic.yaml", "--out"])
+            .arg(dir.join("out"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "{} lacks {n:?}: {err}", file.display());
+        }
+        assert!(!err.contains("viscous window"), "{err}");
+    }
+    // the same bound on frames given in memory
+    let mut far = frames;
+    far[60][47].x = 1e30;
+    let e = identify(&far, 120.0, &fabric, &IdentifyOptions::default()).unwrap_err();
+    let e = format!("{e}");
+    assert!(
+        e.contains("frame 60, marker 47") && e.contains(&bound),
+        "{e}"
+    );
+}

@@ -459,3 +459,104 @@ fn loops_close_without_hysteresis_and_keep_a_residual_with_it() {
         assert!(hresidual > 0.02, "{what}: residual {hresidual}");
     }
 }
+
+/// `fit-kes` on a tensile curve that does not reach 500 gf/cm names the
+/// file, the curve (direction, test, branch), the largest force it reaches
+/// and the 500 gf/cm it must; a curve thinned so that its top fell
+/// between two samples is called too sparse, one that stops short is not.
+#[test]
+fn fit_kes_names_the_tensile_curve_short_of_500_gf_cm() {
+    let t = TensileSummary {
+        lt: 0.65,
+        wt: 8.71,
+        rt: 62.0,
+        emt: 5.36,
+    };
+    let shear = shear_curve(
+        &ShearSummary {
+            g: 0.8,
+            hg: 0.9,
+            hg5: 1.8,
+        },
+        Family::Shear.memory_length(SHEAR_MAX_DEG * DEG),
+    );
+    let bending = bending_curve(
+        &BendingSummary { b: 0.08, hb: 0.05 },
+        Family::Bending.memory_length(BENDING_MAX_PER_CM * PER_CM),
+    );
+    // a curves file (KES units) whose warp tensile curve is `warp`
+    let write = |path: &Path, warp: &KesCurve| {
+        let mut s = String::from("direction,test,x,y,branch\n");
+        for d in ["warp", "weft"] {
+            let tensile = if d == "warp" {
+                warp.clone()
+            } else {
+                tensile_curve(&t, 500.0)
+            };
+            for (test, c) in [
+                (KesTest::Tensile, &tensile),
+                (KesTest::Shear, &shear),
+                (KesTest::Bending, &bending),
+            ] {
+                let (_, _, sx, sy) = test.units();
+                for (b, pts) in [("load", &c.load), ("recover", &c.recover)] {
+                    for p in pts.iter() {
+                        s += &format!("{d},{},{},{},{b}\n", test.name(), p.0 * sx, p.1 * sy);
+                    }
+                }
+            }
+        }
+        std::fs::write(path, s).unwrap();
+    };
+    let fit_kes = |path: &Path| -> String {
+        let o = support::garment_sim()
+            .arg("fit-kes")
+            .arg(path)
+            .args(["--areal-mass", "20", "--out"])
+            .arg(path.with_extension("yaml"))
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{path:?} was not refused");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let dir = tmp("fit_kes_short");
+    let gf = |p: &(f64, f64)| p.1 / GF_PER_CM;
+    // every 40th point of the loading branch, the top (the last point) not
+    // among them: the largest force left is that of point 121 of 161
+    let full = tensile_curve(&t, 500.0);
+    let thinned = KesCurve {
+        load: full.load.iter().skip(1).step_by(40).copied().collect(),
+        recover: full.recover.clone(),
+    };
+    assert_eq!(thinned.load.len(), 4);
+    let top = gf(thinned.load.last().unwrap());
+    assert!(top < 400.0, "{top}");
+    let sparse = dir.join("sparse.csv");
+    write(&sparse, &thinned);
+    let e = fit_kes(&sparse);
+    for n in [
+        "sparse.csv",
+        "warp tensile curve",
+        "loading branch (4 points)",
+        &format!("at most {top:.1} gf/cm"),
+        "500 gf/cm",
+        "too sparse",
+        "keep the loading branch's last point",
+    ] {
+        assert!(e.contains(n), "lacks {n:?}: {e}");
+    }
+    // loaded to 300 gf/cm only, densely sampled: short, not sparse
+    let short = dir.join("short.csv");
+    write(&short, &tensile_curve(&t, 300.0));
+    let e = fit_kes(&short);
+    for n in [
+        "short.csv",
+        "warp tensile curve",
+        "at most 300.0 gf/cm",
+        "500 gf/cm",
+        "stopped short",
+    ] {
+        assert!(e.contains(n), "lacks {n:?}: {e}");
+    }
+    assert!(!e.contains("sparse"), "{e}");
+}

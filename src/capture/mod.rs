@@ -132,6 +132,30 @@ impl Capture {
         }
         Ok(())
     }
+
+    /// Refuses a marker position farther than
+    /// [`crate::limits::MAX_CAPTURE_DISTANCE`] from the origin (a unit slip or
+    /// a corrupt sample), naming the marker (label and index), the frame (its
+    /// number in the file and its index from 0) and the bound.
+    pub fn check_positions(&self) -> Result<(), CaptureError> {
+        use crate::limits::{check_capture_position, MAX_CAPTURE_DISTANCE};
+        for (f, fr) in self.frames.iter().enumerate() {
+            for (m, p) in fr.iter().enumerate() {
+                let Some(p) = p else { continue };
+                if p.norm() <= MAX_CAPTURE_DISTANCE {
+                    continue;
+                }
+                let label = self.labels.get(m).map_or("", String::as_str);
+                let what = format!(
+                    "marker {m} ({label:?}), frame {} (index {f})",
+                    u64::from(self.first_frame) + f as u64
+                );
+                check_capture_position(&what, p)
+                    .map_err(|e| CaptureError::Invalid(e.to_string()))?;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Everything that can go wrong in this module; each variant says what and where.

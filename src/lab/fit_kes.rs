@@ -110,7 +110,70 @@ pub fn read_curves_csv(path: &Path) -> Result<CurveSet> {
     if !set.contains_key(&("warp", "shear")) && !set.contains_key(&("weft", "shear")) {
         bail!("{}: no shear curve", path.display());
     }
+    for d in ["warp", "weft"] {
+        check_tensile_reaches_fm(d, &set[&(d, "tensile")])
+            .with_context(|| path.display().to_string())?;
+    }
     Ok(set)
+}
+
+/// Refuses a tensile curve whose loading branch does not reach the KES-FB1
+/// maximum load, 500 gf/cm ([`TENSILE_FM_DEFAULT_GF_CM`]): the test turns
+/// there, and EMT, LT, WT and RT are read up to it. The error names the
+/// curve, the largest force it does reach, and, when the curve is too
+/// sparse to hold its top (the last loading step is longer than the force
+/// the branch lacks, or the recovery branch starts above the loading
+/// branch's largest force: the turn fell between two samples), says so.
+pub fn check_tensile_reaches_fm(direction: &str, c: &KesCurve) -> Result<()> {
+    let fm = TENSILE_FM_DEFAULT_GF_CM;
+    let (_, _, sx, sy) = KesTest::Tensile.units();
+    let kes = |p: &(f64, f64)| (p.0 * sx, p.1 * sy);
+    let top = |b: &[(f64, f64)]| {
+        b.iter().map(kes).fold(
+            (f64::NAN, f64::NEG_INFINITY),
+            |a, p| if p.1 > a.1 { p } else { a },
+        )
+    };
+    let (x_top, f_top) = top(&c.load);
+    if f_top >= fm {
+        return Ok(());
+    }
+    let what = format!(
+        "{direction} tensile curve: its loading branch ({} points) reaches at most \
+         {f_top:.1} gf/cm (at {x_top:.3} %), not the {fm} gf/cm the KES-FB1 test loads to \
+         (EMT, LT, WT and RT are read up to it)",
+        c.load.len()
+    );
+    let (_, f_rec) = top(&c.recover);
+    let lacks = fm - f_top;
+    let last_step = match c.load.len() {
+        n if n >= 2 => kes(&c.load[n - 1]).1 - kes(&c.load[n - 2]).1,
+        _ => 0.0,
+    };
+    let mut sparse = Vec::new();
+    if last_step >= lacks {
+        sparse.push(format!(
+            "its last loading step, {last_step:.1} gf/cm, is more than the {lacks:.1} gf/cm \
+             it lacks"
+        ));
+    }
+    if f_rec > f_top {
+        sparse.push(format!(
+            "its recovery branch starts higher, at {f_rec:.1} gf/cm"
+        ));
+    }
+    if !sparse.is_empty() {
+        bail!(
+            "{what}; the curve is too sparse to hold its top ({}): the turn at {fm} gf/cm fell \
+             between two samples (when thinning a curve, keep the loading branch's last point)",
+            sparse.join(", and ")
+        );
+    }
+    bail!(
+        "{what}; its largest force, on either branch, is {:.1} gf/cm: the test stopped short \
+         of {fm} gf/cm",
+        f_top.max(f_rec)
+    );
 }
 
 /// The curves of a set of virtual KES runs (what `kes --all` writes).
@@ -330,6 +393,9 @@ pub fn fit_fabric(curves: &CurveSet, meta: &FitMeta) -> Result<(FabricFile, Vec<
                 residual_linear_start: res0 * sy,
                 iterations,
             });
+            if test == KesTest::Tensile {
+                check_tensile_reaches_fm(d, c)?;
+            }
             let s = summarise(test, c).with_context(|| format!("{d} {} curve", test.name()))?;
             let b = match test {
                 KesTest::Tensile => {

@@ -300,6 +300,9 @@ pub fn identify(
         if let Some(m) = f.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
             bail!("frame {k}, marker {m}: not a finite position (fill gaps first)");
         }
+        for (m, p) in f.iter().enumerate() {
+            crate::limits::check_capture_position(&format!("frame {k}, marker {m}"), p)?;
+        }
     }
     let dt = 1.0 / rate_hz;
     let cloth = Cloth::grid(&g.spec(), fabric.areal_mass)?;
@@ -390,6 +393,16 @@ pub fn identify(
         None => (viscous_window(&speed), true),
     };
     if window.1 - window.0 < 2 {
+        if auto {
+            let peak = speed.iter().cloned().fold(0.0, f64::max);
+            bail!(
+                "the viscous window {}..{} chosen from the mean-speed curve (the frames at \
+                 60 % or more of its peak, {peak:.3e} m/s) has fewer than 2 frames: the \
+                 speed peaks in one frame (a marker jump?); give the window (--window)",
+                window.0,
+                window.1
+            );
+        }
         bail!(
             "the viscous window {}..{} has fewer than 2 frames",
             window.0,
@@ -901,7 +914,8 @@ pub fn identify_file(
         } else {
             read_c3d(p)
         };
-        c.with_context(|| format!("capture {}", p.display()))
+        c.and_then(|c| c.check_positions().map(|()| c))
+            .with_context(|| format!("capture {}", p.display()))
     };
     let mut cap = read(capture)?;
     let g = opts.grid;

@@ -42,6 +42,91 @@ pub const MAX_OBSTACLE_THICKNESS: f64 = 0.1;
 /// Cloth thickness range, m: from 10 µm (a film) to 2 cm (a quilt).
 pub const CLOTH_THICKNESS: (f64, f64) = (1e-5, 0.02);
 
+/// Smallest cloth spacing (grid cell side) and cloth size, m. Two reasons.
+/// The spring laws are the fabric's KES curves, measured on 5 × 20 cm
+/// strips: they describe the cloth as a sheet, not its yarns, which lie
+/// 0.25 to 1 mm apart in woven fabrics. And the step: a vertex's mass
+/// shrinks with the cell's area while the laws' forces per unit width (the
+/// hysteresis's among them) do not. Measured on `hanging_corners.yaml`
+/// scaled to 10 × 10 cells (dt 2 ms, 0.05 s; docs/limits.md), the most
+/// stretched spring is at 0.35 % at 5 mm, 0.30 % at 2 mm, 0.90 % at 1 mm,
+/// 3.9 % at 0.5 mm, 31 % at 0.1 mm, 338 % at 10 µm, and at 1 µm the step's
+/// matrix is not positive definite: finer than 1 mm the step is wrong
+/// before it fails.
+pub const MIN_CLOTH_SPACING: f64 = 1e-3;
+
+/// A cloth's size and spacing along warp and weft (`size_field`,
+/// `spacing_field`: the names the file or command line gives them), each
+/// finite and at least [`MIN_CLOTH_SPACING`], and the grid's cells (the
+/// size divided into a whole number of cells, as the grid is built) too.
+pub fn check_cloth_grid(
+    size_field: &str,
+    size: [f64; 2],
+    spacing_field: &str,
+    spacing: [f64; 2],
+) -> Result<()> {
+    let why = "MIN_CLOTH_SPACING: the laws describe the fabric as a sheet, not its \
+               yarns, and on finer cells, whose masses vanish, the step overstretches \
+               the cloth, then fails";
+    for (k, dir) in ["warp", "weft"].iter().enumerate() {
+        for (field, v) in [(size_field, size[k]), (spacing_field, spacing[k])] {
+            if !(v.is_finite() && v >= MIN_CLOTH_SPACING) {
+                bail!(
+                    "{field} ({dir}) = {} m: must be a finite number ≥ {MIN_CLOTH_SPACING} m \
+                     ({why})",
+                    num(v)
+                );
+            }
+        }
+        let cell = size[k] / (size[k] / spacing[k]).round().max(1.0);
+        if cell < MIN_CLOTH_SPACING {
+            bail!(
+                "{size_field} ({dir}) = {} m at {spacing_field} = {} m gives cells of {} m, \
+                 below {MIN_CLOTH_SPACING} m ({why})",
+                num(size[k]),
+                num(spacing[k]),
+                num(cell)
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Farthest a motion-capture marker may lie from the capture's origin, m.
+/// A capture volume is a room, a few metres across; 100 m leaves room for
+/// any laboratory's origin. Beyond it a position is a unit slip
+/// (millimetres written as metres) or a corrupt sample: one marker at
+/// 1e30 m makes the speeds 1e32 m/s and the fit meaningless. A distance,
+/// not a bound per axis, so that it holds in the frame the vertical is
+/// turned to as well as in the file's.
+pub const MAX_CAPTURE_DISTANCE: f64 = 100.0;
+
+/// A number as a person writes it: 1e30 and 1e-9 with an exponent, not as
+/// 31 digits or 9 zeros.
+fn num(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A marker position within [`MAX_CAPTURE_DISTANCE`] of the origin.
+pub fn check_capture_position(what: &str, p: &Vector3<f64>) -> Result<()> {
+    let d = p.norm();
+    if d.is_nan() || d > MAX_CAPTURE_DISTANCE {
+        bail!(
+            "{what} = ({}, {}, {}) m lies {d:.3e} m from the capture's origin, beyond \
+             {MAX_CAPTURE_DISTANCE} m (MAX_CAPTURE_DISTANCE: a capture volume is a room; \
+             millimetres written as metres, or a corrupt sample?)",
+            num(p.x),
+            num(p.y),
+            num(p.z)
+        );
+    }
+    Ok(())
+}
+
 /// Largest Coulomb friction coefficient: rubber on rubber is about 1–2.
 pub const MAX_FRICTION: f64 = 10.0;
 
