@@ -2,7 +2,7 @@
 //! on a body and their bad inputs.
 
 mod support;
-use garment_sim::cloth::HingeLayout;
+use garment_sim::cloth::{Border, HingeLayout};
 use garment_sim::fabric::Fabric;
 use garment_sim::garment::{Garment, PanelCut, SeamSpec};
 use garment_sim::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
@@ -23,6 +23,7 @@ fn fabric(name: &str) -> Fabric {
 fn rect(name: &str, w: f64, h: f64, at: [f64; 3], grain_deg: f64) -> PanelCut {
     PanelCut {
         hinges: HingeLayout::Skewed,
+        border: Border::Conforming,
         name: name.into(),
         edges: vec![
             vec![[0.0, 0.0], [w, 0.0]],

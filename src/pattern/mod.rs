@@ -87,6 +87,29 @@ pub struct GarmentFile {
     /// `mirror_symmetric` (see [`HingeLayout`]).
     #[serde(default)]
     pub hinges: HingesFile,
+    /// How every panel's grid meets its outline: `conforming` (default: every
+    /// corner a vertex, nothing across the outline) or `on_outline` (border
+    /// nodes moved onto the outline, corners not kept).
+    #[serde(default)]
+    pub border: BorderFile,
+}
+
+/// `border:` of a garment file ([`Border`]).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum BorderFile {
+    #[default]
+    Conforming,
+    OnOutline,
+}
+
+impl BorderFile {
+    pub fn border(self) -> crate::cloth::Border {
+        match self {
+            BorderFile::Conforming => crate::cloth::Border::Conforming,
+            BorderFile::OnOutline => crate::cloth::Border::OnOutline,
+        }
+    }
 }
 
 /// `hinges:` of a garment or scene file, `--hinges` of `drape`: how each
@@ -175,6 +198,7 @@ impl GarmentDef {
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let default_grain = file.grain_deg.unwrap_or(90.0);
         let hinges = file.hinges.layout();
+        let border = file.border.border();
         let grain = |deg: f64| [deg.to_radians().cos(), deg.to_radians().sin()];
         let mut cuts: Vec<PanelCut> = Vec::new();
         let mut pending: Vec<(String, usize, String, usize)> = Vec::new();
@@ -190,6 +214,7 @@ impl GarmentDef {
                     .unwrap_or(default_grain);
                 cuts.push(PanelCut {
                     hinges,
+                    border,
                     name: p.name.clone(),
                     edges: p.edges.clone(),
                     grain: grain(g),
@@ -232,6 +257,7 @@ impl GarmentDef {
             }
             cuts.push(PanelCut {
                 hinges,
+                border,
                 name: name.clone(),
                 edges,
                 grain: grain(pf.grain_deg.unwrap_or(default_grain)),

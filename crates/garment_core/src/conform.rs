@@ -13,7 +13,7 @@
 //!   segment between them, in material positions, stays inside the outline:
 //!   springs no longer bridge a dart's notch or the gap between a collar's
 //!   tips;
-//! - a kept node left with no link is dropped.
+//! - a kept node not tied to the panel along both threads is dropped.
 
 use crate::cloth::{polygon_contains, REMOVED};
 
@@ -133,9 +133,11 @@ impl<'a> Links<'a> {
     }
 }
 
-/// Drops every kept node with no link to a kept neighbour along warp or
-/// weft, renumbering the vertices (`grid_vertex` and `material` as in
-/// [`place_corners`]).
+/// Drops every kept node that is not tied to the panel both along warp and
+/// along weft (a link to a kept neighbour each way), until every node left
+/// is: a node held by springs of one direction only would hang on them
+/// like a whisker. Renumbers the vertices (`grid_vertex` and `material` as
+/// in [`place_corners`]).
 pub(crate) fn drop_unlinked(
     links: &Links,
     nx: usize,
@@ -143,32 +145,41 @@ pub(crate) fn drop_unlinked(
     grid_vertex: &mut [usize],
     material: &mut Vec<[f64; 2]>,
 ) {
-    let kept = |i: i64, j: i64| -> Option<usize> {
-        if i < 0 || j < 0 || i >= nx as i64 || j >= ny as i64 {
-            return None;
-        }
-        let k = j as usize * nx + i as usize;
-        (grid_vertex[k] != REMOVED).then_some(k)
-    };
-    let mut drop = Vec::new();
-    for j in 0..ny as i64 {
-        for i in 0..nx as i64 {
-            let Some(a) = kept(i, j) else { continue };
-            let alone = [(1, 0), (-1, 0), (0, 1), (0, -1)].iter().all(|&(di, dj)| {
-                kept(i + di, j + dj).is_none_or(|b| {
-                    !links.inside(a, b, material[grid_vertex[a]], material[grid_vertex[b]])
-                })
-            });
-            if alone {
-                drop.push(a);
+    let mut dropped = false;
+    loop {
+        let kept = |i: i64, j: i64, gvx: &[usize]| -> Option<usize> {
+            if i < 0 || j < 0 || i >= nx as i64 || j >= ny as i64 {
+                return None;
+            }
+            let k = j as usize * nx + i as usize;
+            (gvx[k] != REMOVED).then_some(k)
+        };
+        let mut drop = Vec::new();
+        for j in 0..ny as i64 {
+            for i in 0..nx as i64 {
+                let Some(a) = kept(i, j, grid_vertex) else { continue };
+                let tied = |dirs: [(i64, i64); 2]| {
+                    dirs.iter().any(|&(di, dj)| {
+                        kept(i + di, j + dj, grid_vertex).is_some_and(|b| {
+                            links.inside(a, b, material[grid_vertex[a]], material[grid_vertex[b]])
+                        })
+                    })
+                };
+                if !(tied([(1, 0), (-1, 0)]) && tied([(0, 1), (0, -1)])) {
+                    drop.push(a);
+                }
             }
         }
+        if drop.is_empty() {
+            break;
+        }
+        dropped = true;
+        for &k in &drop {
+            grid_vertex[k] = REMOVED;
+        }
     }
-    if drop.is_empty() {
+    if !dropped {
         return;
-    }
-    for &k in &drop {
-        grid_vertex[k] = REMOVED;
     }
     let old = std::mem::take(material);
     for v in grid_vertex.iter_mut().filter(|v| **v != REMOVED) {

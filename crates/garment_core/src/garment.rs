@@ -28,6 +28,9 @@ pub struct PanelCut {
     pub placement: Isometry3<f64>,
     /// How the panel's bending hinges are laid out on its grid.
     pub hinges: HingeLayout,
+    /// How its grid meets its outline: [`Border::Conforming`] (every corner
+    /// a vertex, nothing across the outline) or [`Border::OnOutline`].
+    pub border: Border,
 }
 
 impl PanelCut {
@@ -358,7 +361,7 @@ fn cut_panel(
     // every edge's start is a corner (the end of the one before it)
     let corners: Vec<[f64; 2]> = cut.edges.iter().map(|e| to_uv(e[0])).collect();
     let (cloth, corner_vertex) = Cloth::panel_with_corners(&PanelSpec {
-        border: Border::Conforming,
+        border: cut.border,
         hinges: cut.hinges,
         corners,
         ..PanelSpec::new(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
@@ -384,6 +387,12 @@ fn cut_panel(
     let ne = cut.edges.len();
     // each corner's vertex: the one the grid placed there or, for a corner
     // whose node was dropped, the nearest border vertex
+    // (a border that keeps no corners: each corner takes the nearest)
+    let corner_vertex = if corner_vertex.is_empty() {
+        vec![None; ne]
+    } else {
+        corner_vertex
+    };
     let corner_vertex: Vec<usize> = corner_vertex
         .iter()
         .zip(&cut.edges)
@@ -531,6 +540,7 @@ mod tests {
     fn rect(name: &str, w: f64, h: f64, at: Isometry3<f64>) -> PanelCut {
         PanelCut {
             hinges: HingeLayout::Skewed,
+            border: Border::Conforming,
             name: name.into(),
             edges: vec![
                 vec![[0.0, 0.0], [w, 0.0]],
@@ -595,6 +605,7 @@ mod tests {
         let n = pts.len();
         let cut = PanelCut {
             hinges: HingeLayout::Skewed,
+            border: Border::Conforming,
             name: "darted".into(),
             edges: (0..n).map(|k| vec![pts[k], pts[(k + 1) % n]]).collect(),
             grain: [0.0, 1.0],
@@ -680,6 +691,7 @@ mod tests {
     fn a_crossing_outline_is_refused_naming_the_edges() {
         let bow = PanelCut {
             hinges: HingeLayout::Skewed,
+            border: Border::Conforming,
             name: "bow".into(),
             edges: vec![
                 vec![[0.0, 0.0], [0.2, 0.2]],
