@@ -114,9 +114,9 @@ pub const SPIN: Duration = Duration::from_millis(1);
 /// to finish a phase, before it sleeps: a partner that has not arrived by
 /// then is not running (another process has its core, for a time slice or
 /// more). Past [`SPIN_ALONE`] the waiter yields its core between looks, so
-/// up to then it takes only time nothing else on its core wants; shorter
-/// (0.1–0.3 ms) measured slower on the busy 2-core host (docs/benchmarks.md):
-/// a sleeper that is woken waits for a core again.
+/// up to then it takes only time nothing else on its core wants; sleeping
+/// sooner costs more when the partner was away briefly (a sleeper that is
+/// woken may wait for a core again).
 pub const PATIENCE: Duration = Duration::from_millis(1);
 
 /// How long a waiter spins before it also yields its core between looks:
