@@ -52,7 +52,7 @@ impl Default for Settings {
             spacing: 0.0,
             solver: String::new(),
             cg_tolerance: 0.0,
-            threads: 0,
+            threads: 1,
             record_bag: String::new(),
             foxglove: String::new(),
             max_messages_per_step: 100,
@@ -352,9 +352,10 @@ pub const PARAMETERS: &[Parameter] = &[
         name: "threads",
         kind: Kind::Integer,
         runtime: false,
-        description: "threads of the assembly, the PCG and the contacts, 0 to 64 (0: one per \
-                      core from 500 vertices; they sleep between steps; 1 leaves the other \
-                      cores to the ROS side)",
+        description: "threads of the assembly, the PCG and the contacts, 0 to 64 (default 1: \
+                      the other cores left to the machine's other nodes, which would slow a \
+                      team's barriers; 0: one per core from 500 vertices, for a machine of its \
+                      own; they sleep between steps)",
         get: |s| Value::Int(s.threads),
         put: |s, v| {
             let k = int(v);
