@@ -87,20 +87,20 @@ pub struct SewingFile {
     pub drag: f64,
     #[serde(default = "SewingFile::d_factor")]
     pub stiffness_factor: f64,
-    /// The stitches' pull while sewing, all together, in weights of the
-    /// garment: each stitch pulls with at most its share (by stiffness) of
-    /// `max_force` times the garment's weight, however wide its gap.
-    #[serde(default = "SewingFile::d_max_force")]
-    pub max_force: f64,
-    /// The sewing ends once every stitch's gap is at most this, m (or at
-    /// `duration`).
-    #[serde(default = "SewingFile::d_closed")]
-    pub closed: f64,
-    /// Coulomb coefficient between the cloth and the body while sewing (the
-    /// body's own `friction` holds from the drape on): the panels slide
-    /// over the skin as their seams close.
+    /// A bound on the stitches' pull while sewing, in weights of the
+    /// garment: before each step their stiffness is scaled down together so
+    /// that `Σ k |g|` is at most `max_force` times the garment's weight
+    /// (absent: no bound).
     #[serde(default)]
-    pub friction: f64,
+    pub max_force: Option<f64>,
+    /// The sewing ends once every stitch's gap is at most this, m (absent:
+    /// it lasts `duration`).
+    #[serde(default)]
+    pub closed: Option<f64>,
+    /// Coulomb coefficient between the cloth and the body while sewing
+    /// (absent: the body's own `friction`).
+    #[serde(default)]
+    pub friction: Option<f64>,
 }
 
 impl SewingFile {
@@ -116,15 +116,6 @@ impl SewingFile {
     fn d_factor() -> f64 {
         0.02
     }
-    /// Twenty times the garment's weight (the sewing's body force stays
-    /// within a few weights; a tighter bound leaves seams open where the
-    /// cloth must wrap the body).
-    fn d_max_force() -> f64 {
-        20.0
-    }
-    fn d_closed() -> f64 {
-        1e-3
-    }
 }
 
 impl Default for SewingFile {
@@ -134,9 +125,9 @@ impl Default for SewingFile {
             gravity: false,
             drag: Self::d_drag(),
             stiffness_factor: Self::d_factor(),
-            max_force: Self::d_max_force(),
-            closed: Self::d_closed(),
-            friction: 0.0,
+            max_force: None,
+            closed: None,
+            friction: None,
         }
     }
 }
@@ -837,30 +828,36 @@ pub fn run_to_failure(
         "",
         "a factor on the seams' stiffness",
     )?;
-    crate::limits::check_range(
-        "sewing.friction",
-        sew.friction,
-        0.0,
-        2.0,
-        "",
-        "a Coulomb coefficient",
-    )?;
-    crate::limits::check_range(
-        "sewing.closed",
-        sew.closed,
-        0.0,
-        0.1,
-        "m",
-        "a seam gap at which the sewing ends",
-    )?;
-    crate::limits::check_range(
-        "sewing.max_force",
-        sew.max_force,
-        0.1,
-        1e3,
-        "garment weights",
-        "the stitches' pull in all while sewing",
-    )?;
+    for (what, v, lo, hi, unit, why) in [
+        (
+            "sewing.friction",
+            sew.friction,
+            0.0,
+            2.0,
+            "",
+            "a Coulomb coefficient",
+        ),
+        (
+            "sewing.closed",
+            sew.closed,
+            0.0,
+            0.1,
+            "m",
+            "a seam gap at which the sewing ends",
+        ),
+        (
+            "sewing.max_force",
+            sew.max_force,
+            0.1,
+            1e3,
+            "garment weights",
+            "the stitches' pull in all while sewing",
+        ),
+    ] {
+        if let Some(v) = v {
+            crate::limits::check_range(what, v, lo, hi, unit, why)?;
+        }
+    }
     let max_time = max_time.unwrap_or(st.max_time);
     crate::limits::check_range(
         "settle.max_time",
@@ -891,7 +888,13 @@ pub fn run_to_failure(
     for f in sim.fabrics_mut() {
         f.damping.alpha = f.damping.alpha.min(-sew.drag);
     }
-    let bound = sew.max_force * sim.cloth.total_mass() * STANDARD_GRAVITY;
+    for s in sim.cloth.seams.iter_mut() {
+        s.k *= sew.stiffness_factor;
+        s.d *= sew.stiffness_factor;
+    }
+    let bound = sew
+        .max_force
+        .map(|w| w * sim.cloth.total_mass() * STANDARD_GRAVITY);
     // the panels close over the skin with the sewing's friction, then the
     // garment rests on it with the body's own
     let frictions: Vec<(Handle<Obstacle>, f64)> = sim
@@ -900,8 +903,8 @@ pub fn run_to_failure(
         .map(|(h, o)| (h, o.friction))
         .collect();
     for &(h, _) in &frictions {
-        if let Some(o) = sim.obstacle_mut(h) {
-            o.friction = sew.friction;
+        if let (Some(o), Some(f)) = (sim.obstacle_mut(h), sew.friction) {
+            o.friction = f;
         }
     }
     let sew_steps = (sew.duration / sim.params().dt).round() as u64;
@@ -935,13 +938,15 @@ pub fn run_to_failure(
         if stop() {
             break;
         }
-        bound_sewing(sim, &own, sew.stiffness_factor, bound);
+        if let Some(bound) = bound {
+            bound_sewing(sim, &own, sew.stiffness_factor, bound);
+        }
         if let Err(e) = step(sim, &mut steps, &mut acc) {
             failure = Some(e);
             break;
         }
         progress(sim, "sewing", sim.time, sew.duration);
-        if largest_gap(sim) <= sew.closed {
+        if sew.closed.is_some_and(|c| largest_gap(sim) <= c) {
             break;
         }
     }

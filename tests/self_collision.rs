@@ -379,7 +379,7 @@ fn tube(on: bool, dt: f64) -> Simulation {
         grain: [1.0, 0.0],
         placement: Isometry3::translation(-0.15, -0.06, z),
         hinges: Default::default(),
-        border: garment_sim::cloth::Border::Conforming,
+        border: garment_sim::cloth::Border::OnOutline,
     };
     let seam = |e: usize| SeamSpec {
         a: (0, e),

@@ -87,9 +87,10 @@ pub struct GarmentFile {
     /// `mirror_symmetric` (see [`HingeLayout`]).
     #[serde(default)]
     pub hinges: HingesFile,
-    /// How every panel's grid meets its outline: `conforming` (default: every
-    /// corner a vertex, nothing across the outline) or `on_outline` (border
-    /// nodes moved onto the outline, corners not kept).
+    /// How every panel's grid meets its outline: `on_outline` (default:
+    /// border nodes moved onto the outline; a panel with an edge too short
+    /// to hold one is cut conforming) or `conforming` (every corner a
+    /// vertex, nothing across the outline).
     #[serde(default)]
     pub border: BorderFile,
 }
@@ -99,8 +100,8 @@ pub struct GarmentFile {
 #[serde(rename_all = "snake_case")]
 pub enum BorderFile {
     #[default]
-    Conforming,
     OnOutline,
+    Conforming,
 }
 
 impl BorderFile {

@@ -157,7 +157,9 @@ pub(crate) fn drop_unlinked(
         let mut drop = Vec::new();
         for j in 0..ny as i64 {
             for i in 0..nx as i64 {
-                let Some(a) = kept(i, j, grid_vertex) else { continue };
+                let Some(a) = kept(i, j, grid_vertex) else {
+                    continue;
+                };
                 let tied = |dirs: [(i64, i64); 2]| {
                     dirs.iter().any(|&(di, dj)| {
                         kept(i + di, j + dj, grid_vertex).is_some_and(|b| {

@@ -201,12 +201,31 @@ impl Garment {
             if !(s.damping.is_finite() && s.damping >= 0.0) {
                 bail!("seam {k}: damping {} s must be ≥ 0", s.damping);
             }
-            // each edge runs from its start corner (fraction 0) to its end
-            // corner (1), with the border vertices between
+            // each edge's border vertices, their fractions stretched to run
+            // 0 → 1 from the first to the last (a corner the grid did not keep
+            // leaves the first a little way along): the ends of the two edges
+            // meet
+            let span = |ev: &[(usize, f64)]| -> Vec<(usize, f64)> {
+                let (t0, t1) = match (ev.first(), ev.last()) {
+                    (Some(a), Some(b)) if b.1 > a.1 => (a.1, b.1),
+                    _ => return ev.to_vec(),
+                };
+                ev.iter().map(|&(v, t)| (v, (t - t0) / (t1 - t0))).collect()
+            };
             let (ea, eb) = (
-                &panels[s.a.0].edge_vertices[s.a.1],
-                &panels[s.b.0].edge_vertices[s.b.1],
+                &span(&panels[s.a.0].edge_vertices[s.a.1]),
+                &span(&panels[s.b.0].edge_vertices[s.b.1]),
             );
+            for (side, (p, e), ev) in [("a", s.a, ea), ("b", s.b, eb)] {
+                if ev.is_empty() {
+                    bail!(
+                        "seam {k}: edge {e} of panel {:?} (side {side}) has {} border vertices at \
+                         spacing {spacing} m; it needs one: use a finer spacing",
+                        panels[p].name,
+                        ev.len()
+                    );
+                }
+            }
             // which end of b meets a's start: the nearer one where the
             // pattern places them
             let end = |ev: &[(usize, f64)], last: bool| {
@@ -384,15 +403,61 @@ fn cut_panel(
         }
     }
     let lengths: Vec<f64> = (0..cut.edges.len()).map(|e| cut.edge_length(e)).collect();
+    let edge_vertices = if cut.border == Border::Conforming {
+        conforming_edges(cut, &uv, &border, corner_vertex, &lengths, spacing, first)
+    } else {
+        let ev = outline_edges(cut, &uv, &border, &lengths, spacing, first);
+        // an edge too short to hold a border vertex: the panel is cut
+        // conforming, every corner a vertex
+        if ev.iter().any(|e| e.is_empty()) {
+            let conforming = PanelCut {
+                border: Border::Conforming,
+                ..cut.clone()
+            };
+            return cut_panel(&conforming, spacing, areal_mass, first);
+        }
+        ev
+    };
+    let area = crate::cloth::polygon_area(&poly).abs();
+    let grid_vertex = (0..cloth.ny)
+        .flat_map(|j| (0..cloth.nx).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            cloth
+                .index(i, j)
+                .map_or(crate::cloth::REMOVED, |v| first + v)
+        })
+        .collect();
+    let panel = Panel {
+        grid: [cloth.nx, cloth.ny],
+        grid_vertex,
+        name: name.clone(),
+        first,
+        count: cloth.len(),
+        uv,
+        edge_vertices,
+        edge_lengths: lengths,
+        grain: g,
+        area,
+    };
+    Ok((cloth, panel))
+}
+
+/// A conforming panel's edges: each runs from its start corner's vertex
+/// (fraction 0) through the border vertices whose nearest point of the
+/// outline lies within it to its end corner's (1).
+#[allow(clippy::too_many_arguments)]
+fn conforming_edges(
+    cut: &PanelCut,
+    uv: &[[f64; 2]],
+    border: &[bool],
+    corner_vertex: Vec<Option<usize>>,
+    lengths: &[f64],
+    spacing: f64,
+    first: usize,
+) -> Vec<Vec<(usize, f64)>> {
     let ne = cut.edges.len();
     // each corner's vertex: the one the grid placed there or, for a corner
     // whose node was dropped, the nearest border vertex
-    // (a border that keeps no corners: each corner takes the nearest)
-    let corner_vertex = if corner_vertex.is_empty() {
-        vec![None; ne]
-    } else {
-        corner_vertex
-    };
     let corner_vertex: Vec<usize> = corner_vertex
         .iter()
         .zip(&cut.edges)
@@ -447,28 +512,47 @@ fn cut_panel(
         ev[1..].sort_by(|a, b| a.1.total_cmp(&b.1));
         ev.push((first + corner_vertex[(e + 1) % ne], 1.0));
     }
-    let area = crate::cloth::polygon_area(&poly).abs();
-    let grid_vertex = (0..cloth.ny)
-        .flat_map(|j| (0..cloth.nx).map(move |i| (i, j)))
-        .map(|(i, j)| {
-            cloth
-                .index(i, j)
-                .map_or(crate::cloth::REMOVED, |v| first + v)
-        })
-        .collect();
-    let panel = Panel {
-        grid: [cloth.nx, cloth.ny],
-        grid_vertex,
-        name: name.clone(),
-        first,
-        count: cloth.len(),
-        uv,
-        edge_vertices,
-        edge_lengths: lengths,
-        grain: g,
-        area,
-    };
-    Ok((cloth, panel))
+    edge_vertices
+}
+
+/// A panel's edges with its border on the outline: every border vertex
+/// within 0.75 spacing of the outline on its nearest edge (a corner on
+/// both), sorted by the fraction of the edge's length.
+fn outline_edges(
+    cut: &PanelCut,
+    uv: &[[f64; 2]],
+    border: &[bool],
+    lengths: &[f64],
+    spacing: f64,
+    first: usize,
+) -> Vec<Vec<(usize, f64)>> {
+    let mut edge_vertices = vec![Vec::new(); cut.edges.len()];
+    for (v, &p) in uv.iter().enumerate() {
+        if !border[v] {
+            continue;
+        }
+        // the nearest edge (every edge as near: a corner is on two), and the
+        // fraction of its length there
+        let near: Vec<(f64, f64)> = cut
+            .edges
+            .iter()
+            .enumerate()
+            .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
+            .collect();
+        let d = near.iter().map(|n| n.0).fold(f64::INFINITY, f64::min);
+        if d > 0.75 * spacing {
+            continue;
+        }
+        for (e, &(de, t)) in near.iter().enumerate() {
+            if de <= d + 1e-6 * spacing {
+                edge_vertices[e].push((first + v, t));
+            }
+        }
+    }
+    for ev in &mut edge_vertices {
+        ev.sort_by(|a, b| a.1.total_cmp(&b.1));
+    }
+    edge_vertices
 }
 
 /// Distance from `p` to a polyline of length `len`, and the fraction of the
