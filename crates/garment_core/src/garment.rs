@@ -768,6 +768,21 @@ mod tests {
                 .map(|st| st.gap(&g.cloth.x).norm())
                 .fold(f64::INFINITY, f64::min);
             assert!(tip < 1e-12, "{spacing} m: {tip}");
+            // cut on its outline, the panel is not refused either: where an
+            // edge holds no border vertex it is cut conforming
+            let dart = SeamSpec {
+                a: (0, 3),
+                b: (0, 4),
+                stiffness: 1000.0,
+                damping: 0.0,
+            };
+            let on = PanelCut {
+                border: Border::OnOutline,
+                ..cut.clone()
+            };
+            let g = Garment::build(&[on], &[dart], spacing, 0.2)
+                .unwrap_or_else(|e| panic!("on the outline, {spacing} m: {e:#}"));
+            assert!(g.panels[0].edge_vertices.iter().all(|e| !e.is_empty()));
         }
     }
 
