@@ -400,7 +400,10 @@ def test_sigkill_leaves_a_bag_readable_to_its_last_chunk_and_repair_rebuilds_it(
 def node(bag, *params, duration=None):
     args = [BIN, "node", "--ros-args", "-p", f"scene:={SCENE}", "-p", f"spacing:={EXP['spacing']}",
             "-p", f"dt:={EXP['dt']}", "-p", "real_time_factor:=0.0", "-p", f"publish_rate:={EXP['rate']}",
-            "-p", f"record_bag:={bag}", *params]
+            "-p", f"record_bag:={bag}",
+            # the headless drape's thread count (its default, one per core):
+            # the node's default is one thread
+            "-p", "threads:=0", *params]
     if duration is not None:
         args += ["-p", f"duration:={duration}"]
     return subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -423,7 +423,8 @@ impl Outline {
     }
 }
 
-fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+/// Distance from `p` to the segment `ab`.
+pub(crate) fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let l2 = dx * dx + dy * dy;
     let t = if l2 > 0.0 {
@@ -1107,9 +1108,8 @@ impl Cloth {
                     });
                 }
                 let (b, c, d) = (gv(i + 1, j), gv(i + 1, j + 1), gv(i, j + 1));
-                if links.is_some() {
-                    if whole_cell(i, j) {
-                        let (b, c, d) = (b.unwrap(), c.unwrap(), d.unwrap());
+                match (b, c, d) {
+                    (Some(b), Some(c), Some(d)) if links.is_none() || whole_cell(i, j) => {
                         for (p, q) in [(a, c), (b, d)] {
                             shear.push(ShearSpring {
                                 a: p,
@@ -1126,8 +1126,10 @@ impl Cloth {
                             triangles.push([a, b, d]);
                             triangles.push([b, c, d]);
                         }
-                    } else {
-                        // the cell's part inside: its triangles that are
+                    }
+                    // where the border conforms: the cell's part inside, the
+                    // first pair of its triangles that are
+                    _ if links.is_some() => {
                         let (p00, p10, p11, p01) = ((i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1));
                         for pair in [
                             [[p00, p10, p11], [p00, p11, p01]],
@@ -1139,32 +1141,6 @@ impl Cloth {
                                 triangles.extend(t);
                                 break;
                             }
-                        }
-                    }
-                    continue;
-                }
-                match (b, c, d) {
-                    (Some(b), Some(c), Some(d)) => {
-                        shear.push(ShearSpring {
-                            a,
-                            b: c,
-                            lc,
-                            lt,
-                            l0: rest(a, c, l0),
-                        });
-                        shear.push(ShearSpring {
-                            a: b,
-                            b: d,
-                            lc,
-                            lt,
-                            l0: rest(b, d, l0),
-                        });
-                        if (i + j) % 2 == 0 {
-                            triangles.push([a, b, c]);
-                            triangles.push([a, c, d]);
-                        } else {
-                            triangles.push([a, b, d]);
-                            triangles.push([b, c, d]);
                         }
                     }
                     (Some(b), Some(c), None) => triangles.push([a, b, c]),

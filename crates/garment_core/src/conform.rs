@@ -15,7 +15,7 @@
 //!   tips;
 //! - a kept node not tied to the panel along both threads is dropped.
 
-use crate::cloth::{polygon_contains, REMOVED};
+use crate::cloth::{polygon_contains, seg_dist, REMOVED};
 
 /// Corners nearer each other than this many spacings share a vertex.
 pub const MERGE: f64 = 0.25;
@@ -224,17 +224,6 @@ pub(crate) fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
 
 pub(crate) fn dist(p: [f64; 2], q: [f64; 2]) -> f64 {
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
-}
-
-fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
 }
 
 #[cfg(test)]
