@@ -23,6 +23,7 @@ pub const MERGE: f64 = 0.25;
 /// Keeps a grid node for every corner, moved onto it (material positions in
 /// `material`, indexed through `grid_vertex` as in [`crate::cloth::Cloth`]).
 /// Returns the grid node of each corner.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn place_corners(
     corners: &[[f64; 2]],
     node_uv: &dyn Fn(usize, usize) -> [f64; 2],
