@@ -490,12 +490,7 @@ fn conforming_edges(
         if !border[v] || is_corner[v] {
             continue;
         }
-        let near: Vec<(f64, f64)> = cut
-            .edges
-            .iter()
-            .enumerate()
-            .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
-            .collect();
+        let near = near_edges(cut, p, lengths);
         let (e, &(d, t)) = near
             .iter()
             .enumerate()
@@ -533,12 +528,7 @@ fn outline_edges(
         }
         // the nearest edge (every edge as near: a corner is on two), and the
         // fraction of its length there
-        let near: Vec<(f64, f64)> = cut
-            .edges
-            .iter()
-            .enumerate()
-            .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
-            .collect();
+        let near = near_edges(cut, p, lengths);
         let d = near.iter().map(|n| n.0).fold(f64::INFINITY, f64::min);
         if d > 0.75 * spacing {
             continue;
@@ -553,6 +543,14 @@ fn outline_edges(
         ev.sort_by(|a, b| a.1.total_cmp(&b.1));
     }
     edge_vertices
+}
+
+/// For each edge of the panel, the distance from `p` to it and the fraction
+/// of its length at the nearest point.
+fn near_edges(cut: &PanelCut, p: [f64; 2], lengths: &[f64]) -> Vec<(f64, f64)> {
+    (cut.edges.iter().enumerate())
+        .map(|(e, pts)| nearest_on_polyline(pts, p, lengths[e]))
+        .collect()
 }
 
 /// Distance from `p` to a polyline of length `len`, and the fraction of the
