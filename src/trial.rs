@@ -464,20 +464,8 @@ impl Trial {
         // a panel placed partly inside the body (a pattern drafted for
         // another body) is brought out whole before it is sewn
         let mut g = g;
-        let moved = bring_out(&mut g, &self.body)
+        g.bring_out(&self.body)
             .with_context(|| format!("garment {}", self.garment.source.display()))?;
-        for m in &moved {
-            eprintln!(
-                "note: panel {:?} started {:.1} cm under the skin: moved {:.1} cm out along \
-                 ({:.2}, {:.2}, {:.2}) before sewing",
-                g.panels[m.panel].name,
-                100.0 * m.depth,
-                100.0 * m.distance,
-                m.direction.x,
-                m.direction.y,
-                m.direction.z
-            );
-        }
         let params = Params {
             dt,
             linear_solver: ov.solver.or(self.file.linear_solver).unwrap_or_default(),
@@ -494,83 +482,6 @@ impl Trial {
         sim.add_obstacle(self.body.clone());
         Ok((sim, g))
     }
-}
-
-/// A panel moved out of the body before sewing.
-#[derive(Debug, Clone)]
-pub struct PanelMove {
-    pub panel: usize,
-    /// How deep under the skin its deepest vertex started, m.
-    pub depth: f64,
-    /// How far it moved, m, and along which unit direction.
-    pub distance: f64,
-    pub direction: Vector3<f64>,
-}
-
-/// Farthest a panel is moved out of the body, m.
-pub const MAX_BRING_OUT: f64 = 0.3;
-
-/// Moves every panel with a vertex inside the body out of it, rigidly
-/// (the panel stays flat, at rest), along the depth-weighted mean of the
-/// body's outward normals at its vertices inside, by the least multiple of
-/// 2.5 mm that puts all its vertices at least the body's thickness outside
-/// the skin. A panel that no move within [`MAX_BRING_OUT`] frees is an
-/// error naming it.
-pub fn bring_out(g: &mut Garment, body: &Obstacle) -> Result<Vec<PanelMove>> {
-    let clear = body.thickness.max(1e-3);
-    let mut moves = Vec::new();
-    for (k, p) in g.panels.iter().enumerate() {
-        let range = p.first..p.first + p.count;
-        let mut push = Vector3::zeros();
-        let mut depth: f64 = 0.0;
-        let mut worst = None;
-        for i in range.clone() {
-            let q = body.proximity(&g.cloth.x[i]);
-            if q.distance < 0.0 {
-                push += q.normal * -q.distance;
-                if -q.distance > depth {
-                    depth = -q.distance;
-                    worst = Some(i);
-                }
-            }
-        }
-        let Some(worst) = worst else { continue };
-        let direction = push.try_normalize(1e-12).unwrap_or(Vector3::z());
-        let free = |d: f64| {
-            range
-                .clone()
-                .all(|i| body.proximity(&(g.cloth.x[i] + direction * d)).distance >= clear)
-        };
-        let steps = (MAX_BRING_OUT / 2.5e-3).round() as usize;
-        let Some(d) = (1..=steps).map(|n| n as f64 * 2.5e-3).find(|&d| free(d)) else {
-            let x = g.cloth.x[worst];
-            bail!(
-                "panel {:?} starts inside the body (its vertex {} at ({:.3}, {:.3}, {:.3}) m lies \
-                 {:.1} cm under the skin) and no move of up to {:.0} cm along the body's normals \
-                 frees it: move the panel (its placement) or the body (body.pose)",
-                p.name,
-                worst - p.first,
-                x.x,
-                x.y,
-                x.z,
-                100.0 * depth,
-                100.0 * MAX_BRING_OUT
-            );
-        };
-        moves.push(PanelMove {
-            panel: k,
-            depth,
-            distance: d,
-            direction,
-        });
-    }
-    for m in &moves {
-        let p = &g.panels[m.panel];
-        for x in &mut g.cloth.x[p.first..p.first + p.count] {
-            *x += m.direction * m.distance;
-        }
-    }
-    Ok(moves)
 }
 
 /// Sets the stitches' stiffness for the next sewing step: `factor` times
@@ -1485,6 +1396,9 @@ pub fn fit(
                 x[i].z
             ));
         }
+    }
+    for m in &g.moved {
+        warnings.push(m.note(g));
     }
     if gap > 2e-3 {
         warnings.push(format!(

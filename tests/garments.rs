@@ -1002,7 +1002,7 @@ fn bad_garments_are_refused_naming_the_file_the_panel_and_the_edge() {
 
 /// A panel placed 10 cm under the skin of the cylinder (a pattern drafted
 /// for a slimmer body) is brought out whole before sewing, named on
-/// stderr, and the tube is sewn and hangs as when placed outside: no vertex
+/// stderr and in fit.json, and the tube is sewn and hangs as when placed outside: no vertex
 /// inside the body (by the cylinder's own equation, not the contact code),
 /// seams closed.
 #[test]
@@ -1021,10 +1021,20 @@ fn a_panel_placed_inside_the_body_is_brought_out_and_sewn() {
     .unwrap();
     let out = s.join("out");
     let (fit, err) = run_trial(&t, &out, &["--max-time", "2"]);
+    // named on stderr and in fit.json's warnings
     let note = err
         .lines()
-        .find(|l| l.starts_with("note: panel \"front\" started"))
+        .find(|l| l.starts_with("warning: panel \"front\" started"))
         .unwrap_or_else(|| panic!("no note of the move: {err}"));
+    assert!(
+        fit["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| note.ends_with(w.as_str().unwrap())),
+        "{}",
+        fit["warnings"]
+    );
     // out along −y, the cylinder's normal where the panel cuts it, past its
     // skin (the plane y = −0.05 cuts it 9.9 cm deep)
     let dir: Vec<f64> = note
@@ -1076,7 +1086,7 @@ fn bring_out_moves_a_panel_out_of_the_body_or_names_it() {
         ..rect(name, 0.2, 0.2, [0.0, 0.0, 0.0], 90.0)
     };
     let mut g = Garment::build(&[square("deep", 0.0)], &[], 0.02, f.areal_mass).unwrap();
-    let e = trial::bring_out(&mut g, &ball).unwrap_err().to_string();
+    let e = g.bring_out(&ball).unwrap_err().to_string();
     assert!(
         e.contains("panel \"deep\" starts inside the body") && e.contains("no move of up to 30 cm"),
         "{e}"
@@ -1090,7 +1100,8 @@ fn bring_out_moves_a_panel_out_of_the_body_or_names_it() {
     )
     .unwrap();
     let before = g.cloth.x.clone();
-    let moves = trial::bring_out(&mut g, &ball).unwrap();
+    g.bring_out(&ball).unwrap();
+    let moves = g.moved.clone();
 
     assert_eq!(moves.len(), 1);
     assert_eq!(g.panels[moves[0].panel].name, "near");

@@ -12,6 +12,7 @@
 //! same length nor the same sampling.
 
 use crate::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec, Stitch};
+use crate::collision::Obstacle;
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
@@ -132,7 +133,39 @@ pub struct Garment {
     pub cloth: Cloth,
     pub panels: Vec<Panel>,
     pub seams: Vec<Seam>,
+    /// The panels [`Garment::bring_out`] moved out of a body.
+    pub moved: Vec<PanelMove>,
 }
+
+/// A panel moved out of a body before sewing.
+#[derive(Debug, Clone)]
+pub struct PanelMove {
+    pub panel: usize,
+    /// How deep under the skin its deepest vertex started, m.
+    pub depth: f64,
+    /// How far it moved, m, and along which unit direction.
+    pub distance: f64,
+    pub direction: Vector3<f64>,
+}
+
+impl PanelMove {
+    /// The move in words, naming the panel of `g`.
+    pub fn note(&self, g: &Garment) -> String {
+        format!(
+            "panel {:?} started {:.1} cm under the skin: moved {:.1} cm out along ({:.2}, {:.2}, \
+             {:.2}) before sewing",
+            g.panels[self.panel].name,
+            100.0 * self.depth,
+            100.0 * self.distance,
+            self.direction.x,
+            self.direction.y,
+            self.direction.z
+        )
+    }
+}
+
+/// Farthest [`Garment::bring_out`] moves a panel, m.
+pub const MAX_BRING_OUT: f64 = 0.3;
 
 impl Garment {
     /// Cuts every panel at `spacing` (warp and weft, m) with `areal_mass`
@@ -275,7 +308,73 @@ impl Garment {
             cloth,
             panels,
             seams: built,
+            moved: Vec::new(),
         })
+    }
+
+    /// Moves every panel with a vertex inside the body out of it, rigidly
+    /// (the panel stays flat, at rest), along the depth-weighted mean of the
+    /// body's outward normals at its vertices inside, by the least multiple of
+    /// 2.5 mm that puts all its vertices at least the body's thickness outside
+    /// the skin. A panel that no move within [`MAX_BRING_OUT`] frees is an
+    /// error naming it. The moves are kept in [`Garment::moved`].
+    pub fn bring_out(&mut self, body: &Obstacle) -> Result<()> {
+        let g = self;
+        let clear = body.thickness.max(1e-3);
+        let mut moves = Vec::new();
+        for (k, p) in g.panels.iter().enumerate() {
+            let range = p.first..p.first + p.count;
+            let mut push = Vector3::zeros();
+            let mut depth: f64 = 0.0;
+            let mut worst = None;
+            for i in range.clone() {
+                let q = body.proximity(&g.cloth.x[i]);
+                if q.distance < 0.0 {
+                    push += q.normal * -q.distance;
+                    if -q.distance > depth {
+                        depth = -q.distance;
+                        worst = Some(i);
+                    }
+                }
+            }
+            let Some(worst) = worst else { continue };
+            let direction = push.try_normalize(1e-12).unwrap_or(Vector3::z());
+            let free = |d: f64| {
+                range
+                    .clone()
+                    .all(|i| body.proximity(&(g.cloth.x[i] + direction * d)).distance >= clear)
+            };
+            let steps = (MAX_BRING_OUT / 2.5e-3).round() as usize;
+            let Some(d) = (1..=steps).map(|n| n as f64 * 2.5e-3).find(|&d| free(d)) else {
+                let x = g.cloth.x[worst];
+                bail!(
+                    "panel {:?} starts inside the body (its vertex {} at ({:.3}, {:.3}, {:.3}) m lies \
+                     {:.1} cm under the skin) and no move of up to {:.0} cm along the body's normals \
+                     frees it: move the panel (its placement) or the body (body.pose)",
+                    p.name,
+                    worst - p.first,
+                    x.x,
+                    x.y,
+                    x.z,
+                    100.0 * depth,
+                    100.0 * MAX_BRING_OUT
+                );
+            };
+            moves.push(PanelMove {
+                panel: k,
+                depth,
+                distance: d,
+                direction,
+            });
+        }
+        for m in &moves {
+            let p = &g.panels[m.panel];
+            for x in &mut g.cloth.x[p.first..p.first + p.count] {
+                *x += m.direction * m.distance;
+            }
+        }
+        g.moved = moves;
+        Ok(())
     }
 
     /// The largest seam gap, m (the distance between a stitched vertex and
