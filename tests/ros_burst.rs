@@ -13,15 +13,7 @@ mod support;
 #[test]
 fn bursts_of_bad_messages_and_a_stopped_subscriber_do_not_hold_the_node() {
     let dir = support::Scratch::new("ros_burst");
-    let cfg = dir.join("cyclonedds.xml");
-    std::fs::write(
-        &cfg,
-        "<CycloneDDS><Domain id=\"any\"><General><Interfaces>\
-         <NetworkInterface name=\"lo\" multicast=\"true\"/>\
-         </Interfaces></General></Domain></CycloneDDS>",
-    )
-    .unwrap();
-    let uri = std::ffi::OsString::from(format!("file://{}", cfg.display()));
+    let uri = support::cyclone_loopback_uri(&dir);
     let bin = std::ffi::OsString::from(support::garment_sim_path());
     let bursts = std::ffi::OsString::from(
         std::env::var("GARMENT_SIM_BURSTS").unwrap_or_else(|_| "10".into()),

@@ -10,15 +10,7 @@ mod support;
 #[test]
 fn node_interoperates_with_cyclone_dds() {
     let dir = support::Scratch::new("ros_node");
-    let cfg = dir.join("cyclonedds.xml");
-    std::fs::write(
-        &cfg,
-        "<CycloneDDS><Domain id=\"any\"><General><Interfaces>\
-         <NetworkInterface name=\"lo\" multicast=\"true\"/>\
-         </Interfaces></General></Domain></CycloneDDS>",
-    )
-    .unwrap();
-    let uri = std::ffi::OsString::from(format!("file://{}", cfg.display()));
+    let uri = support::cyclone_loopback_uri(&dir);
     let bin = std::ffi::OsString::from(support::garment_sim_path());
     support::pytest(
         "tests/ros_interop.py",

@@ -42,6 +42,20 @@ pub fn lab_report(command: &str, args: &[&str], out: &Path) -> (String, serde_js
     (stdout, serde_json::from_str(&rep).unwrap())
 }
 
+/// A Cyclone DDS configuration in `dir` that keeps the participant on the
+/// loopback interface, as the URI `CYCLONEDDS_URI` takes.
+pub fn cyclone_loopback_uri(dir: &Path) -> std::ffi::OsString {
+    let cfg = dir.join("cyclonedds.xml");
+    std::fs::write(
+        &cfg,
+        "<CycloneDDS><Domain id=\"any\"><General><Interfaces>\
+         <NetworkInterface name=\"lo\" multicast=\"true\"/>\
+         </Interfaces></General></Domain></CycloneDDS>",
+    )
+    .unwrap();
+    std::ffi::OsString::from(format!("file://{}", cfg.display()))
+}
+
 /// The binary's path.
 pub fn garment_sim_path() -> &'static str {
     env!("CARGO_BIN_EXE_garment_sim")
