@@ -2,7 +2,7 @@
 //! T-shirt's left sleeve over the body's left arm, and the progress measure.
 
 mod support;
-use garment_sim::dressing::{self, project_on_polyline};
+use garment_sim::trial::dressing::{self, project_on_polyline};
 use garment_sim::trial::{Trial, TrialOverrides};
 use nalgebra::Vector3;
 use std::path::PathBuf;

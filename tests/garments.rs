@@ -78,8 +78,8 @@ fn two_panels() -> (Garment, Fabric) {
     let seam = SeamSpec {
         a: (0, 0),
         b: (1, 2),
-        stiffness: garment_sim::pattern::DEFAULT_SEAM_STIFFNESS,
-        damping: garment_sim::pattern::DEFAULT_SEAM_DAMPING,
+        stiffness: garment_sim::trial::pattern::DEFAULT_SEAM_STIFFNESS,
+        damping: garment_sim::trial::pattern::DEFAULT_SEAM_DAMPING,
     };
     let f = fabric("wool_tropical");
     let g = Garment::build(&[a, b], &[seam], 0.02, f.areal_mass).unwrap();
@@ -1148,7 +1148,7 @@ fn the_garmentcode_importer_agrees_with_pygarment() {
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        let pat = garment_sim::pattern::garmentcode::load(&spec).unwrap();
+        let pat = garment_sim::trial::pattern::garmentcode::load(&spec).unwrap();
         for p in &pat.panels {
             let poly: Vec<[f64; 2]> = p
                 .edges

@@ -384,8 +384,8 @@ fn tube(on: bool, dt: f64) -> Simulation {
     let seam = |e: usize| SeamSpec {
         a: (0, e),
         b: (1, e),
-        stiffness: garment_sim::pattern::DEFAULT_SEAM_STIFFNESS,
-        damping: garment_sim::pattern::DEFAULT_SEAM_DAMPING,
+        stiffness: garment_sim::trial::pattern::DEFAULT_SEAM_STIFFNESS,
+        damping: garment_sim::trial::pattern::DEFAULT_SEAM_DAMPING,
     };
     let g = Garment::build(
         &[rect("under", 0.1), rect("over", 0.13)],
@@ -842,7 +842,7 @@ fn the_drape_summary_and_the_node_diagnostics_report_it() {
     for on in [false, true] {
         let mut sim = stacked(on, 1.0 / 60.0);
         let (_, summary) =
-            garment_sim::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
+            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
         let diag = publish::diagnostics(
             &sim,
             publish::header(&sim, "world"),
@@ -962,7 +962,7 @@ fn sheet_on_thin_rod(edges: bool, seconds: f64) -> (Simulation, usize, f64) {
             .count();
         worst = worst.max(crossing);
         if k > steps - last {
-            let w = garment_sim::body_forces::wrench(&sim, rod).unwrap();
+            let w = garment_sim::trial::body_forces::wrench(&sim, rod).unwrap();
             lift -= w.force[2];
         }
     }
@@ -1060,9 +1060,9 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
     for (k, edges) in [false, true].into_iter().enumerate() {
         let mut t = Trial::load(&path).unwrap();
         t.file.dressing.as_mut().unwrap().edge_contacts = edges;
-        let (bx, btris) = garment_sim::body_forces::world_mesh(&t.body).unwrap();
+        let (bx, btris) = garment_sim::trial::body_forces::world_mesh(&t.body).unwrap();
         let mut step = 0;
-        let run = garment_sim::dressing::run_trial(
+        let run = garment_sim::trial::dressing::run_trial(
             &t,
             &ov,
             &mut |_, _, _, _| {},

@@ -1,9 +1,9 @@
 //! `garment_sim trial`: a virtual garment trial from the command line.
 
 use anyhow::Result;
-use garment_sim::render::{full_scale, FieldPicture, Surface};
+use garment_sim::pictures::render::{full_scale, FieldPicture, Surface};
+use garment_sim::scene::system_file::SystemWriter;
 use garment_sim::solver::LinearSolverKind;
-use garment_sim::system_file::SystemWriter;
 use garment_sim::trial::{self, Trial, TrialOverrides};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -91,7 +91,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
         sim.params().dt
     );
     std::fs::create_dir_all(&a.out)?;
-    let stop = garment_sim::run::stop_flag()?;
+    let stop = garment_sim::scene::run::stop_flag()?;
     let mut sew = crate::progress_printer("sewing".into());
     let mut drape = crate::progress_printer("drape".into());
     let mut motion = crate::progress_printer("motion".into());
@@ -277,7 +277,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     println!("wrote {}", a.out.display());
     match &fit.run.failure {
         // the outputs are those of the steps before the failed one
-        Some(f) => Err(garment_sim::run::written_before_failure(
+        Some(f) => Err(garment_sim::scene::run::written_before_failure(
             f,
             fit.run.simulated_s,
             fit.run.steps,
@@ -292,7 +292,7 @@ pub fn trial(a: TrialArgs) -> Result<()> {
 /// a sleeve over the arm (docs/bodies.md).
 fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     std::fs::create_dir_all(&a.out)?;
-    let stop = garment_sim::run::stop_flag()?;
+    let stop = garment_sim::scene::run::stop_flag()?;
     let mut sew = crate::progress_printer("sewing".into());
     let mut dress = crate::progress_printer("dressing".into());
     let wall = std::time::Instant::now();
@@ -302,7 +302,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     // its path: dressing_0.png … dressing_4.png
     let mut shot = 0;
     let mut shot_err: Option<anyhow::Error> = None;
-    let ran = garment_sim::dressing::run_trial(
+    let ran = garment_sim::trial::dressing::run_trial(
         t,
         ov,
         &mut |_, _, x, of| sew(x, of),
@@ -325,8 +325,8 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
                     row.arm_force_n
                 );
                 let png = a.out.join(format!("dressing_{shot}.png"));
-                if let Err(e) =
-                    garment_sim::render::Picture::from_simulation(sim, &title).save_png(&png)
+                if let Err(e) = garment_sim::pictures::render::Picture::from_simulation(sim, &title)
+                    .save_png(&png)
                 {
                     shot_err.get_or_insert(e);
                 }
@@ -342,7 +342,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
             // what was recorded before the failure is kept
             if !so_far.is_empty() {
                 let csv = a.out.join("dressing.csv");
-                garment_sim::dressing::write_csv(&so_far, &csv)?;
+                garment_sim::trial::dressing::write_csv(&so_far, &csv)?;
                 eprintln!(
                     "the dressing stopped after {} steps; their rows are in {}",
                     so_far.len(),
@@ -365,8 +365,8 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
     stats.final_rms_speed_m_s = sim.rms_speed();
     let (mut fit, vf, on_body) = trial::fit(sim, g, t, stats);
     fit.dressing = Some(run.report.clone());
-    garment_sim::dressing::write_csv(rows, &a.out.join("dressing.csv"))?;
-    garment_sim::dressing::write_png(rows, &t.garment.name, &a.out.join("dressing.png"))?;
+    garment_sim::trial::dressing::write_csv(rows, &a.out.join("dressing.csv"))?;
+    garment_sim::trial::dressing::write_png(rows, &t.garment.name, &a.out.join("dressing.png"))?;
     if let Some(p) = &on_body {
         trial::write_body_ply(p, &a.out.join("body_pressure.ply"))?;
     }
@@ -380,17 +380,17 @@ fn dress(t: &Trial, ov: &TrialOverrides, a: &TrialArgs) -> Result<()> {
          {} dressing steps in {:.1} s wall ({:.1} ms/step)",
         t.garment.name,
         match r.arm {
-            garment_sim::dressing::Side::Left => "left",
-            garment_sim::dressing::Side::Right => "right",
+            garment_sim::trial::dressing::Side::Left => "left",
+            garment_sim::trial::dressing::Side::Right => "right",
         },
         r.arm_length_m,
         match r.hand {
-            garment_sim::dressing::Hand::Mesh => "",
-            garment_sim::dressing::Hand::Hull => ", the hand as its convex hull",
+            garment_sim::trial::dressing::Hand::Mesh => "",
+            garment_sim::trial::dressing::Hand::Hull => ", the hand as its convex hull",
         },
         match r.grip {
-            garment_sim::dressing::Grip::Cuff => "cuff",
-            garment_sim::dressing::Grip::Armhole => "armhole",
+            garment_sim::trial::dressing::Grip::Cuff => "cuff",
+            garment_sim::trial::dressing::Grip::Armhole => "armhole",
         },
         r.cuff_vertices,
         r.gripped_vertices,

@@ -29,11 +29,11 @@
 //!
 //! The arm comes from the body mesh alone ([`Arm::of`]).
 
-use crate::body_forces;
 use crate::collision::Obstacle;
 use crate::garment::Garment;
 use crate::set::Handle;
 use crate::solver::{Pin, PinPath, Simulation};
+use crate::trial::body_forces;
 use anyhow::{bail, Context, Result};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -1780,7 +1780,7 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
 /// Writes `dressing.png`: the progress (top) and the forces (bottom)
 /// against time.
 pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
-    use crate::plot::LinePlot;
+    use crate::pictures::plot::LinePlot;
     let t: Vec<f64> = rows.iter().map(|r| r.time_s).collect();
     let col = |f: fn(&DressingRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
     let prog = col(|r| r.progress);
@@ -1831,7 +1831,7 @@ pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
     );
     bottom.size = (900, 400);
     let panels = [top.render(), middle.render(), bottom.render()];
-    let mut img = crate::plot::Image::new(900, 1200, crate::plot::WHITE);
+    let mut img = crate::pictures::plot::Image::new(900, 1200, crate::pictures::plot::WHITE);
     for (k, p) in panels.iter().enumerate() {
         for y in 0..400 {
             for x in 0..900 {

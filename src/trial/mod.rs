@@ -1,5 +1,5 @@
 //! Virtual garment trials (`garment_sim trial TRIAL.yaml`): a garment
-//! ([`crate::pattern`]) is placed around a body mesh, sewn, draped until it
+//! ([`crate::trial::pattern`]) is placed around a body mesh, sewn, draped until it
 //! settles, and its fit reported. See `docs/garments.md`.
 //!
 //! Phases:
@@ -15,15 +15,19 @@
 //!    in its first pose until now, plays its motion (from `motion.start` s
 //!    on); the run ends with it.
 
-use crate::body_forces::{self, BodyPressure, Wrench};
+pub mod body_forces;
+pub mod dressing;
+pub mod pattern;
+
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
 use crate::garment::Garment;
-use crate::pattern::GarmentDef;
 use crate::scene::PoseSpec;
 use crate::set::Handle;
 use crate::solver::{LinearSolverKind, Params, Simulation};
+use crate::trial::pattern::GarmentDef;
 use anyhow::{bail, Context, Result};
+use body_forces::{BodyPressure, Wrench};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
@@ -207,9 +211,9 @@ pub struct TrialFile {
     #[serde(default)]
     pub cell_shear: bool,
     /// A gripper pulls a sleeve over an arm after sewing, in place of the
-    /// drape (docs/bodies.md, [`crate::dressing`]).
+    /// drape (docs/bodies.md, [`crate::trial::dressing`]).
     #[serde(default)]
-    pub dressing: Option<crate::dressing::DressingFile>,
+    pub dressing: Option<crate::trial::dressing::DressingFile>,
 }
 
 /// A trial as read, with its files resolved.
@@ -581,7 +585,7 @@ impl Trial {
 /// Time and solver work summed over steps (seconds, iterations).
 #[derive(Debug, Clone, Copy, Default)]
 struct Spent {
-    split: crate::run::TimeSplit,
+    split: crate::scene::run::TimeSplit,
     iterations: usize,
     wrench_s: f64,
 }
@@ -589,7 +593,7 @@ struct Spent {
 impl Spent {
     fn since(&self, before: &Spent) -> Spent {
         Spent {
-            split: crate::run::TimeSplit {
+            split: crate::scene::run::TimeSplit {
                 assemble: self.split.assemble - before.split.assemble,
                 solve: self.split.solve - before.split.solve,
                 collide: self.split.collide - before.split.collide,
@@ -605,7 +609,7 @@ impl Spent {
             steps,
             wall_s,
             ms_per_step: 1e3 * wall_s / n,
-            time_split_ms_per_step: crate::run::TimeSplit {
+            time_split_ms_per_step: crate::scene::run::TimeSplit {
                 assemble: 1e3 * self.split.assemble / n,
                 solve: 1e3 * self.split.solve / n,
                 collide: 1e3 * self.split.collide / n,
@@ -626,7 +630,7 @@ pub struct PhaseCost {
     /// Of which: assembly, linear solve, and contacts with the obstacles
     /// (for a moving body: its tree's refit, the contacts' detection and
     /// the swept check after the step; self-collision not included), ms.
-    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
     pub mean_solver_iterations: f64,
     /// The garment's wrench on the body after each step, ms.
     pub body_wrench_ms_per_step: f64,
@@ -651,7 +655,7 @@ pub struct RunStats {
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
-    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
     /// Time spent on the wrench on the body after each step (outside the
@@ -680,7 +684,7 @@ impl RunStats {
     /// The statistics of a trial that ran its course (or was stopped), or
     /// the error of the step that failed.
     pub fn into_result(self) -> Result<RunStats> {
-        crate::run::failed(self.failure.clone())?;
+        crate::scene::run::failed(self.failure.clone())?;
         Ok(self)
     }
 }
@@ -1024,7 +1028,7 @@ pub struct Fit {
     pub body_pressure: Option<BodyPressureFit>,
     /// A dressing trial's progress and forces (`dressing.csv` over time).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub dressing: Option<crate::dressing::DressingReport>,
+    pub dressing: Option<crate::trial::dressing::DressingReport>,
     /// What a designer should not miss: a panel stretched beyond
     /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
     /// garment that did not settle.
