@@ -65,8 +65,7 @@ fn sew_and_drape(sim: &mut Simulation) -> anyhow::Result<trial::RunStats> {
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut trial::run_on,
     )
 }
 
@@ -111,7 +110,7 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
 }
 
 /// A trial whose step fails during sewing ends with what was done before it
-/// (`trial::run_to_failure`, which `trial` uses to write its outputs all the
+/// (`trial::sew_and_drape`, which `trial` uses to write its outputs all the
 /// same): the failed step is named, the steps before it are counted, the
 /// sewing's own settings (no gravity, stiffer seams) are undone and no drape
 /// follows; `trial::run` still returns the failure as an error.
@@ -134,14 +133,13 @@ fn a_trial_whose_step_fails_ends_with_the_steps_before_it() {
             .map(|s| (s.k, s.d))
             .collect::<Vec<_>>(),
     );
-    let st = trial::run_to_failure(
+    let st = trial::sew_and_drape(
         &mut sim,
         None,
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut trial::run_on,
     )
     .unwrap();
     let failure = st.failure.as_deref().expect("the trial failed");

@@ -8,6 +8,7 @@ use garment_sim::cloth::{Cloth, GridSpec, Stitch};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::deforming::{Keyframes, Motion};
 use garment_sim::fabric::Fabric;
+use garment_sim::scene::run::Control;
 use garment_sim::solver::{Params, Simulation};
 use nalgebra::{Isometry3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -944,8 +945,7 @@ fn run_quietly(
         &t.file.sewing,
         &t.file.settle,
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut garment_sim::trial::run_on,
     )
     .unwrap()
 }
@@ -1443,46 +1443,41 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
     let mut skirt: Option<(Unwrap, Unwrap, Vec<f64>)> = None;
     let mut bins: Vec<(f64, f64, f64)> = Vec::new();
     let mut bin: Option<(Unwrap, Unwrap, f64)> = None;
-    let st = trial::run(
-        &mut sim,
-        &t.file.sewing,
-        &t.file.settle,
-        None,
-        &mut |s, phase, at, _| {
-            if phase != "motion" {
-                return;
+    let st = trial::run(&mut sim, &t.file.sewing, &t.file.settle, None, &mut |st| {
+        let (s, at) = (st.sim, st.done);
+        if st.phase != trial::Phase::Motion {
+            return Control::Continue;
+        }
+        let b = s.obstacles()[0].deforming().unwrap().positions();
+        let x = &s.cloth.x;
+        let counting = at > window.0 + 1e-9 && at < window.1 + 1e-9;
+        match &mut skirt {
+            Some((c, u, _)) => {
+                c.update(x, counting);
+                u.update(b, counting);
             }
-            let b = s.obstacles()[0].deforming().unwrap().positions();
-            let x = &s.cloth.x;
-            let counting = at > window.0 + 1e-9 && at < window.1 + 1e-9;
-            match &mut skirt {
-                Some((c, u, _)) => {
-                    c.update(x, counting);
-                    u.update(b, counting);
-                }
-                None => {
-                    let w = b
-                        .iter()
-                        .map(|p| if p.xy().norm() > 0.05 { 1.0 } else { 0.0 })
-                        .collect();
-                    skirt = Some((Unwrap::new(x), Unwrap::new(b), w));
+            None => {
+                let w = b
+                    .iter()
+                    .map(|p| if p.xy().norm() > 0.05 { 1.0 } else { 0.0 })
+                    .collect();
+                skirt = Some((Unwrap::new(x), Unwrap::new(b), w));
+            }
+        }
+        let w = &skirt.as_ref().unwrap().2;
+        match &mut bin {
+            Some((c, u, t0)) => {
+                c.update(x, true);
+                u.update(b, true);
+                if at - *t0 > 0.5 - 1e-9 {
+                    bins.push((*t0, c.mean(&mass) / (at - *t0), u.mean(w) / (at - *t0)));
+                    bin = Some((Unwrap::new(x), Unwrap::new(b), at));
                 }
             }
-            let w = &skirt.as_ref().unwrap().2;
-            match &mut bin {
-                Some((c, u, t0)) => {
-                    c.update(x, true);
-                    u.update(b, true);
-                    if at - *t0 > 0.5 - 1e-9 {
-                        bins.push((*t0, c.mean(&mass) / (at - *t0), u.mean(w) / (at - *t0)));
-                        bin = Some((Unwrap::new(x), Unwrap::new(b), at));
-                    }
-                }
-                None => bin = Some((Unwrap::new(x), Unwrap::new(b), at)),
-            }
-        },
-        &|| false,
-    )
+            None => bin = Some((Unwrap::new(x), Unwrap::new(b), at)),
+        }
+        Control::Continue
+    })
     .unwrap();
     assert!(
         (st.motion_s.unwrap() - 4.0).abs() < 0.01,

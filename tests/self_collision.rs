@@ -743,16 +743,16 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
             &t.file.sewing,
             &t.file.settle,
             Some(3.0),
-            &mut |s, phase, _, _| {
-                let c = std::time::Instant::now();
-                let k = usize::from(phase != "sewing");
+            &mut |st| {
+                let (s, c) = (st.sim, std::time::Instant::now());
+                let k = usize::from(st.phase != trial::Phase::Sewing);
                 worst[k] = worst[k].max(intersections(&s.cloth.x, &tris, &sewn));
                 frames[k] += 1;
                 contacts[k] += s.last.self_contacts;
                 collisions[k] += s.last.self_collisions;
                 check_s += c.elapsed().as_secs_f64();
+                garment_sim::scene::run::Control::Continue
             },
-            &|| false,
         )
         .unwrap();
         eprintln!(
@@ -1062,25 +1062,25 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
         t.file.dressing.as_mut().unwrap().edge_contacts = edges;
         let (bx, btris) = garment_sim::trial::body_forces::world_mesh(&t.body).unwrap();
         let mut step = 0;
-        let run = garment_sim::trial::dressing::run_trial(
-            &t,
-            &ov,
-            &mut |_, _, _, _| {},
-            &mut |sim, _, _| {
+        let run = garment_sim::trial::run_trial(&t, &ov, &mut |s| {
+            if s.phase == garment_sim::trial::Phase::Dressing {
                 step += 1;
                 if step % 5 == 0 {
-                    let c = cloth_body_crossings(&sim.cloth.x, &sim.cloth.triangles, &bx, &btris);
+                    let c =
+                        cloth_body_crossings(&s.sim.cloth.x, &s.sim.cloth.triangles, &bx, &btris);
                     worst[k] = worst[k].max(c);
                 }
-            },
-            &|| false,
-        )
+            }
+            garment_sim::scene::run::Control::Continue
+        })
         .unwrap();
-        progress[k] = run.report.final_progress;
+        assert_eq!(run.fit.run.failure, None);
+        let report = run.fit.dressing.as_ref().unwrap();
+        progress[k] = report.final_progress;
         eprintln!(
             "edges {edges}: at most {} cloth–body triangle intersections in a checked step; \
              final progress {:.3}, peak force on the hand {:.0} N",
-            worst[k], progress[k], run.report.peak_hand_force_n
+            worst[k], progress[k], report.peak_hand_force_n
         );
     }
     assert!(
