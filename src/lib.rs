@@ -17,7 +17,8 @@
 //! node) publishes and [`live`] serves to Foxglove over its WebSocket
 //! protocol. [`pattern`] reads garments (GarmentCode patterns and garment
 //! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body;
-//! [`body_forces`] are the garment's force and pressure on that body.
+//! [`body_forces`] are the garment's force and pressure on that body;
+//! [`glb`] writes a trial as a glTF 2.0 scene (`trial.glb`).
 
 pub use garment_core::{
     cloth, collision, deforming, fabric, garment, limits, self_contact, set, solver,
@@ -27,6 +28,7 @@ pub mod bag;
 pub mod body_forces;
 pub mod capture;
 pub mod dressing;
+pub mod glb;
 pub mod io;
 pub mod lab;
 pub mod live;
