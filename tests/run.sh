@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite, on a fresh machine as on CI (.ci/run calls this): it
 # installs what the tests check against (the Python packages of
-# tests/requirements.txt and GarmentCode's pygarment, Foxglove's own decoders from npm, ROS 2 Jazzy's
+# tests/requirements.txt and GarmentCode's pygarment, Foxglove's own decoders and the Khronos glTF
+# validator from npm, ROS 2 Jazzy's
 # rclpy on Fast DDS from PyPI in a venv with garment_sim_msgs built for it),
 # builds the physics core on its own (the garment_core crate must build
 # without ROS, bags, the command line and PNG), then runs every test of the
@@ -12,6 +13,7 @@ python3 -m pip install --quiet --disable-pip-version-check -r tests/requirements
 # GarmentCode's pygarment, without the meshing and GUI stack it pins
 python3 -m pip install --quiet --disable-pip-version-check --no-deps pygarment==2.0.2
 npm ci --prefix tests/foxglove --no-audit --no-fund --loglevel=error
+npm ci --prefix tests/gltf --no-audit --no-fund --loglevel=error
 bash tests/ros2_venv.sh
 cargo build --release -p garment_core
 forbidden=$(cargo tree -p garment_core -e normal --prefix none \
