@@ -8,7 +8,7 @@ use super::body_forces::{self, BodyPressure, Wrench};
 use super::dressing::{self, Dressing, DressingReport, DressingRow};
 use super::{
     body_handle, body_now, fit, write_body_ply, write_obj, write_ply, write_trace, write_wrench,
-    Fit, PhaseCost, RunStats, SettleFile, SewingFile, Trial, TrialOverrides, VertexFit,
+    Fit, Overrides, PhaseCost, RunStats, SettleFile, SewingFile, Trial, VertexFit,
     STANDARD_GRAVITY,
 };
 use crate::collision::Obstacle;
@@ -576,7 +576,7 @@ pub struct TrialOutcome {
 /// Builds a trial, runs it and measures its fit. A step that fails ends the
 /// run with what was done before it ([`TrialOutcome::error`]); a bad file or
 /// setting is an error at once.
-pub fn run_trial(t: &Trial, ov: &TrialOverrides, observe: Observe) -> Result<TrialOutcome> {
+pub fn run_trial(t: &Trial, ov: &Overrides, observe: Observe) -> Result<TrialOutcome> {
     let (sim, g) = t.build(ov)?;
     run_built(t, ov, sim, g, observe)
 }
@@ -586,7 +586,7 @@ pub fn run_trial(t: &Trial, ov: &TrialOverrides, observe: Observe) -> Result<Tri
 /// captures).
 pub fn run_built(
     t: &Trial,
-    ov: &TrialOverrides,
+    ov: &Overrides,
     mut sim: Simulation,
     g: Garment,
     observe: Observe,
@@ -639,7 +639,7 @@ struct Dressed {
 /// path). The run's figures, the dressing's report and record.
 fn dress(
     t: &Trial,
-    ov: &TrialOverrides,
+    ov: &Overrides,
     sim: &mut Simulation,
     g: &Garment,
     body: Handle<Obstacle>,
