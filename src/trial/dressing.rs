@@ -980,6 +980,18 @@ pub fn grown_hull(pts: &[[f64; 2]], r: f64) -> (Vec<[f64; 2]>, f64) {
     (out, perimeter + std::f64::consts::TAU * r)
 }
 
+/// The gripper's path: its hoops, the held ring's places on them, how many
+/// axis points it reaches and how far its last hoop is tilted, degrees.
+struct GripperPath {
+    hoops: Vec<PlacedHoop>,
+    rings: Vec<Vec<V3>>,
+    reach: usize,
+    end_tilt: f64,
+}
+
+/// When the gripper lets the sleeve's cuff go, s, and its vertices.
+type Release = (f64, Vec<usize>);
+
 /// What the gripper's path is planned from (phase 3): the arm and its
 /// frames, the body's section meshes, the garment as sewn (`x0`) and as
 /// placed past the fingertips (`x`), and the cuff's held ring.
@@ -1367,7 +1379,7 @@ impl PathPlan<'_> {
 
     /// The untilted hoops along the axis and the cuff's rings on them, as
     /// far as the path clears the skin (their count).
-    fn level_path(&self, placed_cuff: &[V3]) -> Result<(Vec<PlacedHoop>, Vec<Vec<V3>>, usize)> {
+    fn level_path(&self, placed_cuff: &[V3]) -> Result<GripperPath> {
         let m = self.arm.axis.len();
         let level = UnitQuaternion::identity();
         let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
@@ -1384,7 +1396,12 @@ impl PathPlan<'_> {
         let reach = self.clear_legs(&legs, 0)?;
         hoops.truncate(reach);
         rings.truncate(reach);
-        Ok((hoops, rings, reach))
+        Ok(GripperPath {
+            hoops,
+            rings,
+            reach,
+            end_tilt: 0.0,
+        })
     }
 
     /// Where a hoop across the axis meets the body short of the shoulder
@@ -1395,17 +1412,12 @@ impl PathPlan<'_> {
     /// 60° every 10°, the one whose path goes farthest (the least tilt of
     /// those). Returns the path reached, its length and the tilt at its
     /// end, degrees (unchanged, 0°, when no tilt goes farther).
-    fn tilted_path(
-        &self,
-        placed_cuff: &[V3],
-        hoops: Vec<PlacedHoop>,
-        rings: Vec<Vec<V3>>,
-        reach: usize,
-    ) -> Result<(Vec<PlacedHoop>, Vec<Vec<V3>>, usize, f64)> {
+    fn tilted_path(&self, placed_cuff: &[V3], level: GripperPath) -> Result<GripperPath> {
         let arm = self.arm;
         let (e1, m) = (&self.e1, arm.axis.len());
+        let (hoops, rings, reach) = (&level.hoops, &level.rings, level.reach);
         if !(reach < m && reach > arm.wrist_at + 5) {
-            return Ok((hoops, rings, reach, 0.0));
+            return Ok(level);
         }
         let s_end = arm.s[m - 1];
         let k0 = (arm.wrist_at..reach)
@@ -1444,9 +1456,14 @@ impl PathPlan<'_> {
                 let end_tilt =
                     deg * ((arm.s[got - 1] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
                 let rings = self.rings_of(&run);
-                (run, rings, got, end_tilt)
+                GripperPath {
+                    hoops: run,
+                    rings,
+                    reach: got,
+                    end_tilt,
+                }
             }
-            None => (hoops, rings, reach, 0.0),
+            None => level,
         })
     }
 
@@ -1462,7 +1479,7 @@ impl PathPlan<'_> {
         out: V3,
         t_start: f64,
         times: &[f64],
-    ) -> Result<(Vec<Pin>, (f64, Vec<usize>))> {
+    ) -> Result<(Vec<Pin>, Release)> {
         let (arm, x0, x, e1) = (self.arm, self.x0, self.x, &self.e1);
         let m = times.len();
         let level = UnitQuaternion::identity();
@@ -1579,8 +1596,13 @@ impl Dressing {
         plan.held = plan.ring_of(&cuff);
         let perimeter = plan.held.perimeter;
         let placed_cuff: Vec<V3> = cuff.iter().map(|&i| x[i]).collect();
-        let (hoops, rings, reach) = plan.level_path(&placed_cuff)?;
-        let (hoops, rings, m, end_tilt) = plan.tilted_path(&placed_cuff, hoops, rings, reach)?;
+        let level = plan.level_path(&placed_cuff)?;
+        let GripperPath {
+            hoops,
+            rings,
+            reach: m,
+            end_tilt,
+        } = plan.tilted_path(&placed_cuff, level)?;
         let t_start = sim.time;
         let t_move = t_start + d.hang;
         let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
