@@ -240,49 +240,35 @@ pub struct Shape {
     pub scene: Option<(String, [usize; 2])>,
 }
 
-/// Reads the cloth shape at `when` from a bag: the point cloud on
-/// `points_topic` gives the vertices (in its order) and their strains; the
-/// TRIANGLE_LIST marker of the same stamp on `mesh_topic`, if there is one,
-/// gives the triangles and the positions at full (float64) precision. The
-/// obstacles come from `/obstacles/markers` and the scene's name from
-/// `/scene_description` (or the bag's only topics ending in those names).
-pub fn shape_at(
-    path: &Path,
-    when: ExportTime,
-    points_topic: &str,
-    mesh_topic: &str,
-) -> Result<Shape> {
-    let r = Reader::open(path)?;
-    // a node in a namespace records e.g. /lab/cloth/points: if the default
-    // names are absent, take the bag's only topics of those names' endings
-    let resolve = |topic: &str, type_name: &str| -> String {
-        if r.channels.values().any(|c| c.topic == topic) {
-            return topic.to_string();
-        }
-        let tail = topic.trim_start_matches('/');
-        let found: Vec<&str> = r
-            .channels
-            .values()
-            .filter(|c| c.type_name == type_name && c.topic.ends_with(&format!("/{tail}")))
-            .map(|c| c.topic.as_str())
-            .collect();
-        match found.as_slice() {
-            [one] => one.to_string(),
-            _ => topic.to_string(),
-        }
-    };
-    let points_topic = resolve(points_topic, PointCloud2::NAME);
-    let points_topic = points_topic.as_str();
-    let mesh_topic = resolve(mesh_topic, Marker::NAME);
-    let mesh_topic = mesh_topic.as_str();
-    // frame times first; only the chosen frame's messages are copied
-    let times = r.log_times(points_topic)?;
+/// The bag's topic of `topic`: itself if recorded, else the bag's only
+/// topic of `type_name` ending in its name (a node in a namespace records
+/// e.g. /lab/cloth/points), else `topic`.
+fn resolve_topic(r: &Reader, topic: &str, type_name: &str) -> String {
+    if r.channels.values().any(|c| c.topic == topic) {
+        return topic.to_string();
+    }
+    let tail = topic.trim_start_matches('/');
+    let found: Vec<&str> = r
+        .channels
+        .values()
+        .filter(|c| c.type_name == type_name && c.topic.ends_with(&format!("/{tail}")))
+        .map(|c| c.topic.as_str())
+        .collect();
+    match found.as_slice() {
+        [one] => one.to_string(),
+        _ => topic.to_string(),
+    }
+}
+
+/// The index of the frame `when` names among the frame times `times` of
+/// `points_topic` (within 1 µs of a frame).
+fn frame_index(r: &Reader, times: &[u64], when: ExportTime, points_topic: &str) -> Result<usize> {
     let (first, last) = match (times.first(), times.last()) {
         (Some(&a), Some(&b)) => (a, b),
         _ => bail!("{}: no message on {points_topic}", r.path.display()),
     };
     const TOL_NS: i128 = 1000;
-    let k = match when {
+    Ok(match when {
         ExportTime::Last => times.len() - 1,
         ExportTime::At(t) => {
             let tn = (t * 1e9).round() as i128;
@@ -299,22 +285,23 @@ pub fn shape_at(
                 .rposition(|&s| (s as i128) <= tn + TOL_NS)
                 .expect("t is within the bag")
         }
-    };
-    let stamp = &times[k];
-    let bytes = r
-        .message_at(points_topic, *stamp)?
-        .expect("the frame was just listed");
-    let cloud: PointCloud2 = from_cdr(&bytes)
-        .with_context(|| format!("{points_topic} at {} ns: not a PointCloud2", stamp))?;
-    let pts =
-        publish::cloud_points(&cloud).with_context(|| format!("{points_topic} at {} ns", stamp))?;
-    let mut vertices: Vec<[f64; 3]> = pts
-        .iter()
-        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
-        .collect();
+    })
+}
+
+/// The triangles of the TRIANGLE_LIST marker on `mesh_topic` at `stamp`,
+/// if there is one whose every point is a vertex of the cloud `pts`
+/// (float64 positions rounded to float32 identify the vertex); those
+/// vertices take the marker's full-precision positions. Empty otherwise.
+fn mesh_faces(
+    r: &Reader,
+    mesh_topic: &str,
+    stamp: u64,
+    pts: &[[f32; 3]],
+    vertices: &mut [[f64; 3]],
+) -> Result<Vec<[usize; 3]>> {
     let mut faces = Vec::new();
     if r.channels.values().any(|c| c.topic == mesh_topic) {
-        let marker: Option<Marker> = match r.message_at(mesh_topic, *stamp)? {
+        let marker: Option<Marker> = match r.message_at(mesh_topic, stamp)? {
             None => None,
             Some(b) => Some(
                 from_cdr(&b)
@@ -348,50 +335,99 @@ pub fn shape_at(
             }
         }
     }
+    Ok(faces)
+}
+
+/// The last message on `topic` (of type `type_name`) at or before `stamp`,
+/// if the bag has that topic with that type.
+fn last_message_before(
+    r: &Reader,
+    topic: &str,
+    type_name: &str,
+    stamp: u64,
+) -> Result<Option<Vec<u8>>> {
+    if !r
+        .channels
+        .values()
+        .any(|c| c.topic == topic && c.type_name == type_name)
+    {
+        return Ok(None);
+    }
+    let times = r.log_times(topic)?;
+    let Some(k) = times.iter().rposition(|&s| s <= stamp) else {
+        return Ok(None);
+    };
+    let b = r
+        .message_at(topic, times[k])?
+        .expect("the message was just listed");
+    Ok(Some(b))
+}
+
+/// The scene's name (its YAML's `name`, else its file) and grid from a
+/// scene description message, if it decodes.
+fn scene_of_description(b: &[u8]) -> Option<(String, [usize; 2])> {
+    let d: Option<SceneDescription> = from_cdr::<StringMsg>(b)
+        .ok()
+        .and_then(|m| serde_yaml::from_str(&m.data).ok());
+    d.map(|d| {
+        let name = serde_yaml::from_str::<serde_yaml::Value>(&d.scene_yaml)
+            .ok()
+            .and_then(|v| v.get("name").and_then(|n| n.as_str()).map(String::from))
+            .filter(|n| !n.is_empty())
+            .unwrap_or(d.scene_file);
+        (name, d.grid)
+    })
+}
+
+/// Reads the cloth shape at `when` from a bag: the point cloud on
+/// `points_topic` gives the vertices (in its order) and their strains; the
+/// TRIANGLE_LIST marker of the same stamp on `mesh_topic`, if there is one,
+/// gives the triangles and the positions at full (float64) precision. The
+/// obstacles come from `/obstacles/markers` and the scene's name from
+/// `/scene_description` (or the bag's only topics ending in those names).
+pub fn shape_at(
+    path: &Path,
+    when: ExportTime,
+    points_topic: &str,
+    mesh_topic: &str,
+) -> Result<Shape> {
+    let r = Reader::open(path)?;
+    // a node in a namespace records e.g. /lab/cloth/points: if the default
+    // names are absent, take the bag's only topics of those names' endings
+    let points_topic = resolve_topic(&r, points_topic, PointCloud2::NAME);
+    let points_topic = points_topic.as_str();
+    let mesh_topic = resolve_topic(&r, mesh_topic, Marker::NAME);
+    let mesh_topic = mesh_topic.as_str();
+    // frame times first; only the chosen frame's messages are copied
+    let times = r.log_times(points_topic)?;
+    let k = frame_index(&r, &times, when, points_topic)?;
+    let stamp = &times[k];
+    let bytes = r
+        .message_at(points_topic, *stamp)?
+        .expect("the frame was just listed");
+    let cloud: PointCloud2 = from_cdr(&bytes)
+        .with_context(|| format!("{points_topic} at {} ns: not a PointCloud2", stamp))?;
+    let pts =
+        publish::cloud_points(&cloud).with_context(|| format!("{points_topic} at {} ns", stamp))?;
+    let mut vertices: Vec<[f64; 3]> = pts
+        .iter()
+        .map(|p| [p[0] as f64, p[1] as f64, p[2] as f64])
+        .collect();
+    let faces = mesh_faces(&r, mesh_topic, *stamp, &pts, &mut vertices)?;
     let strain = cloud_strain(&cloud);
     // obstacles and scene name only label and decorate a picture: a topic
     // of another type or a message that does not decode leaves them out
     // rather than failing the export of the cloth
-    let obstacles_topic = resolve("/obstacles/markers", MarkerArray::NAME);
+    let obstacles_topic = resolve_topic(&r, "/obstacles/markers", MarkerArray::NAME);
     let mut obstacles = Vec::new();
-    if r.channels
-        .values()
-        .any(|c| c.topic == obstacles_topic && c.type_name == MarkerArray::NAME)
-    {
-        let times = r.log_times(&obstacles_topic)?;
-        if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
-            let b = r
-                .message_at(&obstacles_topic, times[k])?
-                .expect("the message was just listed");
-            if let Ok(m) = from_cdr::<MarkerArray>(&b) {
-                obstacles = obstacle_surfaces(&m);
-            }
+    if let Some(b) = last_message_before(&r, &obstacles_topic, MarkerArray::NAME, *stamp)? {
+        if let Ok(m) = from_cdr::<MarkerArray>(&b) {
+            obstacles = obstacle_surfaces(&m);
         }
     }
-    let description_topic = resolve("/scene_description", StringMsg::NAME);
-    let mut scene = None;
-    if r.channels
-        .values()
-        .any(|c| c.topic == description_topic && c.type_name == StringMsg::NAME)
-    {
-        let times = r.log_times(&description_topic)?;
-        if let Some(k) = times.iter().rposition(|&s| s <= *stamp) {
-            let b = r
-                .message_at(&description_topic, times[k])?
-                .expect("the message was just listed");
-            let d: Option<SceneDescription> = from_cdr::<StringMsg>(&b)
-                .ok()
-                .and_then(|m| serde_yaml::from_str(&m.data).ok());
-            scene = d.map(|d| {
-                let name = serde_yaml::from_str::<serde_yaml::Value>(&d.scene_yaml)
-                    .ok()
-                    .and_then(|v| v.get("name").and_then(|n| n.as_str()).map(String::from))
-                    .filter(|n| !n.is_empty())
-                    .unwrap_or(d.scene_file);
-                (name, d.grid)
-            });
-        }
-    }
+    let description_topic = resolve_topic(&r, "/scene_description", StringMsg::NAME);
+    let scene = last_message_before(&r, &description_topic, StringMsg::NAME, *stamp)?
+        .and_then(|b| scene_of_description(&b));
     Ok(Shape {
         time_s: *stamp as f64 * 1e-9,
         vertices,

@@ -42,20 +42,8 @@ pub struct BenchArgs {
     pub self_collision: bool,
 }
 
-/// Runs `bench`.
-pub fn bench(a: BenchArgs) -> Result<()> {
-    let BenchArgs {
-        scene,
-        spacing,
-        dt,
-        solver,
-        steps,
-        repeat,
-        warmup,
-        threads,
-        self_collision,
-    } = a;
-    let sc = Scene::load(&scene).with_context(|| "bench needs a scene")?;
+/// Prints the benchmark's heading and its table's column names.
+fn print_heading(scene: &std::path::Path, steps: u64, repeat: usize, warmup: f64) {
     println!(
         "scene {} ; {} steps per run, median of {} runs of the same steps, after {} s of simulated \
          warm-up (at most 3 × steps; the window column gives the simulated times measured)",
@@ -80,120 +68,162 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         "threads",
         "window s"
     );
-    for &sp in &spacing {
-        for &h in &dt {
-            for &so in &solver {
-                let ov = Overrides {
-                    spacing: Some(sp),
-                    dt: Some(h),
-                    solver: Some(so),
-                    threads,
-                    self_collision: self_collision.then_some(true),
-                    ..Default::default()
-                };
-                // the first run's simulation (its grid and threads are the row's)
-                let sim = sc.build(&ov)?;
-                let (grid, used) = (format!("{}x{}", sim.cloth.nx, sim.cloth.ny), sim.threads());
-                let mut first = Some(sim);
-                let wsteps = ((warmup / h).round() as u64).min(steps * 3);
-                let window = format!(
-                    "{:.3}-{:.3}",
-                    wsteps as f64 * h,
-                    (wsteps + steps) as f64 * h
-                );
-                // per run: ms per step in all, then in assembly, solve
-                // and contacts (the step's own timers)
-                let mut ms: Vec<[f64; 5]> = Vec::new();
-                // self-collision contacts and collisions per step
-                let mut own = [0.0; 2];
-                let mut it = 0.0;
-                // the process's peak after the first run (the later runs'
-                // heaps, fragmented by the runs before, would add to it)
-                let mut peak = f64::NAN;
-                let measured = (|| -> Result<()> {
-                    for _ in 0..repeat.max(1) {
-                        // every run measures the same steps: the scene built
-                        // and warmed up again (the runs are deterministic), so
-                        // the median compares like with like rather than
-                        // later, calmer stretches of the drape; the last
-                        // run's simulation is dropped before this one is built
-                        let mut sim = match first.take() {
-                            Some(sim) => sim,
-                            None => sc.build(&ov)?,
-                        };
-                        for _ in 0..wsteps {
-                            sim.step()?;
-                        }
-                        let t = std::time::Instant::now();
-                        let mut iters = 0;
-                        let mut phase = [0.0; 4];
-                        let mut pairs = [0usize; 2];
-                        for _ in 0..steps {
-                            let st = sim.step()?;
-                            iters += st.iterations;
-                            phase[0] += st.assemble_s;
-                            phase[1] += st.solve_s;
-                            phase[2] += st.collide_s;
-                            phase[3] += st.self_s;
-                            pairs[0] += st.self_contacts;
-                            pairs[1] += st.self_collisions;
-                        }
-                        own = pairs.map(|p| p as f64 / steps as f64);
-                        let per = |x: f64| 1e3 * x / steps as f64;
-                        ms.push([
-                            per(t.elapsed().as_secs_f64()),
-                            per(phase[0]),
-                            per(phase[1]),
-                            per(phase[2]),
-                            per(phase[3]),
-                        ]);
-                        it = iters as f64 / steps as f64;
-                        if peak.is_nan() {
-                            peak = peak_rss_mb();
-                        }
-                    }
-                    Ok(())
-                })();
-                if let Err(e) = measured {
-                    println!(
-                        "{:>8} {:>9} {:>10} {:>8}   failed: {e:#}",
-                        sp,
-                        grid,
-                        format!("{h:.4e}"),
-                        format!("{so:?}").to_lowercase()
-                    );
-                    continue;
-                }
-                // the median run, with its own phase split
-                ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
-                let med = ms[ms.len() / 2];
-                println!(
-                    "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7} {:>13}",
-                    sp,
-                    grid,
-                    format!("{h:.4e}"),
-                    format!("{so:?}").to_lowercase(),
-                    med[0],
-                    med[1],
-                    med[2],
-                    med[3],
-                    h * 1e3 / med[0],
-                    it,
-                    peak,
-                    used,
-                    window
-                );
-                if self_collision {
-                    println!(
-                        "{:>8} self-collision {:.3} ms/step, {:.1} % of the step; {:.1} contacts, \
-                         {:.2} collisions per step (last run)",
-                        "",
-                        med[4],
-                        100.0 * med[4] / med[0],
-                        own[0],
-                        own[1]
-                    );
-                }
+}
+
+/// What the runs of one row measured.
+struct Measured {
+    /// Per run: ms per step in all, then in assembly, solve, contacts and
+    /// self-collision (the step's own timers).
+    ms: Vec<[f64; 5]>,
+    /// Self-collision contacts and collisions per step (last run).
+    own: [f64; 2],
+    /// Solver iterations per step (last run).
+    it: f64,
+    /// The process's peak resident memory after the first run, MB.
+    peak: f64,
+}
+
+/// Runs the same `steps` after `wsteps` of warm-up `repeat` times, each
+/// from the scene built again (the first from `first`).
+fn measure(
+    sc: &Scene,
+    ov: &Overrides,
+    first: garment_sim::solver::Simulation,
+    repeat: usize,
+    wsteps: u64,
+    steps: u64,
+) -> Result<Measured> {
+    let mut first = Some(first);
+    let mut ms: Vec<[f64; 5]> = Vec::new();
+    let mut own = [0.0; 2];
+    let mut it = 0.0;
+    // the process's peak after the first run (the later runs'
+    // heaps, fragmented by the runs before, would add to it)
+    let mut peak = f64::NAN;
+    for _ in 0..repeat.max(1) {
+        // every run measures the same steps: the scene built
+        // and warmed up again (the runs are deterministic), so
+        // the median compares like with like rather than
+        // later, calmer stretches of the drape; the last
+        // run's simulation is dropped before this one is built
+        let mut sim = match first.take() {
+            Some(sim) => sim,
+            None => sc.build(ov)?,
+        };
+        for _ in 0..wsteps {
+            sim.step()?;
+        }
+        let t = std::time::Instant::now();
+        let mut iters = 0;
+        let mut phase = [0.0; 4];
+        let mut pairs = [0usize; 2];
+        for _ in 0..steps {
+            let st = sim.step()?;
+            iters += st.iterations;
+            phase[0] += st.assemble_s;
+            phase[1] += st.solve_s;
+            phase[2] += st.collide_s;
+            phase[3] += st.self_s;
+            pairs[0] += st.self_contacts;
+            pairs[1] += st.self_collisions;
+        }
+        own = pairs.map(|p| p as f64 / steps as f64);
+        let per = |x: f64| 1e3 * x / steps as f64;
+        ms.push([
+            per(t.elapsed().as_secs_f64()),
+            per(phase[0]),
+            per(phase[1]),
+            per(phase[2]),
+            per(phase[3]),
+        ]);
+        it = iters as f64 / steps as f64;
+        if peak.is_nan() {
+            peak = peak_rss_mb();
+        }
+    }
+    Ok(Measured { ms, own, it, peak })
+}
+
+/// Benchmarks one spacing, step and solver and prints its row (and the
+/// self-collision's share when it is on).
+fn bench_row(a: &BenchArgs, sc: &Scene, sp: f64, h: f64, so: LinearSolverKind) -> Result<()> {
+    let (steps, repeat, warmup) = (a.steps, a.repeat, a.warmup);
+    let ov = Overrides {
+        spacing: Some(sp),
+        dt: Some(h),
+        solver: Some(so),
+        threads: a.threads,
+        self_collision: a.self_collision.then_some(true),
+        ..Default::default()
+    };
+    // the first run's simulation (its grid and threads are the row's)
+    let sim = sc.build(&ov)?;
+    let (grid, used) = (format!("{}x{}", sim.cloth.nx, sim.cloth.ny), sim.threads());
+    let wsteps = ((warmup / h).round() as u64).min(steps * 3);
+    let window = format!(
+        "{:.3}-{:.3}",
+        wsteps as f64 * h,
+        (wsteps + steps) as f64 * h
+    );
+    let Measured {
+        mut ms,
+        own,
+        it,
+        peak,
+    } = match measure(sc, &ov, sim, repeat, wsteps, steps) {
+        Ok(m) => m,
+        Err(e) => {
+            println!(
+                "{:>8} {:>9} {:>10} {:>8}   failed: {e:#}",
+                sp,
+                grid,
+                format!("{h:.4e}"),
+                format!("{so:?}").to_lowercase()
+            );
+            return Ok(());
+        }
+    };
+    // the median run, with its own phase split
+    ms.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    let med = ms[ms.len() / 2];
+    println!(
+        "{:>8} {:>9} {:>10} {:>8} {:>10.3} {:>9.3} {:>8.3} {:>9.3} {:>9.3} {:>8.1} {:>11.1} {:>7} {:>13}",
+        sp,
+        grid,
+        format!("{h:.4e}"),
+        format!("{so:?}").to_lowercase(),
+        med[0],
+        med[1],
+        med[2],
+        med[3],
+        h * 1e3 / med[0],
+        it,
+        peak,
+        used,
+        window
+    );
+    if a.self_collision {
+        println!(
+            "{:>8} self-collision {:.3} ms/step, {:.1} % of the step; {:.1} contacts, \
+             {:.2} collisions per step (last run)",
+            "",
+            med[4],
+            100.0 * med[4] / med[0],
+            own[0],
+            own[1]
+        );
+    }
+    Ok(())
+}
+
+/// Runs `bench`.
+pub fn bench(a: BenchArgs) -> Result<()> {
+    let sc = Scene::load(&a.scene).with_context(|| "bench needs a scene")?;
+    print_heading(&a.scene, a.steps, a.repeat, a.warmup);
+    for &sp in &a.spacing {
+        for &h in &a.dt {
+            for &so in &a.solver {
+                bench_row(&a, &sc, sp, h, so)?;
             }
         }
     }

@@ -119,67 +119,9 @@ fn start_live_view(
     Ok(view)
 }
 
-/// Runs `drape`.
-pub fn drape(a: DrapeArgs) -> Result<()> {
-    let DrapeArgs {
-        scene,
-        out,
-        ov,
-        write_system,
-        bag,
-        live,
-    } = a;
-    let sc = Scene::load(&scene)?;
-    let view = live
-        .foxglove
-        .map(|a| start_live_view(a, &live))
-        .transpose()?;
-    let stop = match bag.bag.is_some() || view.is_some() {
-        true => Some(garment_sim::scene::run::stop_flag()?),
-        false => None,
-    };
-    let no_stop = std::sync::atomic::AtomicBool::new(false);
-    let stop_ref = stop.as_deref().unwrap_or(&no_stop);
-    let mut live_run = match &view {
-        Some(v) => {
-            let opts = garment_sim::live::LiveOptions {
-                rate_hz: sc.file.output_rate,
-                pace: live.pace,
-                end_time: sc.duration(&ov),
-            };
-            Some(garment_sim::live::LiveRun::new(v, opts, stop_ref)?)
-        }
-        None => None,
-    };
-    let mut systems = SystemWriter::new(&out, &write_system);
-    let mut also = |s: &garment_sim::solver::Simulation| {
-        systems.observe(s);
-        match live_run.as_mut() {
-            Some(r) => r.observe(s),
-            None => Ok(run::Control::Continue),
-        }
-    };
-    let mut pr = progress_printer(format!("drape {}", scene.display()));
-    let (s, recorded) = match &bag.bag {
-        None => {
-            let mut sim = sc.build(&ov)?;
-            sim.capture_systems(&write_system);
-            (
-                run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
-                None,
-            )
-        }
-        Some(dir) => {
-            use garment_sim::bag as gb;
-            let mut rec = gb::DrapeBag::new(dir);
-            rec.rate_hz = bag.bag_rate;
-            rec.options.compression = bag.bag_compression;
-            rec.options.chunk_size = bag.bag_chunk_size;
-            let r = gb::drape_recorded_with(&sc, &ov, &out, &mut pr, &rec, stop_ref, &mut also)?;
-            (r.summary.clone(), Some(r))
-        }
-    };
-    let written = systems.finish(s.steps);
+/// Prints the drape's summary (the lines of `summary.json` a reader wants
+/// first) and what was written to `out`.
+fn print_summary(s: &run::Summary, out: &std::path::Path) {
     let e = &s.final_energies;
     println!("scene            {}", s.scene);
     println!("fabric           {}", s.fabric);
@@ -250,52 +192,131 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         "wrote            {}/final.ply, final.png, energy.csv, summary.json",
         out.display()
     );
-    let mut bag_error = None;
-    if let Some(r) = recorded {
-        if let Some(b) = &r.bag {
-            println!(
-                "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
-                b.dir.display(),
-                r.frames,
-                b.message_count,
-                b.bytes as f64 / (1024.0 * 1024.0),
-                1e3 * r.record_s / r.frames.max(1) as f64,
-                100.0 * r.record_s / s.wall_s.max(1e-12),
-                if r.stopped {
-                    ", stopped by a signal: bag finished"
-                } else {
-                    ""
-                }
-            );
-        }
-        if r.stopped && r.bag.is_some() {
-            eprintln!(
-                "stopped by a signal at t = {:.4} s; the bag is complete{}",
-                s.simulated_s,
-                if garment_sim::scene::run::interrupted_again() {
-                    " (interrupted again while it was being closed: it was finished first)"
-                } else {
-                    ""
-                }
-            );
-        }
-        bag_error = r.bag_error;
-    }
-    if let (Some(v), Some(r)) = (&view, &live_run) {
+}
+
+/// Prints where the bag went and whether a signal stopped it; the bag's
+/// error, if writing it failed.
+fn report_bag(r: garment_sim::bag::DrapeRecorded, s: &run::Summary) -> Option<String> {
+    if let Some(b) = &r.bag {
         println!(
-            "live view        {} ({} frames published)",
-            v.url(),
-            r.frames
+            "bag              {} ({} frames, {} messages, {:.2} MiB, {:.1} ms per frame = {:.2} % of the wall time{})",
+            b.dir.display(),
+            r.frames,
+            b.message_count,
+            b.bytes as f64 / (1024.0 * 1024.0),
+            1e3 * r.record_s / r.frames.max(1) as f64,
+            100.0 * r.record_s / s.wall_s.max(1e-12),
+            if r.stopped {
+                ", stopped by a signal: bag finished"
+            } else {
+                ""
+            }
         );
-        if bag.bag.is_none() && stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
-            eprintln!("stopped by a signal at t = {:.4} s", s.simulated_s);
+    }
+    if r.stopped && r.bag.is_some() {
+        eprintln!(
+            "stopped by a signal at t = {:.4} s; the bag is complete{}",
+            s.simulated_s,
+            if garment_sim::scene::run::interrupted_again() {
+                " (interrupted again while it was being closed: it was finished first)"
+            } else {
+                ""
+            }
+        );
+    }
+    r.bag_error
+}
+
+/// Prints the live view's address and frames; after the run, serves its
+/// final state while a viewer stays connected.
+fn report_live(
+    v: &garment_sim::live::LiveView,
+    r: &garment_sim::live::LiveRun,
+    s: &run::Summary,
+    no_bag: bool,
+    stop_ref: &std::sync::atomic::AtomicBool,
+) {
+    println!(
+        "live view        {} ({} frames published)",
+        v.url(),
+        r.frames
+    );
+    if no_bag && stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!("stopped by a signal at t = {:.4} s", s.simulated_s);
+    }
+    if v.clients() > 0 && !stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!(
+            "live view: the run is over; serving its final state while a viewer is connected (Ctrl-C to end)"
+        );
+        v.linger(stop_ref);
+    }
+}
+
+/// Runs `drape`.
+pub fn drape(a: DrapeArgs) -> Result<()> {
+    let DrapeArgs {
+        scene,
+        out,
+        ov,
+        write_system,
+        bag,
+        live,
+    } = a;
+    let sc = Scene::load(&scene)?;
+    let view = live
+        .foxglove
+        .map(|a| start_live_view(a, &live))
+        .transpose()?;
+    let stop = match bag.bag.is_some() || view.is_some() {
+        true => Some(garment_sim::scene::run::stop_flag()?),
+        false => None,
+    };
+    let no_stop = std::sync::atomic::AtomicBool::new(false);
+    let stop_ref = stop.as_deref().unwrap_or(&no_stop);
+    let mut live_run = match &view {
+        Some(v) => {
+            let opts = garment_sim::live::LiveOptions {
+                rate_hz: sc.file.output_rate,
+                pace: live.pace,
+                end_time: sc.duration(&ov),
+            };
+            Some(garment_sim::live::LiveRun::new(v, opts, stop_ref)?)
         }
-        if v.clients() > 0 && !stop_ref.load(std::sync::atomic::Ordering::Relaxed) {
-            eprintln!(
-                "live view: the run is over; serving its final state while a viewer is connected (Ctrl-C to end)"
-            );
-            v.linger(stop_ref);
+        None => None,
+    };
+    let mut systems = SystemWriter::new(&out, &write_system);
+    let mut also = |s: &garment_sim::solver::Simulation| {
+        systems.observe(s);
+        match live_run.as_mut() {
+            Some(r) => r.observe(s),
+            None => Ok(run::Control::Continue),
         }
+    };
+    let mut pr = progress_printer(format!("drape {}", scene.display()));
+    let (s, recorded) = match &bag.bag {
+        None => {
+            let mut sim = sc.build(&ov)?;
+            sim.capture_systems(&write_system);
+            (
+                run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
+                None,
+            )
+        }
+        Some(dir) => {
+            use garment_sim::bag as gb;
+            let mut rec = gb::DrapeBag::new(dir);
+            rec.rate_hz = bag.bag_rate;
+            rec.options.compression = bag.bag_compression;
+            rec.options.chunk_size = bag.bag_chunk_size;
+            let r = gb::drape_recorded_with(&sc, &ov, &out, &mut pr, &rec, stop_ref, &mut also)?;
+            (r.summary.clone(), Some(r))
+        }
+    };
+    let written = systems.finish(s.steps);
+    print_summary(&s, &out);
+    let bag_error = recorded.and_then(|r| report_bag(r, &s));
+    if let (Some(v), Some(r)) = (&view, &live_run) {
+        report_live(v, r, &s, bag.bag.is_none(), stop_ref);
     }
     // the outputs (and the bag) cover the steps before a failed one
     let failed = s

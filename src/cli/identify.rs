@@ -2,6 +2,8 @@
 //! free fall (thesis ch. 5).
 
 use anyhow::{Context, Result};
+use garment_sim::fabric::Fabric;
+use garment_sim::lab::identify::{IdentifyOptions, IdentifyReport, MarkerGrid};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -35,20 +37,15 @@ pub struct IdentifyArgs {
     pub out: PathBuf,
 }
 
-/// Runs `identify`.
-pub fn identify(a: IdentifyArgs) -> Result<()> {
-    let IdentifyArgs {
-        capture,
-        fabric,
-        vertical,
-        up,
-        window,
-        grid,
-        spacing,
-        warp_major,
-        out,
-    } = a;
-    use garment_sim::lab::identify::{identify_file, IdentifyOptions, MarkerGrid};
+/// The fabric and the identification's options from the command line's
+/// `--fabric`, `--grid`, `--spacing`, `--window` and `--up`.
+fn options(
+    fabric: &std::path::Path,
+    grid: &str,
+    spacing: f64,
+    window: Option<String>,
+    up: Option<String>,
+) -> Result<(Fabric, IdentifyOptions)> {
     let (nx, ny) = grid
         .split_once('x')
         .and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)))
@@ -70,7 +67,7 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         ),
         None => None,
     };
-    let fab = garment_sim::io::load_fabric(&fabric)?;
+    let fab = garment_sim::io::load_fabric(fabric)?;
     let opts = IdentifyOptions {
         grid: MarkerGrid {
             nx,
@@ -94,9 +91,16 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         },
         ..Default::default()
     };
-    let rep = identify_file(&capture, vertical.as_deref(), &fab, &opts, warp_major)?;
-    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&rep)?)?;
+    Ok((fab, opts))
+}
+
+/// The fabric file with the damping the capture resolves (α must be), and
+/// a note of where it was measured.
+fn measured_fabric(
+    fab: &Fabric,
+    rep: &IdentifyReport,
+    capture: &std::path::Path,
+) -> Result<garment_sim::fabric::FabricFile> {
     let r = &rep.result;
     let mut file = fab.file.clone();
     // the joint fit is the answer (exact on exact data); the ordered fits are
@@ -124,9 +128,14 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
         rep.frames,
         rep.rate_hz
     );
-    let fab_out = out.join("fabric_measured.yaml");
-    std::fs::write(&fab_out, serde_yaml::to_string(&file)?)?;
-    let plots = garment_sim::lab::identify::write_plots(r, &out)?;
+    Ok(file)
+}
+
+/// Prints the identification: the capture, the vertical, the window, the
+/// measured values and the fits behind them.
+fn print_report(rep: &IdentifyReport) {
+    let r = &rep.result;
+    let m = r.measured;
     println!(
         "capture          {} ({} frames, {} markers at {} Hz)",
         rep.capture, rep.frames, rep.markers, rep.rate_hz
@@ -209,6 +218,32 @@ pub fn identify(a: IdentifyArgs) -> Result<()> {
             100.0 * e.error_decrease
         );
     }
+}
+
+/// Runs `identify`.
+pub fn identify(a: IdentifyArgs) -> Result<()> {
+    let IdentifyArgs {
+        capture,
+        fabric,
+        vertical,
+        up,
+        window,
+        grid,
+        spacing,
+        warp_major,
+        out,
+    } = a;
+    use garment_sim::lab::identify::identify_file;
+    let (fab, opts) = options(&fabric, &grid, spacing, window, up)?;
+    let rep = identify_file(&capture, vertical.as_deref(), &fab, &opts, warp_major)?;
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    std::fs::write(out.join("report.json"), serde_json::to_string_pretty(&rep)?)?;
+    let r = &rep.result;
+    let file = measured_fabric(&fab, &rep, &capture)?;
+    let fab_out = out.join("fabric_measured.yaml");
+    std::fs::write(&fab_out, serde_yaml::to_string(&file)?)?;
+    let plots = garment_sim::lab::identify::write_plots(r, &out)?;
+    print_report(&rep);
     println!(
         "wrote            {}/report.json, {}",
         out.display(),

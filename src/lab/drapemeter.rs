@@ -274,12 +274,9 @@ pub fn area_matched_pin_radius(cloth: &Cloth, rd: f64) -> f64 {
     best.1
 }
 
-/// Runs the drapemeter; returns the report, the final cloth and the shadow.
-pub fn run(
-    fabric: &Fabric,
-    opt: &DrapeOptions,
-    progress: &mut dyn FnMut(f64, f64),
-) -> Result<(DrapeReport, Cloth, Shadow)> {
+/// Refuses sizes, steps and pixels not above zero, a disk not smaller than
+/// the specimen and a spacing that leaves fewer than two cells hanging.
+fn check_options(opt: &DrapeOptions) -> Result<()> {
     let (rs, rd) = (opt.diameter / 2.0, opt.disk / 2.0);
     for (n, v) in [
         ("diameter", opt.diameter),
@@ -307,20 +304,17 @@ pub fn run(
             (rs - rd) / 2.0
         );
     }
-    let params = Params {
-        dt: opt.dt,
-        self_collision: opt.self_collision,
-        cell_shear: opt.cell_shear,
-        hysteresis: opt.hysteresis,
-        ..Default::default()
-    };
-    let disk_h = 0.01;
-    let e = params.cloth_thickness; // disk thickness 0: the contact distance is the cloth's
+    Ok(())
+}
+
+/// The flat circular specimen at height `e` (the contact distance above
+/// the disk).
+fn flat_specimen(fabric: &Fabric, opt: &DrapeOptions, e: f64) -> Result<Cloth> {
     let outline = Outline::Circle {
         center: [0.0, 0.0],
-        radius: rs,
+        radius: opt.diameter / 2.0,
     };
-    let mut cloth = Cloth::panel(&PanelSpec {
+    Cloth::panel(&PanelSpec {
         outline,
         spacing: [opt.spacing, opt.spacing],
         origin: [0.0, 0.0],
@@ -337,12 +331,17 @@ pub fn run(
             HingeLayout::Skewed
         },
         corners: Vec::new(),
-    })?;
-    let flat: Vec<Vector3<f64>> = cloth.x.clone();
+    })
+}
+
+/// The clamped vertices (within the pin radius `opt.clamp` gives), the pin
+/// radius and the radius of the disk with the clamped region's hull's area.
+fn clamp(cloth: &Cloth, opt: &DrapeOptions, rd: f64) -> (Vec<usize>, f64, f64) {
+    let flat = &cloth.x;
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();
     let pin_radius = match opt.clamp {
         ClampEdge::Rim => rd,
-        ClampEdge::AreaMatched => area_matched_pin_radius(&cloth, rd),
+        ClampEdge::AreaMatched => area_matched_pin_radius(cloth, rd),
         ClampEdge::HalfSpacingOut => rd + 0.5 * opt.spacing,
     };
     let clamped: Vec<usize> = (0..cloth.len())
@@ -352,6 +351,57 @@ pub fn run(
         let pts: Vec<[f64; 2]> = clamped.iter().map(|&i| [flat[i].x, flat[i].y]).collect();
         (hull_area(&pts) / std::f64::consts::PI).sqrt()
     };
+    (clamped, pin_radius, clamp_radius)
+}
+
+/// Steps until the cloth has been slower than `SETTLE_SPEED` for
+/// `SETTLE_HOLD` (after 0.3 s) or the longest duration; returns when it
+/// settled.
+fn settle(
+    sim: &mut Simulation,
+    opt: &DrapeOptions,
+    progress: &mut dyn FnMut(f64, f64),
+) -> Result<Option<f64>> {
+    let steps = (opt.max_duration / opt.dt).round() as u64;
+    let mut last_fast = 0.0;
+    let mut settled = None;
+    for k in 1..=steps {
+        sim.step()
+            .with_context(|| format!("drapemeter step {k} (t = {:.3} s)", sim.time))?;
+        if sim.rms_speed() >= SETTLE_SPEED {
+            last_fast = sim.time;
+        } else if sim.time - last_fast >= SETTLE_HOLD && sim.time > 0.3 {
+            settled = Some(last_fast);
+            break;
+        }
+        if k % 100 == 0 {
+            progress(sim.time, opt.max_duration);
+        }
+    }
+    progress(opt.max_duration, opt.max_duration);
+    Ok(settled)
+}
+
+/// Runs the drapemeter; returns the report, the final cloth and the shadow.
+pub fn run(
+    fabric: &Fabric,
+    opt: &DrapeOptions,
+    progress: &mut dyn FnMut(f64, f64),
+) -> Result<(DrapeReport, Cloth, Shadow)> {
+    let (rs, rd) = (opt.diameter / 2.0, opt.disk / 2.0);
+    check_options(opt)?;
+    let params = Params {
+        dt: opt.dt,
+        self_collision: opt.self_collision,
+        cell_shear: opt.cell_shear,
+        hysteresis: opt.hysteresis,
+        ..Default::default()
+    };
+    let disk_h = 0.01;
+    let e = params.cloth_thickness; // disk thickness 0: the contact distance is the cloth's
+    let mut cloth = flat_specimen(fabric, opt, e)?;
+    let flat: Vec<Vector3<f64>> = cloth.x.clone();
+    let (clamped, pin_radius, clamp_radius) = clamp(&cloth, opt, rd);
     let bump = StartPerturbation::new(opt);
     for i in 0..cloth.len() {
         let m = cloth.material[i];
@@ -374,23 +424,7 @@ pub fn run(
             .map(|&i| Pin::new(i, PinPath::Fixed(flat[i])))
             .collect(),
     )?;
-    let steps = (opt.max_duration / opt.dt).round() as u64;
-    let mut last_fast = 0.0;
-    let mut settled = None;
-    for k in 1..=steps {
-        sim.step()
-            .with_context(|| format!("drapemeter step {k} (t = {:.3} s)", sim.time))?;
-        if sim.rms_speed() >= SETTLE_SPEED {
-            last_fast = sim.time;
-        } else if sim.time - last_fast >= SETTLE_HOLD && sim.time > 0.3 {
-            settled = Some(last_fast);
-            break;
-        }
-        if k % 100 == 0 {
-            progress(sim.time, opt.max_duration);
-        }
-    }
-    progress(opt.max_duration, opt.max_duration);
+    let settled = settle(&mut sim, opt, progress)?;
     let shadow = Shadow::of(&sim.cloth, rs, opt.pixel);
     let flat_shadow = {
         let mut c = sim.cloth.clone();

@@ -271,13 +271,10 @@ fn joint_fit(
 /// 0.1 mm of marker noise at 100 Hz.
 pub const MIN_CAPTURE_SPEED: f64 = 0.01;
 
-pub fn identify(
-    frames: &[Vec<Vector3<f64>>],
-    rate_hz: f64,
-    fabric: &Fabric,
-    opts: &IdentifyOptions,
-) -> Result<Identification> {
-    let g = opts.grid;
+/// Refuses a capture that cannot be identified: a rate not above zero,
+/// fewer than 4 frames, frames with other than the grid's marker count, or
+/// markers not finite or beyond `MAX_CAPTURE_DISTANCE`.
+fn check_capture(frames: &[Vec<Vector3<f64>>], rate_hz: f64, g: &MarkerGrid) -> Result<()> {
     let n = g.nx * g.ny;
     if !(rate_hz.is_finite() && rate_hz > 0.0) {
         bail!("capture rate {rate_hz} Hz: must be > 0");
@@ -304,7 +301,23 @@ pub fn identify(
             crate::limits::check_capture_position(&format!("frame {k}, marker {m}"), p)?;
         }
     }
-    let dt = 1.0 / rate_hz;
+    Ok(())
+}
+
+/// The equation of every inner capture frame (see `Frame`) and the markers'
+/// mean speed there. The equation written on frame k is the simulator's
+/// own implicit Euler step from x[k] to x[k+1]:
+///   M (vel[k] − vel[k−1]) / h − M g
+///     = Σ_fam (f_fam(x[k]) − h K̃s_fam(x[k]) vel[k]) + α M vel[k] + Σ β_fam K̃_fam(x[k]) vel[k]
+/// with the springs' memory replayed along the captured path up to x[k].
+fn frame_equations(
+    frames: &[Vec<Vector3<f64>>],
+    dt: f64,
+    fabric: &Fabric,
+    opts: &IdentifyOptions,
+) -> Result<(Vec<Frame>, Vec<f64>)> {
+    let g = opts.grid;
+    let n = g.nx * g.ny;
     let cloth = Cloth::grid(&g.spec(), fabric.areal_mass)?;
     let mut sim = Simulation::new(
         cloth,
@@ -320,11 +333,6 @@ pub fn identify(
         .windows(2)
         .map(|w| w[1].iter().zip(&w[0]).map(|(b, a)| (b - a) / dt).collect())
         .collect();
-    // The equation written on frame k is the simulator's own implicit Euler
-    // step from x[k] to x[k+1] (see `Frame`):
-    //   M (vel[k] − vel[k−1]) / h − M g
-    //     = Σ_fam (f_fam(x[k]) − h K̃s_fam(x[k]) vel[k]) + α M vel[k] + Σ β_fam K̃_fam(x[k]) vel[k]
-    // with the springs' memory replayed along the captured path up to x[k].
     sim.cloth.x.clone_from(&frames[0]);
     sim.commit();
     let mut evals = Vec::with_capacity(frames.len() - 2);
@@ -371,26 +379,25 @@ pub fn identify(
             zk,
         });
     }
-    let fastest = speed.iter().cloned().fold(0.0, f64::max);
-    if fastest.is_nan() || fastest < MIN_CAPTURE_SPEED {
-        bail!(
-            "the capture shows no motion: the markers' mean speed is at most {fastest:.2e} m/s \
-             over its {} frames, below {MIN_CAPTURE_SPEED} m/s (MIN_CAPTURE_SPEED); damping \
-             is measured on a moving cloth (a free fall reaches metres per second)",
-            frames.len()
-        );
-    }
-    let (window, auto) = match opts.window {
+    Ok((evals, speed))
+}
+
+/// The viscous window: the one given, checked against the `count`
+/// evaluation frames, or one chosen from the mean-speed curve (then `true`);
+/// refused with fewer than 2 frames.
+fn choose_window(
+    given: Option<(usize, usize)>,
+    speed: &[f64],
+    count: usize,
+) -> Result<((usize, usize), bool)> {
+    let (window, auto) = match given {
         Some((a, b)) => {
-            if a >= b || b > evals.len() {
-                bail!(
-                    "window {a}..{b} is outside the {} evaluation frames",
-                    evals.len()
-                );
+            if a >= b || b > count {
+                bail!("window {a}..{b} is outside the {count} evaluation frames");
             }
             ((a, b), false)
         }
-        None => (viscous_window(&speed), true),
+        None => (viscous_window(speed), true),
     };
     if window.1 - window.0 < 2 {
         if auto {
@@ -409,12 +416,16 @@ pub fn identify(
             window.1
         );
     }
-    let win = window.0..window.1;
+    Ok((window, auto))
+}
 
-    // global least squares over the window: r_full ≈ α MV + Σ β K̃V
+/// Global least squares over the window, r_full ≈ α MV + Σ β K̃V: the four
+/// parameters (NaN if singular) and the condition number of the normal
+/// matrix with its columns scaled to unit norm.
+fn global_fit(evals: &[Frame], win: std::ops::Range<usize>, n: usize) -> ([f64; 4], f64) {
     let mut nm: Matrix4<f64> = Matrix4::zeros();
     let mut rhs = Vector4::zeros();
-    for fr in &evals[win.clone()] {
+    for fr in &evals[win] {
         let r: Vec<Vector3<f64>> = (0..n)
             .map(|k| fr.r0[k] - fr.f[0][k] - fr.f[1][k] - fr.f[2][k])
             .collect();
@@ -438,15 +449,19 @@ pub fn identify(
         .solve(&rhs)
         .map(|x| [x[0], x[1], x[2], x[3]])
         .unwrap_or([f64::NAN; 4]);
+    (global, cond)
+}
 
-    // the thesis' ordered fits
+/// The thesis' ordered fits: α, then each family's β with its springs
+/// joined to the model, each from the residual the previous fits left.
+fn ordered_fits(evals: &[Frame], win: std::ops::Range<usize>) -> Vec<Estimate> {
     let mut resid: Vec<Vec<Vector3<f64>>> = evals.iter().map(|fr| fr.r0.clone()).collect();
     let names = ["alpha", "beta_bend", "beta_shear", "beta_tension"];
     let mut est: Vec<Estimate> = Vec::with_capacity(4);
     for (p, name) in names.iter().enumerate() {
         // the family's springs join the model (their elastic forces are known)
         if p > 0 {
-            for (r, fr) in resid.iter_mut().zip(&evals) {
+            for (r, fr) in resid.iter_mut().zip(evals) {
                 for (x, y) in r.iter_mut().zip(&fr.f[p - 1]) {
                     *x -= y;
                 }
@@ -467,7 +482,7 @@ pub fn identify(
             }
         };
         let mut per_frame = Vec::with_capacity(evals.len());
-        for (k, (r, fr)) in resid.iter().zip(&evals).enumerate() {
+        for (k, (r, fr)) in resid.iter().zip(evals).enumerate() {
             let (c, z) = (col(fr), ins(fr));
             let zc = dot(&z, &c);
             per_frame.push((k, if zc != 0.0 { dot(r, &z) / zc } else { 0.0 }));
@@ -493,7 +508,7 @@ pub fn identify(
                 dec += (before - after) / before;
             }
         }
-        for (k, (r, fr)) in resid.iter_mut().zip(&evals).enumerate() {
+        for (k, (r, fr)) in resid.iter_mut().zip(evals).enumerate() {
             if !win.contains(&k) {
                 let c = col(fr);
                 for (x, y) in r.iter_mut().zip(&c) {
@@ -509,21 +524,30 @@ pub fn identify(
             per_frame,
         });
     }
-    // What the capture resolves. The joint fit of all four writes the
-    // simulator's own step on the captured shapes, so it is exact on exact
-    // data; but marker noise makes the spring forces on captured shapes
-    // (stiff tension springs: 0.5 mm on 5 cm is 1 % strain) far larger than
-    // the dissipation. It is taken when every β comes out dissipative and
-    // beyond twice its standard error and its α agrees with the ordered α
-    // (which needs no spring forces) within 10 %; otherwise only α is
-    // measured, by the ordered fit, and the β's are reported unresolved.
+    est
+}
+
+/// What the capture resolves: the measured values, their standard errors
+/// and which are resolved. The joint fit of all four writes the simulator's
+/// own step on the captured shapes, so it is exact on exact data; but
+/// marker noise makes the spring forces on captured shapes (stiff tension
+/// springs: 0.5 mm on 5 cm is 1 % strain) far larger than the dissipation.
+/// It is taken when every β comes out dissipative and beyond twice its
+/// standard error and its α agrees with the ordered α (which needs no
+/// spring forces) within 10 %; otherwise only α is measured, by the ordered
+/// fit, and the β's are reported unresolved.
+fn resolved_fit(
+    evals: &[Frame],
+    win: std::ops::Range<usize>,
+    est: &[Estimate],
+) -> ([f64; 4], [f64; 4], [bool; 4]) {
     let ordered_alpha = est[0].mean;
-    let joint = joint_fit(&evals, win.clone(), &[0, 1, 2, 3]);
+    let joint = joint_fit(evals, win.clone(), &[0, 1, 2, 3]);
     let accept = joint.as_ref().is_some_and(|(th, se)| {
         (1..4).all(|p| th[p] < 0.0 && th[p].abs() > 2.0 * se[p])
             && (th[0] / ordered_alpha - 1.0).abs() < 0.1
     });
-    let (measured, measured_se, resolved) = match (&joint, accept) {
+    match (&joint, accept) {
         (Some((th, se)), true) => (
             [th[0], th[1], th[2], th[3]],
             [se[0], se[1], se[2], se[3]],
@@ -537,38 +561,78 @@ pub fn identify(
                 [true, false, false, false],
             )
         }
+    }
+}
+
+/// The capture frames the trajectory fit runs over: from the start of the
+/// fall (after the slowest frame before the viscous window, the first frame
+/// whose mean marker acceleration along gravity exceeds g/2: the release)
+/// to the window's end; the first frames of the fall, where the cloth
+/// shears and bends most, carry most of what the markers tell of β_f and
+/// β_c.
+fn fall_frames(
+    frames: &[Vec<Vector3<f64>>],
+    rate_hz: f64,
+    gravity: &Vector3<f64>,
+    speed: &[f64],
+    window: (usize, usize),
+) -> (usize, usize) {
+    let n = frames[0].len();
+    let down = gravity.normalize();
+    let g = gravity.norm();
+    let accel = |k: usize| {
+        frames[k + 1]
+            .iter()
+            .zip(&frames[k])
+            .zip(&frames[k - 1])
+            .map(|((a, b), c)| (a - 2.0 * b + c).dot(&down))
+            .sum::<f64>()
+            * rate_hz
+            * rate_hz
+            / n as f64
     };
-    let (mut measured, mut measured_se, mut resolved) = (measured, measured_se, resolved);
+    // evaluation frame k is capture frame k + 1
+    let slowest = (0..=window.0)
+        .min_by(|&a, &b| speed[a].total_cmp(&speed[b]))
+        .map_or(1, |k| k + 1);
+    let release = (slowest.max(1)..(window.1 + 1).min(frames.len() - 1))
+        .find(|&k| accel(k) > 0.5 * g)
+        .unwrap_or(slowest.max(1));
+    let first = release + 2;
+    let last = (window.1 + 1).min(frames.len() - 1);
+    (first, last)
+}
+
+/// Identifies the damping of `fabric` from gap-free marker positions
+/// `frames[f][marker]` captured at `rate_hz`.
+pub fn identify(
+    frames: &[Vec<Vector3<f64>>],
+    rate_hz: f64,
+    fabric: &Fabric,
+    opts: &IdentifyOptions,
+) -> Result<Identification> {
+    let n = opts.grid.nx * opts.grid.ny;
+    check_capture(frames, rate_hz, &opts.grid)?;
+    let dt = 1.0 / rate_hz;
+    let (evals, speed) = frame_equations(frames, dt, fabric, opts)?;
+    let fastest = speed.iter().cloned().fold(0.0, f64::max);
+    if fastest.is_nan() || fastest < MIN_CAPTURE_SPEED {
+        bail!(
+            "the capture shows no motion: the markers' mean speed is at most {fastest:.2e} m/s \
+             over its {} frames, below {MIN_CAPTURE_SPEED} m/s (MIN_CAPTURE_SPEED); damping \
+             is measured on a moving cloth (a free fall reaches metres per second)",
+            frames.len()
+        );
+    }
+    let (window, auto) = choose_window(opts.window, &speed, evals.len())?;
+    let win = window.0..window.1;
+    let (global, cond) = global_fit(&evals, win.clone(), n);
+    let est = ordered_fits(&evals, win.clone());
+    let (mut measured, mut measured_se, mut resolved) = resolved_fit(&evals, win, &est);
     let trajectory = if resolved.iter().all(|&r| r) {
         None
     } else {
-        // From the start of the fall (after the slowest frame before the
-        // viscous window, the first frame whose mean marker acceleration along
-        // gravity exceeds g/2: the release) to the window's end; the first
-        // frames of the fall, where the cloth shears and bends most, carry
-        // most of what the markers tell of β_f and β_c.
-        let down = opts.gravity.normalize();
-        let g = opts.gravity.norm();
-        let accel = |k: usize| {
-            frames[k + 1]
-                .iter()
-                .zip(&frames[k])
-                .zip(&frames[k - 1])
-                .map(|((a, b), c)| (a - 2.0 * b + c).dot(&down))
-                .sum::<f64>()
-                * rate_hz
-                * rate_hz
-                / n as f64
-        };
-        // evaluation frame k is capture frame k + 1
-        let slowest = (0..=window.0)
-            .min_by(|&a, &b| speed[a].total_cmp(&speed[b]))
-            .map_or(1, |k| k + 1);
-        let release = (slowest.max(1)..(window.1 + 1).min(frames.len() - 1))
-            .find(|&k| accel(k) > 0.5 * g)
-            .unwrap_or(slowest.max(1));
-        let first = release + 2;
-        let last = (window.1 + 1).min(frames.len() - 1);
+        let (first, last) = fall_frames(frames, rate_hz, &opts.gravity, &speed, window);
         let t = trajectory_fit(frames, rate_hz, fabric, opts, (first, last), measured[0])?;
         for p in 1..4 {
             if !resolved[p] && t.resolved[p] {
@@ -706,76 +770,6 @@ pub fn trajectory_fit(
     })?;
     let n_res = (r0.len() * 3) as f64;
     let rms_of = |r: &[Vector3<f64>]| (sum_sq(r) / n_res).sqrt();
-    // Levenberg–Marquardt on the parameters in `free` (β's kept dissipative)
-    let lm = |mut theta: [f64; 4],
-              mut r: Vec<Vector3<f64>>,
-              free: [bool; 4]|
-     -> ([f64; 4], Markers, Vec<Option<Markers>>) {
-        let mut lambda = 1e-3;
-        let mut jac: Vec<Option<Vec<Vector3<f64>>>> = vec![None; 4];
-        for _ in 0..15 {
-            // sensitivities: forward differences, simulated side by side
-            let h: [f64; 4] = std::array::from_fn(|p| -(0.05 * theta[p].abs()).max(FD_FLOOR[p]));
-            let cols: Vec<Option<Vec<Vector3<f64>>>> = std::thread::scope(|sc| {
-                let hs: Vec<_> = (0..4)
-                    .map(|p| {
-                        let mut th = theta;
-                        th[p] += h[p];
-                        let go = free[p];
-                        sc.spawn(move || go.then(|| simulate(&th)).flatten())
-                    })
-                    .collect();
-                hs.into_iter().map(|t| t.join().ok().flatten()).collect()
-            });
-            sims.set(sims.get() + free.iter().filter(|&&f| f).count());
-            for p in 0..4 {
-                jac[p] = cols[p]
-                    .as_ref()
-                    .map(|c| c.iter().zip(&r).map(|(a, b)| (a - b) / h[p]).collect());
-            }
-            let idx: Vec<usize> = (0..4).filter(|&p| jac[p].is_some()).collect();
-            let m = idx.len();
-            if m == 0 {
-                break;
-            }
-            let col = |p: usize| jac[p].as_deref().expect("free column");
-            let a = nalgebra::DMatrix::<f64>::from_fn(m, m, |i, k| dot(col(idx[i]), col(idx[k])));
-            let g = nalgebra::DVector::<f64>::from_fn(m, |i, _| dot(col(idx[i]), &r));
-            let cost = sum_sq(&r);
-            let mut improved = false;
-            for _ in 0..8 {
-                let mut damped = a.clone();
-                for i in 0..m {
-                    damped[(i, i)] += lambda * a[(i, i)].max(1e-300);
-                }
-                let Some(delta) = damped.cholesky().map(|c| c.solve(&(-&g))) else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                let mut th = theta;
-                for (i, &p) in idx.iter().enumerate() {
-                    th[p] += delta[i];
-                    if p > 0 {
-                        th[p] = th[p].min(0.0);
-                    }
-                }
-                match run(&th) {
-                    Some(rn) if sum_sq(&rn) < cost => {
-                        theta = th;
-                        r = rn;
-                        lambda = (lambda / 3.0).max(1e-9);
-                        improved = true;
-                        break;
-                    }
-                    _ => lambda *= 4.0,
-                }
-            }
-            if !improved || (cost - sum_sq(&r)) < 1e-6 * cost {
-                break;
-            }
-        }
-        (theta, r, jac)
-    };
     // all four together (β's kept dissipative); then those the capture does
     // not resolve are held at 0 and the rest fitted again. Resolved: a 15 %
     // change of the parameter moves the markers by at least 3 × what the fit
@@ -793,7 +787,7 @@ pub fn trajectory_fit(
     let (mut r, mut jac) = (r0, Vec::new());
     let mut effect = [0.0; 4];
     for _ in 0..4 {
-        let out = lm(theta, r, free);
+        let out = levenberg_marquardt(&simulate, &sims, theta, r, free);
         theta = out.0;
         r = out.1;
         jac = out.2;
@@ -818,6 +812,106 @@ pub fn trajectory_fit(
     let resolved = free;
     // standard errors from the Gauss–Newton covariance rms² (JᵀJ)⁻¹
     let rms = rms_of(&r);
+    let se = gauss_newton_se(&jac, free, rms);
+    Ok(TrajectoryFit {
+        theta,
+        resolved,
+        rms_m: rms,
+        effect_15pc_m: effect,
+        se,
+        frames: (first, last),
+        simulations: sims.get(),
+    })
+}
+
+/// Levenberg–Marquardt on the parameters in `free` (β's kept dissipative)
+/// from `theta` and its residual `r`, with sensitivities by forward
+/// differences simulated side by side: the parameters, their residual and
+/// the last sensitivities (`None` for parameters held). `sims` counts the
+/// simulations run.
+fn levenberg_marquardt<S>(
+    simulate: &S,
+    sims: &std::cell::Cell<usize>,
+    mut theta: [f64; 4],
+    mut r: Markers,
+    free: [bool; 4],
+) -> ([f64; 4], Markers, Vec<Option<Markers>>)
+where
+    S: Fn(&[f64; 4]) -> Option<Markers> + Sync,
+{
+    let run = |th: &[f64; 4]| {
+        sims.set(sims.get() + 1);
+        simulate(th)
+    };
+    let mut lambda = 1e-3;
+    let mut jac: Vec<Option<Vec<Vector3<f64>>>> = vec![None; 4];
+    for _ in 0..15 {
+        // sensitivities: forward differences, simulated side by side
+        let h: [f64; 4] = std::array::from_fn(|p| -(0.05 * theta[p].abs()).max(FD_FLOOR[p]));
+        let cols: Vec<Option<Vec<Vector3<f64>>>> = std::thread::scope(|sc| {
+            let hs: Vec<_> = (0..4)
+                .map(|p| {
+                    let mut th = theta;
+                    th[p] += h[p];
+                    let go = free[p];
+                    sc.spawn(move || go.then(|| simulate(&th)).flatten())
+                })
+                .collect();
+            hs.into_iter().map(|t| t.join().ok().flatten()).collect()
+        });
+        sims.set(sims.get() + free.iter().filter(|&&f| f).count());
+        for p in 0..4 {
+            jac[p] = cols[p]
+                .as_ref()
+                .map(|c| c.iter().zip(&r).map(|(a, b)| (a - b) / h[p]).collect());
+        }
+        let idx: Vec<usize> = (0..4).filter(|&p| jac[p].is_some()).collect();
+        let m = idx.len();
+        if m == 0 {
+            break;
+        }
+        let col = |p: usize| jac[p].as_deref().expect("free column");
+        let a = nalgebra::DMatrix::<f64>::from_fn(m, m, |i, k| dot(col(idx[i]), col(idx[k])));
+        let g = nalgebra::DVector::<f64>::from_fn(m, |i, _| dot(col(idx[i]), &r));
+        let cost = sum_sq(&r);
+        let mut improved = false;
+        for _ in 0..8 {
+            let mut damped = a.clone();
+            for i in 0..m {
+                damped[(i, i)] += lambda * a[(i, i)].max(1e-300);
+            }
+            let Some(delta) = damped.cholesky().map(|c| c.solve(&(-&g))) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut th = theta;
+            for (i, &p) in idx.iter().enumerate() {
+                th[p] += delta[i];
+                if p > 0 {
+                    th[p] = th[p].min(0.0);
+                }
+            }
+            match run(&th) {
+                Some(rn) if sum_sq(&rn) < cost => {
+                    theta = th;
+                    r = rn;
+                    lambda = (lambda / 3.0).max(1e-9);
+                    improved = true;
+                    break;
+                }
+                _ => lambda *= 4.0,
+            }
+        }
+        if !improved || (cost - sum_sq(&r)) < 1e-6 * cost {
+            break;
+        }
+    }
+    (theta, r, jac)
+}
+
+/// Standard errors of the parameters in `free` from the Gauss–Newton
+/// covariance rms² (JᵀJ)⁻¹ (NaN for the others, or if JᵀJ is singular).
+fn gauss_newton_se(jac: &[Option<Markers>], free: [bool; 4], rms: f64) -> [f64; 4] {
     let idx: Vec<usize> = (0..4).filter(|&p| free[p] && jac[p].is_some()).collect();
     let mut se = [f64::NAN; 4];
     if !idx.is_empty() {
@@ -834,15 +928,7 @@ pub fn trajectory_fit(
             }
         }
     }
-    Ok(TrajectoryFit {
-        theta,
-        resolved,
-        rms_m: rms,
-        effect_15pc_m: effect,
-        se,
-        frames: (first, last),
-        simulations: sims.get(),
-    })
+    se
 }
 
 /// Simulates a built free fall and samples every vertex at `rate_hz`

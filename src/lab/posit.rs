@@ -184,17 +184,10 @@ pub const COLLINEAR: f64 = 1e-4;
 /// Below this σ3/σ1 the marks are taken as coplanar (Oberkampf's variant).
 pub const COPLANAR: f64 = 1e-3;
 
-/// A first pose from at least four marks whose world positions `object`
-/// are seen at normalised image coordinates `image` (see
-/// [`Intrinsics::normalise`]): POSIT (DeMenthon & Davis 1995) when the
-/// marks span a volume, its coplanar variant (Oberkampf et al. 1996) when
-/// they lie on a plane, each iterated until the perspective corrections ε_i
-/// change by less than 1e-12 (at most 200 iterations); and the pose from the
-/// homography of the marks' best-fit plane ([`homography_pose`]): exact for
-/// coplanar marks, a start for nearly coplanar ones, where POSIT may not
-/// converge. Returns the candidate that reprojects best with every mark in
-/// front of the camera. Collinear marks have no pose: an error.
-pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
+/// Refuses marks POSIT cannot pose: counts that differ or are under 4,
+/// non-finite coordinates, marks collinear in the world or in the image.
+/// Returns the marks' σ3/σ1 (their flatness).
+fn check_marks(object: &[V3], image: &[[f64; 2]]) -> Result<f64> {
     if object.len() != image.len() {
         bail!("{} points but {} image points", object.len(), image.len());
     }
@@ -214,37 +207,79 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
     if flatness(&img3).0 < COLLINEAR {
         bail!("the marks are collinear in the image: no pose");
     }
-    // reference point M0: the mark nearest the centroid
-    let c = object.iter().sum::<V3>() / object.len() as f64;
-    let r0 = (0..object.len())
-        .min_by(|&a, &b| (object[a] - c).norm().total_cmp(&(object[b] - c).norm()))
-        .unwrap_or(0);
-    let others: Vec<usize> = (0..object.len()).filter(|&i| i != r0).collect();
-    let a = DMatrix::from_fn(others.len(), 3, |r, k| object[others[r]][k] - object[r0][k]);
-    let svd = a.clone().svd(true, true);
-    let v_t = svd.v_t.as_ref().expect("asked for V");
-    let sv = &svd.singular_values;
-    let smax = sv.max();
-    // pseudo-inverse B (3 × n−1), dropping the null direction when coplanar
-    let coplanar = plane < COPLANAR;
-    let u = svd.u.as_ref().expect("asked for U");
-    let mut b: DMatrix<f64> = DMatrix::zeros(3, others.len());
-    let mut normal = V3::zeros();
-    for k in 0..3 {
-        let vk = V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
-        if coplanar && sv[k] < COPLANAR * smax {
-            normal = vk;
-            continue;
-        }
-        for r in 0..others.len() {
-            for d in 0..3 {
-                b[(d, r)] += vk[d] * u[(r, k)] / sv[k];
+    Ok(plane)
+}
+
+/// The state of a POSIT iteration: the marks, the reference mark M0, the
+/// others and their offsets from it, the pseudo-inverse B of those offsets
+/// and, for coplanar marks, the plane's normal.
+struct Posit<'a> {
+    object: &'a [V3],
+    image: &'a [[f64; 2]],
+    r0: usize,
+    others: Vec<usize>,
+    rel: Vec<V3>,
+    b: DMatrix<f64>,
+    normal: V3,
+    x0: [f64; 2],
+}
+
+/// The best pose found so far, by its reprojection error.
+type Best = Option<(f64, Pose)>;
+
+impl<'a> Posit<'a> {
+    /// Sets up the iteration; also returns the directions of the marks'
+    /// best-fit plane (the offsets' two strongest singular directions).
+    fn new(object: &'a [V3], image: &'a [[f64; 2]], coplanar: bool) -> (Posit<'a>, V3, V3) {
+        // reference point M0: the mark nearest the centroid
+        let c = object.iter().sum::<V3>() / object.len() as f64;
+        let r0 = (0..object.len())
+            .min_by(|&a, &b| (object[a] - c).norm().total_cmp(&(object[b] - c).norm()))
+            .unwrap_or(0);
+        let others: Vec<usize> = (0..object.len()).filter(|&i| i != r0).collect();
+        let a = DMatrix::from_fn(others.len(), 3, |r, k| object[others[r]][k] - object[r0][k]);
+        let svd = a.clone().svd(true, true);
+        let v_t = svd.v_t.as_ref().expect("asked for V");
+        let sv = &svd.singular_values;
+        let smax = sv.max();
+        // pseudo-inverse B (3 × n−1), dropping the null direction when coplanar
+        let u = svd.u.as_ref().expect("asked for U");
+        let mut b: DMatrix<f64> = DMatrix::zeros(3, others.len());
+        let mut normal = V3::zeros();
+        for k in 0..3 {
+            let vk = V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
+            if coplanar && sv[k] < COPLANAR * smax {
+                normal = vk;
+                continue;
+            }
+            for r in 0..others.len() {
+                for d in 0..3 {
+                    b[(d, r)] += vk[d] * u[(r, k)] / sv[k];
+                }
             }
         }
+        let rel: Vec<V3> = others.iter().map(|&i| object[i] - object[r0]).collect();
+        let mut order = [0usize, 1, 2];
+        order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
+        let row = |k: usize| V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
+        let (e1, e2) = (row(order[0]), row(order[1]));
+        let posit = Posit {
+            object,
+            image,
+            r0,
+            others,
+            rel,
+            b,
+            normal,
+            x0: image[r0],
+        };
+        (posit, e1, e2)
     }
-    let rel: Vec<V3> = others.iter().map(|&i| object[i] - object[r0]).collect();
-    let x0 = image[r0];
-    let step = |eps: &[f64]| -> (V3, V3) {
+
+    /// The scaled vectors I, J from the image corrected by the perspective
+    /// terms `eps`.
+    fn step(&self, eps: &[f64]) -> (V3, V3) {
+        let (others, image, x0) = (&self.others, self.image, self.x0);
         let xp = nalgebra::DVector::from_iterator(
             others.len(),
             others
@@ -259,12 +294,15 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
                 .enumerate()
                 .map(|(r, &i)| image[i][1] * (1.0 + eps[r]) - x0[1]),
         );
-        let i = &b * xp;
-        let j = &b * yp;
+        let i = &self.b * xp;
+        let j = &self.b * yp;
         (V3::new(i[0], i[1], i[2]), V3::new(j[0], j[1], j[2]))
-    };
-    // a pose from the scaled vectors I = s i, J = s j of the object's first two rows
-    let pose_of = |i: V3, j: V3| -> Option<Pose> {
+    }
+
+    /// A pose from the scaled vectors I = s i, J = s j of the object's
+    /// first two rows.
+    fn pose_of(&self, i: V3, j: V3) -> Option<Pose> {
+        let x0 = self.x0;
         let (ni, nj) = (i.norm(), j.norm());
         if !(ni > 0.0 && nj > 0.0) {
             return None;
@@ -282,18 +320,22 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
         let t0 = V3::new(x0[0] * z0, x0[1] * z0, z0);
         Some(Pose {
             rotation: r,
-            translation: t0 - r * object[r0],
+            translation: t0 - r * self.object[self.r0],
         })
-    };
-    let eps_of = |p: &Pose| -> Vec<f64> {
-        let z0 = p.to_camera(&object[r0]).z;
+    }
+
+    /// The perspective corrections ε_i of pose `p`.
+    fn eps_of(&self, p: &Pose) -> Vec<f64> {
+        let z0 = p.to_camera(&self.object[self.r0]).z;
         let k = p.rotation.matrix().row(2).transpose();
-        rel.iter().map(|m| m.dot(&k) / z0).collect()
-    };
-    // normalised-image reprojection error, infinite when a mark is behind the camera
-    let err = |p: &Pose| -> f64 {
+        self.rel.iter().map(|m| m.dot(&k) / z0).collect()
+    }
+
+    /// Normalised-image reprojection error, infinite when a mark is behind
+    /// the camera.
+    fn err(&self, p: &Pose) -> f64 {
         let mut e = 0.0;
-        for (o, q) in object.iter().zip(image) {
+        for (o, q) in self.object.iter().zip(self.image) {
             let c = p.to_camera(o);
             if c.z <= 0.0 {
                 return f64::INFINITY;
@@ -301,34 +343,25 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
             e += (c.x / c.z - q[0]).powi(2) + (c.y / c.z - q[1]).powi(2);
         }
         e
-    };
-    // the best pose found so far, by its reprojection error
-    let mut best: Option<(f64, Pose)> = None;
-    let offer = |best: &mut Option<(f64, Pose)>, p: Pose| {
-        let e = err(&p);
+    }
+
+    /// Keeps `p` if it reprojects better than the best so far.
+    fn offer(&self, best: &mut Best, p: Pose) {
+        let e = self.err(&p);
         if e.is_finite() && best.as_ref().is_none_or(|b| e < b.0) {
             *best = Some((e, p));
         }
-    };
-    // the plane's homography gives a closed-form pose for coplanar marks and a
-    // fair start for nearly coplanar ones, where POSIT may not converge;
-    // near-frontal planes close to the camera, where both of Oberkampf's
-    // branches may settle on a wrong pose, need it too
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
-    let row = |k: usize| V3::new(v_t[(k, 0)], v_t[(k, 1)], v_t[(k, 2)]);
-    let (e1, e2) = (row(order[0]), row(order[1]));
-    if let Some(h) = homography_pose(object, image, object[r0], e1, e2) {
-        offer(&mut best, h);
     }
-    if !coplanar {
-        let mut eps = vec![0.0; others.len()];
+
+    /// POSIT for marks spanning a volume, offering each iteration's pose.
+    fn iterate(&self, best: &mut Best) {
+        let mut eps = vec![0.0; self.others.len()];
         for _ in 0..200 {
-            let (i, j) = step(&eps);
-            let Some(p) = pose_of(i, j) else {
+            let (i, j) = self.step(&eps);
+            let Some(p) = self.pose_of(i, j) else {
                 break;
             };
-            let new = eps_of(&p);
+            let new = self.eps_of(&p);
             let change = new
                 .iter()
                 .zip(&eps)
@@ -336,50 +369,89 @@ pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
                 .fold(0.0, f64::max);
             eps = new;
             if change < 1e-12 || !change.is_finite() {
-                offer(&mut best, p);
+                self.offer(best, p);
                 break;
             }
-            offer(&mut best, p);
+            self.offer(best, p);
         }
-        return best.map(|b| b.1).ok_or_else(|| {
-            anyhow::anyhow!("POSIT found no pose with every mark in front of the camera")
-        });
     }
-    // coplanar: I = I0 + λ n, J = J0 + μ n with |I| = |J| and I·J = 0, that is
-    // (λ + iμ)² = |J0|² − |I0|² − 2i I0·J0: two solutions ±(λ, μ)
-    let two = |eps: &[f64]| -> Vec<Pose> {
-        let (i0, j0) = step(eps);
+
+    /// Coplanar: I = I0 + λ n, J = J0 + μ n with |I| = |J| and I·J = 0, that
+    /// is (λ + iμ)² = |J0|² − |I0|² − 2i I0·J0: two solutions ±(λ, μ).
+    fn two(&self, eps: &[f64]) -> Vec<Pose> {
+        let normal = self.normal;
+        let (i0, j0) = self.step(eps);
         let q = nalgebra::Complex::new(j0.norm_squared() - i0.norm_squared(), -2.0 * i0.dot(&j0));
         let root = q.sqrt();
         [1.0, -1.0]
             .iter()
-            .filter_map(|sg| pose_of(i0 + normal * (sg * root.re), j0 + normal * (sg * root.im)))
+            .filter_map(|sg| {
+                self.pose_of(i0 + normal * (sg * root.re), j0 + normal * (sg * root.im))
+            })
             .collect()
-    };
-    // Oberkampf et al.: both solutions of the first iteration start a branch;
-    // each later iteration keeps, per branch, the better of its two poses
-    for start in two(&vec![0.0; others.len()]) {
-        let mut pose = start;
-        let mut eps = eps_of(&pose);
-        for _ in 0..200 {
-            let cand = two(&eps);
-            let Some(p) = cand.into_iter().min_by(|a, b| err(a).total_cmp(&err(b))) else {
-                break;
-            };
-            let new = eps_of(&p);
-            let change = new
-                .iter()
-                .zip(&eps)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            eps = new;
-            pose = p;
-            if change < 1e-12 {
-                break;
-            }
-        }
-        offer(&mut best, pose);
     }
+
+    /// Oberkampf et al.: both solutions of the first iteration start a
+    /// branch; each later iteration keeps, per branch, the better of its two
+    /// poses; each branch's last pose is offered.
+    fn iterate_coplanar(&self, best: &mut Best) {
+        for start in self.two(&vec![0.0; self.others.len()]) {
+            let mut pose = start;
+            let mut eps = self.eps_of(&pose);
+            for _ in 0..200 {
+                let cand = self.two(&eps);
+                let Some(p) = cand
+                    .into_iter()
+                    .min_by(|a, b| self.err(a).total_cmp(&self.err(b)))
+                else {
+                    break;
+                };
+                let new = self.eps_of(&p);
+                let change = new
+                    .iter()
+                    .zip(&eps)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                eps = new;
+                pose = p;
+                if change < 1e-12 {
+                    break;
+                }
+            }
+            self.offer(best, pose);
+        }
+    }
+}
+
+/// A first pose from at least four marks whose world positions `object`
+/// are seen at normalised image coordinates `image` (see
+/// [`Intrinsics::normalise`]): POSIT (DeMenthon & Davis 1995) when the
+/// marks span a volume, its coplanar variant (Oberkampf et al. 1996) when
+/// they lie on a plane, each iterated until the perspective corrections ε_i
+/// change by less than 1e-12 (at most 200 iterations); and the pose from the
+/// homography of the marks' best-fit plane ([`homography_pose`]): exact for
+/// coplanar marks, a start for nearly coplanar ones, where POSIT may not
+/// converge. Returns the candidate that reprojects best with every mark in
+/// front of the camera. Collinear marks have no pose: an error.
+pub fn posit(object: &[V3], image: &[[f64; 2]]) -> Result<Pose> {
+    let plane = check_marks(object, image)?;
+    let coplanar = plane < COPLANAR;
+    let (solver, e1, e2) = Posit::new(object, image, coplanar);
+    let mut best: Best = None;
+    // the plane's homography gives a closed-form pose for coplanar marks and a
+    // fair start for nearly coplanar ones, where POSIT may not converge;
+    // near-frontal planes close to the camera, where both of Oberkampf's
+    // branches may settle on a wrong pose, need it too
+    if let Some(h) = homography_pose(object, image, object[solver.r0], e1, e2) {
+        solver.offer(&mut best, h);
+    }
+    if !coplanar {
+        solver.iterate(&mut best);
+        return best.map(|b| b.1).ok_or_else(|| {
+            anyhow::anyhow!("POSIT found no pose with every mark in front of the camera")
+        });
+    }
+    solver.iterate_coplanar(&mut best);
     best.map(|b| b.1)
         .ok_or_else(|| anyhow::anyhow!("coplanar POSIT found no pose"))
 }

@@ -210,18 +210,21 @@ pub fn material_spacing(shape: &Shape) -> Option<[f64; 2]> {
     (s[0].is_finite() && s[1].is_finite()).then_some(s)
 }
 
-impl Problem {
-    /// Checks a views file against the model: every view has at least four
-    /// marks that are not collinear, every mark names one existing point
-    /// (a material point on the model's cloth or a known point) once, every
-    /// pixel is finite. Errors name the view and the mark. `base` is the
-    /// folder photo paths are relative to.
-    pub fn new(file: &ViewsFile, model: &Shape, base: &Path) -> Result<Problem> {
-        let k = file.intrinsics;
-        k.check()?;
-        if file.views.is_empty() {
-            bail!("no views");
-        }
+/// What a view's marks are resolved against: the model's cloth (its
+/// material coordinates, grid spacing and their range) and the known
+/// points.
+struct MarkPlaces<'a> {
+    loc: MaterialLocator<'a>,
+    spacing: [f64; 2],
+    known: HashMap<&'a str, V3>,
+    ulo: [f64; 2],
+    uhi: [f64; 2],
+}
+
+impl<'a> MarkPlaces<'a> {
+    /// Checks the model (material coordinates, grid spacing) and the known
+    /// points (finite, each once).
+    fn new(file: &'a ViewsFile, model: &'a Shape) -> Result<MarkPlaces<'a>> {
         let loc = MaterialLocator::new(model)
             .context("the model has no material coordinates (u, v) or no faces")?;
         let spacing = match file.grid_spacing {
@@ -249,6 +252,120 @@ impl Problem {
                 uhi[d] = uhi[d].max(m[d]);
             }
         }
+        Ok(MarkPlaces {
+            loc,
+            spacing,
+            known,
+            ulo,
+            uhi,
+        })
+    }
+
+    /// A mark's key (one per distinct point), kind and model position;
+    /// `what` names it in errors.
+    fn resolve(&self, m: &MarkSpec, what: &dyn Fn() -> String) -> Result<(String, MarkKind, V3)> {
+        let (spacing, ulo, uhi) = (self.spacing, self.ulo, self.uhi);
+        Ok(match (&m.grid, &m.uv, &m.point) {
+            (Some(_), None, None) | (None, Some(_), None) => {
+                let uv = match (m.grid, m.uv) {
+                    (Some(g), _) => [g[0] as f64 * spacing[0], g[1] as f64 * spacing[1]],
+                    (_, Some(u)) => u,
+                    _ => unreachable!(),
+                };
+                if !uv.iter().all(|c| c.is_finite()) {
+                    bail!("{}: material point {uv:?} is not finite", what());
+                }
+                let Some(p) = self.loc.at(uv, MATERIAL_TOLERANCE) else {
+                    bail!(
+                        "{}: no such mark: material point ({}, {}) m lies outside the \
+                         model's cloth (u in [{}, {}], v in [{}, {}] m)",
+                        what(),
+                        uv[0],
+                        uv[1],
+                        ulo[0],
+                        uhi[0],
+                        ulo[1],
+                        uhi[1]
+                    );
+                };
+                let key = format!(
+                    "uv {} {}",
+                    (uv[0] * 1e6).round() as i64,
+                    (uv[1] * 1e6).round() as i64
+                );
+                (key, MarkKind::Cloth { uv }, p)
+            }
+            (None, None, Some(name)) => {
+                let Some(p) = self.known.get(name.as_str()) else {
+                    let mut have: Vec<&str> = self.known.keys().copied().collect();
+                    have.sort();
+                    bail!(
+                        "{}: no such mark: no known point named '{name}' (known points: {})",
+                        what(),
+                        if have.is_empty() {
+                            "none".into()
+                        } else {
+                            have.join(", ")
+                        }
+                    );
+                };
+                (
+                    format!("point {name}"),
+                    MarkKind::Known { position: *p },
+                    *p,
+                )
+            }
+            _ => bail!("{}: give exactly one of grid, uv or point", what()),
+        })
+    }
+}
+
+/// Refuses a view whose marks are collinear on the cloth or in the image.
+fn check_view_spread(
+    v: &ViewSpec,
+    seen: &[(usize, [f64; 2])],
+    marks: &[Mark],
+    model_marks: &[V3],
+) -> Result<()> {
+    let pts: Vec<V3> = seen.iter().map(|(i, _)| model_marks[*i]).collect();
+    let line = flatness(&pts).0;
+    let pix: Vec<V3> = seen.iter().map(|(_, p)| V3::new(p[0], p[1], 0.0)).collect();
+    let pline = flatness(&pix).0;
+    if line < COLLINEAR || pline < COLLINEAR {
+        let labels: Vec<&str> = seen
+            .iter()
+            .take(6)
+            .map(|(i, _)| marks[*i].label.as_str())
+            .collect();
+        bail!(
+            "view '{}': its {} marks ({}{}) are collinear {}: the camera's pose is undetermined",
+            v.name,
+            seen.len(),
+            labels.join(", "),
+            if seen.len() > 6 { ", …" } else { "" },
+            if line < COLLINEAR {
+                "on the cloth"
+            } else {
+                "in the image"
+            }
+        );
+    }
+    Ok(())
+}
+
+impl Problem {
+    /// Checks a views file against the model: every view has at least four
+    /// marks that are not collinear, every mark names one existing point
+    /// (a material point on the model's cloth or a known point) once, every
+    /// pixel is finite. Errors name the view and the mark. `base` is the
+    /// folder photo paths are relative to.
+    pub fn new(file: &ViewsFile, model: &Shape, base: &Path) -> Result<Problem> {
+        let k = file.intrinsics;
+        k.check()?;
+        if file.views.is_empty() {
+            bail!("no views");
+        }
+        let places = MarkPlaces::new(file, model)?;
         let mut marks: Vec<Mark> = Vec::new();
         let mut model_marks: Vec<V3> = Vec::new();
         let mut index: HashMap<String, usize> = HashMap::new();
@@ -271,54 +388,7 @@ impl Problem {
                 if !m.pixel.iter().all(|c| c.is_finite()) {
                     bail!("{}: pixel {:?} is not finite", what(), m.pixel);
                 }
-                let (key, kind, pos) = match (&m.grid, &m.uv, &m.point) {
-                    (Some(_), None, None) | (None, Some(_), None) => {
-                        let uv = match (m.grid, m.uv) {
-                            (Some(g), _) => [g[0] as f64 * spacing[0], g[1] as f64 * spacing[1]],
-                            (_, Some(u)) => u,
-                            _ => unreachable!(),
-                        };
-                        if !uv.iter().all(|c| c.is_finite()) {
-                            bail!("{}: material point {uv:?} is not finite", what());
-                        }
-                        let Some(p) = loc.at(uv, MATERIAL_TOLERANCE) else {
-                            bail!(
-                                "{}: no such mark: material point ({}, {}) m lies outside the \
-                                 model's cloth (u in [{}, {}], v in [{}, {}] m)",
-                                what(),
-                                uv[0],
-                                uv[1],
-                                ulo[0],
-                                uhi[0],
-                                ulo[1],
-                                uhi[1]
-                            );
-                        };
-                        let key = format!(
-                            "uv {} {}",
-                            (uv[0] * 1e6).round() as i64,
-                            (uv[1] * 1e6).round() as i64
-                        );
-                        (key, MarkKind::Cloth { uv }, p)
-                    }
-                    (None, None, Some(name)) => {
-                        let Some(p) = known.get(name.as_str()) else {
-                            let mut have: Vec<&str> = known.keys().copied().collect();
-                            have.sort();
-                            bail!(
-                                "{}: no such mark: no known point named '{name}' (known points: {})",
-                                what(),
-                                if have.is_empty() { "none".into() } else { have.join(", ") }
-                            );
-                        };
-                        (
-                            format!("point {name}"),
-                            MarkKind::Known { position: *p },
-                            *p,
-                        )
-                    }
-                    _ => bail!("{}: give exactly one of grid, uv or point", what()),
-                };
+                let (key, kind, pos) = places.resolve(m, &what)?;
                 let id = *index.entry(key).or_insert_with(|| {
                     marks.push(Mark {
                         label: m.label(),
@@ -332,25 +402,7 @@ impl Problem {
                 }
                 seen.push((id, m.pixel));
             }
-            let pts: Vec<V3> = seen.iter().map(|(i, _)| model_marks[*i]).collect();
-            let line = flatness(&pts).0;
-            let pix: Vec<V3> = seen.iter().map(|(_, p)| V3::new(p[0], p[1], 0.0)).collect();
-            let pline = flatness(&pix).0;
-            if line < COLLINEAR || pline < COLLINEAR {
-                let labels: Vec<&str> = seen
-                    .iter()
-                    .take(6)
-                    .map(|(i, _)| marks[*i].label.as_str())
-                    .collect();
-                bail!(
-                    "view '{}': its {} marks ({}{}) are collinear {}: the camera's pose is undetermined",
-                    v.name,
-                    seen.len(),
-                    labels.join(", "),
-                    if seen.len() > 6 { ", …" } else { "" },
-                    if line < COLLINEAR { "on the cloth" } else { "in the image" }
-                );
-            }
+            check_view_spread(v, &seen, &marks, &model_marks)?;
             views.push(View {
                 name: v.name.clone(),
                 photo: v.photo.as_ref().map(|p| base.join(p)),

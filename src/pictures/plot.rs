@@ -383,85 +383,74 @@ impl LinePlot {
         let ylabels: Vec<String> = yt.iter().map(|&v| tick_label(v, &yt)).collect();
         let ylw = ylabels.iter().map(|s| text_width(s, 1)).max().unwrap_or(0);
         // plot area
-        let left = 30 + ylw + 12;
-        let right = w as i64 - 20;
-        let top = 40;
-        let bottom = h as i64 - 50;
-        let px = |x: f64| left as f64 + (x - x0) / (x1 - x0) * (right - left) as f64;
-        let py = |y: f64| bottom as f64 - (y - y0) / (y1 - y0) * (bottom - top) as f64;
-        // grid and ticks
+        let area = PlotArea {
+            left: 30 + ylw + 12,
+            right: w as i64 - 20,
+            top: 40,
+            bottom: h as i64 - 50,
+            x: (x0, x1),
+            y: (y0, y1),
+        };
+        self.draw_grid(&mut img, &area, &xt, &yt, &ylabels);
+        // series, clipped to the plot area
+        for s in &self.series {
+            draw_series(&mut img, &area, s);
+        }
+        self.draw_frame_and_titles(&mut img, &area);
+        // legend (top left inside the plot area)
+        if !self.series.is_empty() {
+            self.draw_legend(&mut img, &area);
+        }
+        img
+    }
+
+    /// The grid lines, the ticks and their labels, and the zero lines.
+    fn draw_grid(
+        &self,
+        img: &mut Image,
+        area: &PlotArea,
+        xt: &[f64],
+        yt: &[f64],
+        ylabels: &[String],
+    ) {
+        let (left, right, top, bottom) = (area.left, area.right, area.top, area.bottom);
+        let ((x0, x1), (y0, y1)) = (area.x, area.y);
         for &t in xt.iter() {
-            let x = px(t);
+            let x = area.px(t);
             img.line((x, top as f64), (x, bottom as f64), LIGHT_GREY, 1);
             img.line((x, bottom as f64), (x, bottom as f64 + 5.0), BLACK, 1);
-            let s = tick_label(t, &xt);
+            let s = tick_label(t, xt);
             img.text(x as i64 - text_width(&s, 1) / 2, bottom + 9, &s, 1, BLACK);
         }
-        for (t, s) in yt.iter().zip(&ylabels) {
-            let y = py(*t);
+        for (t, s) in yt.iter().zip(ylabels) {
+            let y = area.py(*t);
             img.line((left as f64, y), (right as f64, y), LIGHT_GREY, 1);
             img.line((left as f64 - 5.0, y), (left as f64, y), BLACK, 1);
             img.text(left - 9 - text_width(s, 1), y as i64 - 4, s, 1, BLACK);
         }
         if self.zero_lines {
             if x0 < 0.0 && x1 > 0.0 {
-                img.line((px(0.0), top as f64), (px(0.0), bottom as f64), GREY, 1);
+                img.line(
+                    (area.px(0.0), top as f64),
+                    (area.px(0.0), bottom as f64),
+                    GREY,
+                    1,
+                );
             }
             if y0 < 0.0 && y1 > 0.0 {
-                img.line((left as f64, py(0.0)), (right as f64, py(0.0)), GREY, 1);
+                img.line(
+                    (left as f64, area.py(0.0)),
+                    (right as f64, area.py(0.0)),
+                    GREY,
+                    1,
+                );
             }
         }
-        // series, clipped to the plot area
-        for s in &self.series {
-            let mut travelled = 0.0;
-            for win in s.points.windows(2) {
-                let (a, b) = ((px(win[0].0), py(win[0].1)), (px(win[1].0), py(win[1].1)));
-                if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
-                    continue;
-                }
-                let seg = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
-                match s.style {
-                    Style::Line => {
-                        draw_clipped(&mut img, a, b, s.color, s.width, (left, top, right, bottom))
-                    }
-                    Style::Dashed => {
-                        // 10 px on, 6 px off along the path
-                        let n = (seg / 2.0).ceil().max(1.0) as usize;
-                        for q in 0..n {
-                            let t0 = q as f64 / n as f64;
-                            let t1 = (q + 1) as f64 / n as f64;
-                            let d = travelled + seg * t0;
-                            if d % 16.0 < 10.0 {
-                                let p0 = (a.0 + (b.0 - a.0) * t0, a.1 + (b.1 - a.1) * t0);
-                                let p1 = (a.0 + (b.0 - a.0) * t1, a.1 + (b.1 - a.1) * t1);
-                                draw_clipped(
-                                    &mut img,
-                                    p0,
-                                    p1,
-                                    s.color,
-                                    s.width,
-                                    (left, top, right, bottom),
-                                );
-                            }
-                        }
-                    }
-                    Style::Points => {}
-                }
-                travelled += seg;
-            }
-            if s.style == Style::Points {
-                for p in &s.points {
-                    let (x, y) = (px(p.0), py(p.1));
-                    if x >= left as f64
-                        && x <= right as f64
-                        && y >= top as f64
-                        && y <= bottom as f64
-                    {
-                        img.disc(x, y, 1.0 + s.width as f64, s.color);
-                    }
-                }
-            }
-        }
+    }
+
+    /// The plot area's frame, the title and the axes' labels.
+    fn draw_frame_and_titles(&self, img: &mut Image, area: &PlotArea) {
+        let (left, right, top, bottom) = (area.left, area.right, area.top, area.bottom);
         // frame
         img.line(
             (left as f64, top as f64),
@@ -509,66 +498,133 @@ impl LinePlot {
             1,
             BLACK,
         );
-        // legend (top left inside the plot area)
-        if !self.series.is_empty() {
-            let lw = self
-                .series
-                .iter()
-                .map(|s| text_width(&s.label, 1))
-                .max()
-                .unwrap_or(0)
-                + 50;
-            let lh = 16 * self.series.len() as i64 + 8;
-            let (lx, ly) = (left + 10, top + 10);
-            img.fill_rect(lx, ly, lw, lh, WHITE);
-            for (k, s) in self.series.iter().enumerate() {
-                let y = (ly + 12 + 16 * k as i64) as f64;
-                match s.style {
-                    Style::Line => img.line(
+    }
+
+    /// The legend, top left inside the plot area: each series' line style
+    /// and label.
+    fn draw_legend(&self, img: &mut Image, area: &PlotArea) {
+        let lw = self
+            .series
+            .iter()
+            .map(|s| text_width(&s.label, 1))
+            .max()
+            .unwrap_or(0)
+            + 50;
+        let lh = 16 * self.series.len() as i64 + 8;
+        let (lx, ly) = (area.left + 10, area.top + 10);
+        img.fill_rect(lx, ly, lw, lh, WHITE);
+        for (k, s) in self.series.iter().enumerate() {
+            let y = (ly + 12 + 16 * k as i64) as f64;
+            match s.style {
+                Style::Line => img.line(
+                    (lx as f64 + 6.0, y),
+                    (lx as f64 + 34.0, y),
+                    s.color,
+                    s.width,
+                ),
+                Style::Dashed => {
+                    img.line(
                         (lx as f64 + 6.0, y),
+                        (lx as f64 + 16.0, y),
+                        s.color,
+                        s.width,
+                    );
+                    img.line(
+                        (lx as f64 + 24.0, y),
                         (lx as f64 + 34.0, y),
                         s.color,
                         s.width,
-                    ),
-                    Style::Dashed => {
-                        img.line(
-                            (lx as f64 + 6.0, y),
-                            (lx as f64 + 16.0, y),
-                            s.color,
-                            s.width,
-                        );
-                        img.line(
-                            (lx as f64 + 24.0, y),
-                            (lx as f64 + 34.0, y),
-                            s.color,
-                            s.width,
-                        );
-                    }
-                    Style::Points => img.disc(lx as f64 + 20.0, y, 1.0 + s.width as f64, s.color),
+                    );
                 }
-                img.text(lx + 42, y as i64 - 4, &s.label, 1, BLACK);
+                Style::Points => img.disc(lx as f64 + 20.0, y, 1.0 + s.width as f64, s.color),
             }
-            let (fx, fy) = (lx as f64, ly as f64);
-            img.line((fx, fy), (fx + lw as f64, fy), GREY, 1);
-            img.line(
-                (fx, fy + lh as f64),
-                (fx + lw as f64, fy + lh as f64),
-                GREY,
-                1,
-            );
-            img.line((fx, fy), (fx, fy + lh as f64), GREY, 1);
-            img.line(
-                (fx + lw as f64, fy),
-                (fx + lw as f64, fy + lh as f64),
-                GREY,
-                1,
-            );
+            img.text(lx + 42, y as i64 - 4, &s.label, 1, BLACK);
         }
-        img
+        let (fx, fy) = (lx as f64, ly as f64);
+        img.line((fx, fy), (fx + lw as f64, fy), GREY, 1);
+        img.line(
+            (fx, fy + lh as f64),
+            (fx + lw as f64, fy + lh as f64),
+            GREY,
+            1,
+        );
+        img.line((fx, fy), (fx, fy + lh as f64), GREY, 1);
+        img.line(
+            (fx + lw as f64, fy),
+            (fx + lw as f64, fy + lh as f64),
+            GREY,
+            1,
+        );
     }
 
     pub fn save_png(&self, path: &Path) -> Result<()> {
         self.render().save_png(path)
+    }
+}
+
+/// A line plot's area in pixels and the data ranges it spans.
+struct PlotArea {
+    left: i64,
+    right: i64,
+    top: i64,
+    bottom: i64,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl PlotArea {
+    /// The pixel column of data abscissa `x`.
+    fn px(&self, x: f64) -> f64 {
+        let (x0, x1) = self.x;
+        self.left as f64 + (x - x0) / (x1 - x0) * (self.right - self.left) as f64
+    }
+
+    /// The pixel row of data ordinate `y`.
+    fn py(&self, y: f64) -> f64 {
+        let (y0, y1) = self.y;
+        self.bottom as f64 - (y - y0) / (y1 - y0) * (self.bottom - self.top) as f64
+    }
+}
+
+/// Draws a series clipped to the plot area: a line, dashed (10 px on, 6 px
+/// off along the path) or points.
+fn draw_series(img: &mut Image, area: &PlotArea, s: &Series) {
+    let (left, right, top, bottom) = (area.left, area.right, area.top, area.bottom);
+    let (px, py) = (|x: f64| area.px(x), |y: f64| area.py(y));
+    let mut travelled = 0.0;
+    for win in s.points.windows(2) {
+        let (a, b) = ((px(win[0].0), py(win[0].1)), (px(win[1].0), py(win[1].1)));
+        if !(a.0.is_finite() && a.1.is_finite() && b.0.is_finite() && b.1.is_finite()) {
+            continue;
+        }
+        let seg = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        match s.style {
+            Style::Line => draw_clipped(img, a, b, s.color, s.width, (left, top, right, bottom)),
+            Style::Dashed => {
+                // 10 px on, 6 px off along the path
+                let n = (seg / 2.0).ceil().max(1.0) as usize;
+                for q in 0..n {
+                    let t0 = q as f64 / n as f64;
+                    let t1 = (q + 1) as f64 / n as f64;
+                    let d = travelled + seg * t0;
+                    if d % 16.0 < 10.0 {
+                        let p0 = (a.0 + (b.0 - a.0) * t0, a.1 + (b.1 - a.1) * t0);
+                        let p1 = (a.0 + (b.0 - a.0) * t1, a.1 + (b.1 - a.1) * t1);
+                        draw_clipped(img, p0, p1, s.color, s.width, (left, top, right, bottom));
+                    }
+                }
+            }
+            Style::Points => {}
+        }
+        travelled += seg;
+    }
+    if s.style == Style::Points {
+        for p in &s.points {
+            let (x, y) = (px(p.0), py(p.1));
+            if x >= left as f64 && x <= right as f64 && y >= top as f64 && y <= bottom as f64 {
+                img.disc(x, y, 1.0 + s.width as f64, s.color);
+            }
+        }
     }
 }
 

@@ -137,21 +137,11 @@ fn shape(p: &msgs::SolidPrimitive, k: usize) -> Result<ShapeSpec, String> {
     })
 }
 
-/// Applies an `obstacles` message. Returns a one-line account of what changed.
-/// `max_triangles` bounds each mesh (parameter `max_mesh_triangles`).
-pub fn apply_obstacle(
-    sim: &mut Simulation,
-    reg: &mut ObstacleRegistry,
-    m: &msgs::Obstacle,
-    frame_id: &str,
-    max_triangles: usize,
-) -> Result<String, String> {
+/// The message's velocity (linear, angular), finite and within the speed
+/// limits.
+fn obstacle_twist(m: &msgs::Obstacle) -> Result<(Vector3<f64>, Vector3<f64>), String> {
     let id = m.id.as_str();
     let fail = |e: String| format!("obstacle {id:?}: {e}");
-    if id.is_empty() {
-        return Err("obstacle: empty id".into());
-    }
-    check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
     let twist = [
         m.velocity.linear.x,
         m.velocity.linear.y,
@@ -168,8 +158,172 @@ pub fn apply_obstacle(
     limits::check_speed("velocity.linear", &lin, MAX_OBSTACLE_SPEED, "m/s")
         .and_then(|_| limits::check_speed("velocity.angular", &ang, MAX_ANGULAR_SPEED, "rad/s"))
         .map_err(|e| fail(e.to_string()))?;
-    let reach = |frame: &Isometry3<f64>| -> Result<(), String> {
-        limits::check_reach("pose.position", &frame.translation.vector, &sim.cloth.x)
+    Ok((lin, ang))
+}
+
+/// MOVE: every part of the obstacle moved to `frame` with the velocity
+/// (`lin`, `ang`), each checked where it would go before any moves.
+fn move_obstacle(
+    sim: &mut Simulation,
+    reg: &ObstacleRegistry,
+    id: &str,
+    frame: &Isometry3<f64>,
+    (lin, ang): (Vector3<f64>, Vector3<f64>),
+) -> Result<String, String> {
+    let fail = |e: String| format!("obstacle {id:?}: {e}");
+    let parts = reg
+        .parts
+        .get(id)
+        .ok_or_else(|| fail("no such obstacle to move (ADD it first)".into()))?;
+    // every part checked where it would go before any moves
+    let mut moved = Vec::new();
+    for &(h, sub) in parts {
+        if let Some(o) = sim.obstacles().get(h) {
+            let mut o = o.clone();
+            set_motion(&mut o, frame, &sub, &lin, &ang);
+            o.check_overlap(&sim.cloth.x)
+                .map_err(|e| fail(e.to_string()))?;
+            moved.push((h, o));
+        }
+    }
+    for (h, o) in moved {
+        if let Some(slot) = sim.obstacle_mut(h) {
+            *slot = o;
+        }
+    }
+    Ok(format!("moved obstacle {id:?}"))
+}
+
+/// The shapes of an ADD message (its primitives, then its meshes, at most
+/// `max_triangles` each) with their poses in the obstacle frame.
+fn obstacle_shapes(
+    m: &msgs::Obstacle,
+    max_triangles: usize,
+) -> Result<Vec<(ShapeSpec, Isometry3<f64>)>, String> {
+    let id = m.id.as_str();
+    let fail = |e: String| format!("obstacle {id:?}: {e}");
+    if m.primitives.len() != m.primitive_poses.len() {
+        return Err(fail(format!(
+            "{} primitives but {} primitive_poses",
+            m.primitives.len(),
+            m.primitive_poses.len()
+        )));
+    }
+    if m.meshes.len() != m.mesh_poses.len() {
+        return Err(fail(format!(
+            "{} meshes but {} mesh_poses",
+            m.meshes.len(),
+            m.mesh_poses.len()
+        )));
+    }
+    let mut specs = Vec::new();
+    for (k, (p, q)) in m.primitives.iter().zip(&m.primitive_poses).enumerate() {
+        specs.push((
+            shape(p, k).map_err(fail)?,
+            pose(q, &format!("primitive_poses[{k}]")).map_err(fail)?,
+        ));
+    }
+    for (k, (mesh, q)) in m.meshes.iter().zip(&m.mesh_poses).enumerate() {
+        if mesh.triangles.len() > max_triangles {
+            return Err(fail(format!(
+                "meshes[{k}] has {} triangles, more than max_mesh_triangles = {max_triangles}",
+                mesh.triangles.len()
+            )));
+        }
+        let vertices: Vec<[f64; 3]> = mesh.vertices.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let triangles = mesh.triangles.iter().map(|t| t.vertex_indices).collect();
+        specs.push((
+            ShapeSpec::Triangles {
+                vertices,
+                triangles,
+            },
+            pose(q, &format!("mesh_poses[{k}]")).map_err(fail)?,
+        ));
+    }
+    if specs.is_empty() {
+        return Err(fail("no primitives and no meshes".into()));
+    }
+    Ok(specs)
+}
+
+/// ADD: the obstacle's shapes built at `frame` with the velocity (`lin`,
+/// `ang`), each checked against the cloth, then put in place of an obstacle
+/// of the same id.
+fn add_obstacle(
+    sim: &mut Simulation,
+    reg: &mut ObstacleRegistry,
+    m: &msgs::Obstacle,
+    frame: Isometry3<f64>,
+    (lin, ang): (Vector3<f64>, Vector3<f64>),
+    max_triangles: usize,
+) -> Result<String, String> {
+    let id = m.id.as_str();
+    let fail = |e: String| format!("obstacle {id:?}: {e}");
+    let thickness = if m.thickness.is_nan() {
+        DEFAULT_OBSTACLE_THICKNESS
+    } else {
+        m.thickness
+    };
+    let friction = if m.friction.is_nan() {
+        DEFAULT_FRICTION
+    } else {
+        m.friction
+    };
+    let specs = obstacle_shapes(m, max_triangles)?;
+    let many = specs.len() > 1;
+    let mut built = Vec::new();
+    for (k, (spec, sub)) in specs.into_iter().enumerate() {
+        let pid = if many {
+            format!("{id}#{k}")
+        } else {
+            id.to_string()
+        };
+        let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
+            .map_err(|e| format!("{e:#}"))?;
+        set_motion(&mut o, &frame, &sub, &lin, &ang);
+        o.check_overlap(&sim.cloth.x)
+            .map_err(|e| fail(e.to_string()))?;
+        built.push((o, sub));
+    }
+    let replaced = if let Some(old) = reg.parts.remove(id) {
+        for (h, _) in old {
+            sim.remove_obstacle(h);
+        }
+        true
+    } else {
+        false
+    };
+    let n = built.len();
+    let parts = built
+        .into_iter()
+        .map(|(o, sub)| (sim.add_obstacle(o), sub))
+        .collect();
+    reg.parts.insert(id.to_string(), parts);
+    Ok(format!(
+        "{} obstacle {id:?} ({n} shape{})",
+        if replaced { "replaced" } else { "added" },
+        if n == 1 { "" } else { "s" }
+    ))
+}
+
+/// Applies an `obstacles` message. Returns a one-line account of what changed.
+/// `max_triangles` bounds each mesh (parameter `max_mesh_triangles`).
+pub fn apply_obstacle(
+    sim: &mut Simulation,
+    reg: &mut ObstacleRegistry,
+    m: &msgs::Obstacle,
+    frame_id: &str,
+    max_triangles: usize,
+) -> Result<String, String> {
+    let id = m.id.as_str();
+    let fail = |e: String| format!("obstacle {id:?}: {e}");
+    if id.is_empty() {
+        return Err("obstacle: empty id".into());
+    }
+    check_frame(&m.header.frame_id, frame_id).map_err(fail)?;
+    let twist = obstacle_twist(m)?;
+    let reach = |frame: &Isometry3<f64>, x: &[Vector3<f64>]| -> Result<(), String> {
+        limits::check_reach("pose.position", &frame.translation.vector, x)
             .map_err(|e| fail(e.to_string()))
     };
     match m.operation {
@@ -185,118 +339,13 @@ pub fn apply_obstacle(
         }
         msgs::Obstacle::MOVE => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
-            reach(&frame)?;
-            let parts = reg
-                .parts
-                .get(id)
-                .ok_or_else(|| fail("no such obstacle to move (ADD it first)".into()))?;
-            // every part checked where it would go before any moves
-            let mut moved = Vec::new();
-            for &(h, sub) in parts {
-                if let Some(o) = sim.obstacles().get(h) {
-                    let mut o = o.clone();
-                    set_motion(&mut o, &frame, &sub, &lin, &ang);
-                    o.check_overlap(&sim.cloth.x)
-                        .map_err(|e| fail(e.to_string()))?;
-                    moved.push((h, o));
-                }
-            }
-            for (h, o) in moved {
-                if let Some(slot) = sim.obstacle_mut(h) {
-                    *slot = o;
-                }
-            }
-            Ok(format!("moved obstacle {id:?}"))
+            reach(&frame, &sim.cloth.x)?;
+            move_obstacle(sim, reg, id, &frame, twist)
         }
         msgs::Obstacle::ADD => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
-            reach(&frame)?;
-            let thickness = if m.thickness.is_nan() {
-                DEFAULT_OBSTACLE_THICKNESS
-            } else {
-                m.thickness
-            };
-            let friction = if m.friction.is_nan() {
-                DEFAULT_FRICTION
-            } else {
-                m.friction
-            };
-            if m.primitives.len() != m.primitive_poses.len() {
-                return Err(fail(format!(
-                    "{} primitives but {} primitive_poses",
-                    m.primitives.len(),
-                    m.primitive_poses.len()
-                )));
-            }
-            if m.meshes.len() != m.mesh_poses.len() {
-                return Err(fail(format!(
-                    "{} meshes but {} mesh_poses",
-                    m.meshes.len(),
-                    m.mesh_poses.len()
-                )));
-            }
-            let mut specs = Vec::new();
-            for (k, (p, q)) in m.primitives.iter().zip(&m.primitive_poses).enumerate() {
-                specs.push((
-                    shape(p, k).map_err(fail)?,
-                    pose(q, &format!("primitive_poses[{k}]")).map_err(fail)?,
-                ));
-            }
-            for (k, (mesh, q)) in m.meshes.iter().zip(&m.mesh_poses).enumerate() {
-                if mesh.triangles.len() > max_triangles {
-                    return Err(fail(format!(
-                        "meshes[{k}] has {} triangles, more than max_mesh_triangles = {max_triangles}",
-                        mesh.triangles.len()
-                    )));
-                }
-                let vertices: Vec<[f64; 3]> =
-                    mesh.vertices.iter().map(|p| [p.x, p.y, p.z]).collect();
-                let triangles = mesh.triangles.iter().map(|t| t.vertex_indices).collect();
-                specs.push((
-                    ShapeSpec::Triangles {
-                        vertices,
-                        triangles,
-                    },
-                    pose(q, &format!("mesh_poses[{k}]")).map_err(fail)?,
-                ));
-            }
-            if specs.is_empty() {
-                return Err(fail("no primitives and no meshes".into()));
-            }
-            let many = specs.len() > 1;
-            let mut built = Vec::new();
-            for (k, (spec, sub)) in specs.into_iter().enumerate() {
-                let pid = if many {
-                    format!("{id}#{k}")
-                } else {
-                    id.to_string()
-                };
-                let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
-                    .map_err(|e| format!("{e:#}"))?;
-                set_motion(&mut o, &frame, &sub, &lin, &ang);
-                o.check_overlap(&sim.cloth.x)
-                    .map_err(|e| fail(e.to_string()))?;
-                built.push((o, sub));
-            }
-            let replaced = if let Some(old) = reg.parts.remove(id) {
-                for (h, _) in old {
-                    sim.remove_obstacle(h);
-                }
-                true
-            } else {
-                false
-            };
-            let n = built.len();
-            let parts = built
-                .into_iter()
-                .map(|(o, sub)| (sim.add_obstacle(o), sub))
-                .collect();
-            reg.parts.insert(id.to_string(), parts);
-            Ok(format!(
-                "{} obstacle {id:?} ({n} shape{})",
-                if replaced { "replaced" } else { "added" },
-                if n == 1 { "" } else { "s" }
-            ))
+            reach(&frame, &sim.cloth.x)?;
+            add_obstacle(sim, reg, m, frame, twist, max_triangles)
         }
         op => Err(fail(format!(
             "operation {op} unknown (ADD=0, REMOVE=1, MOVE=3)"

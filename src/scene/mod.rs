@@ -502,17 +502,21 @@ impl Scene {
         Ok(())
     }
 
-    /// Builds the simulation (applying command-line overrides).
-    pub fn build(&self, ov: &Overrides) -> Result<Simulation> {
-        ov.check()?;
-        ov.check_for_scene()?;
+    /// The scene file's name, the context of its errors.
+    fn ctx(&self) -> String {
+        format!("scene file {}", self.path.display())
+    }
+
+    /// The obstacles, their shapes or motions read relative to the scene
+    /// file's directory.
+    fn build_obstacles(&self) -> Result<Vec<Obstacle>> {
         let f = &self.file;
         let base = self
             .path
             .parent()
             .map(Path::to_path_buf)
             .unwrap_or_default();
-        let ctx = || format!("scene file {}", self.path.display());
+        let ctx = || self.ctx();
         let mut obstacles = Vec::new();
         for (k, o) in f.obstacles.iter().enumerate() {
             let pose = o
@@ -545,7 +549,15 @@ impl Scene {
             ob.angular_velocity = Vector3::from(o.angular_velocity);
             obstacles.push(ob);
         }
-        let cloth_pose = match &f.cloth.place_on {
+        Ok(obstacles)
+    }
+
+    /// The cloth's pose: on the box `cloth.place_on` names, else
+    /// `cloth.pose`.
+    fn cloth_pose(&self, obstacles: &[Obstacle]) -> Result<Isometry3<f64>> {
+        let f = &self.file;
+        let ctx = || self.ctx();
+        Ok(match &f.cloth.place_on {
             Some(p) => {
                 let ob = obstacles
                     .iter()
@@ -567,7 +579,14 @@ impl Scene {
                 ob.pose * Translation3::new(p.corner[0], p.corner[1], size[2] / 2.0 + p.gap)
             }
             None => f.cloth.pose.isometry("cloth.pose").with_context(ctx)?,
-        };
+        })
+    }
+
+    /// The cloth at `cloth_pose` (its grid's size, spacing and memory
+    /// checked), with the run's hinges.
+    fn build_cloth(&self, ov: &Overrides, cloth_pose: Isometry3<f64>) -> Result<Cloth> {
+        let f = &self.file;
+        let ctx = || self.ctx();
         let spacing = ov.spacing.map(|s| [s, s]).unwrap_or(f.cloth.spacing.pair());
         let grid = GridSpec {
             size: f.cloth.size,
@@ -591,40 +610,19 @@ impl Scene {
         };
         limits::check_cloth_grid("cloth.size", grid.size, spacing_field, grid.spacing)
             .with_context(ctx)?;
-        let cloth = Cloth::panel(&PanelSpec {
+        Cloth::panel(&PanelSpec {
             hinges: self.hinges(ov).layout(),
             ..PanelSpec::rectangle(&grid, self.fabric.areal_mass)
         })
-        .with_context(ctx)?;
-        // the obstacles lie within reach of the cloth (as a message's must),
-        // and the cloth starts outside them (meshes may be open, with no
-        // inside: not checked)
-        for (k, ob) in obstacles.iter().enumerate() {
-            limits::check_reach(
-                &format!("obstacles[{k}] ({:?}) pose.position", ob.id),
-                &ob.pose.translation.vector,
-                &cloth.x,
-            )
-            .with_context(ctx)?;
-            ob.check_overlap(&cloth.x)
-                .with_context(|| format!("obstacles[{k}]"))
-                .with_context(ctx)?;
-        }
-        let params = ov.apply(Params {
-            dt: f.dt,
-            gravity: Vector3::from(f.gravity),
-            linear_solver: f.solver.unwrap_or_default(),
-            cloth_thickness: f.cloth.thickness,
-            hysteresis: f.cloth.hysteresis,
-            self_collision: f.self_collision,
-            obstacle_edges: f.obstacle_edges,
-            cell_shear: f.cell_shear,
-            cg_tolerance: f.cg_tolerance.unwrap_or(Params::default().cg_tolerance),
-            threads: 0,
-            ..Params::default()
-        });
+        .with_context(ctx)
+    }
+
+    /// The pins, each checked against the cloth (vertex, reach, speed,
+    /// waypoint times, release time).
+    fn build_pins(&self, cloth: &Cloth) -> Result<Vec<Pin>> {
+        let ctx = || self.ctx();
         let mut pins = Vec::new();
-        for (k, p) in f.pins.iter().enumerate() {
+        for (k, p) in self.file.pins.iter().enumerate() {
             let vertex = match (p.grid, p.vertex) {
                 (Some([i, j]), _) => cloth
                     .index(i, j)
@@ -654,45 +652,7 @@ impl Scene {
                 )
                 .with_context(ctx)?;
             }
-            let path = match (&p.path, p.velocity) {
-                (Some(w), _) => {
-                    if w.is_empty() {
-                        bail!("{}: pins[{k}].path is empty", ctx());
-                    }
-                    for (q, w) in w.iter().enumerate() {
-                        if !w.t.is_finite() {
-                            bail!("{}: pins[{k}].path[{q}].t = {}: must be finite", ctx(), w.t);
-                        }
-                        limits::check_reach(
-                            &format!("pins[{k}].path[{q}].position"),
-                            &Vector3::from(w.position),
-                            &cloth.x,
-                        )
-                        .with_context(ctx)?;
-                    }
-                    for (q, pair) in w.windows(2).enumerate() {
-                        if pair[1].t <= pair[0].t {
-                            bail!("{}: pins[{k}].path: waypoint times must increase", ctx());
-                        }
-                        let v = (Vector3::from(pair[1].position) - Vector3::from(pair[0].position))
-                            / (pair[1].t - pair[0].t);
-                        limits::check_speed(
-                            &format!("pins[{k}].path[{q}..{}] speed", q + 1),
-                            &v,
-                            MAX_PIN_SPEED,
-                            "m/s",
-                        )
-                        .with_context(ctx)?;
-                    }
-                    PinPath::Waypoints(w.iter().map(|w| (w.t, Vector3::from(w.position))).collect())
-                }
-                (None, Some(v)) => PinPath::Velocity {
-                    start,
-                    velocity: Vector3::from(v),
-                    t0: 0.0,
-                },
-                (None, None) => PinPath::Fixed(start),
-            };
+            let path = self.pin_path(k, p, start, cloth)?;
             if let Some(r) = p.release_at {
                 if !(r.is_finite() && r >= 0.0) {
                     bail!(
@@ -707,6 +667,98 @@ impl Scene {
                 release_at: p.release_at,
             });
         }
+        Ok(pins)
+    }
+
+    /// Pin `k`'s path: its waypoints (checked: finite increasing times,
+    /// positions in reach, speeds between them), a constant velocity from
+    /// `start`, or fixed at `start`.
+    fn pin_path(
+        &self,
+        k: usize,
+        p: &PinSpec,
+        start: Vector3<f64>,
+        cloth: &Cloth,
+    ) -> Result<PinPath> {
+        let ctx = || self.ctx();
+        Ok(match (&p.path, p.velocity) {
+            (Some(w), _) => {
+                if w.is_empty() {
+                    bail!("{}: pins[{k}].path is empty", ctx());
+                }
+                for (q, w) in w.iter().enumerate() {
+                    if !w.t.is_finite() {
+                        bail!("{}: pins[{k}].path[{q}].t = {}: must be finite", ctx(), w.t);
+                    }
+                    limits::check_reach(
+                        &format!("pins[{k}].path[{q}].position"),
+                        &Vector3::from(w.position),
+                        &cloth.x,
+                    )
+                    .with_context(ctx)?;
+                }
+                for (q, pair) in w.windows(2).enumerate() {
+                    if pair[1].t <= pair[0].t {
+                        bail!("{}: pins[{k}].path: waypoint times must increase", ctx());
+                    }
+                    let v = (Vector3::from(pair[1].position) - Vector3::from(pair[0].position))
+                        / (pair[1].t - pair[0].t);
+                    limits::check_speed(
+                        &format!("pins[{k}].path[{q}..{}] speed", q + 1),
+                        &v,
+                        MAX_PIN_SPEED,
+                        "m/s",
+                    )
+                    .with_context(ctx)?;
+                }
+                PinPath::Waypoints(w.iter().map(|w| (w.t, Vector3::from(w.position))).collect())
+            }
+            (None, Some(v)) => PinPath::Velocity {
+                start,
+                velocity: Vector3::from(v),
+                t0: 0.0,
+            },
+            (None, None) => PinPath::Fixed(start),
+        })
+    }
+
+    /// Builds the simulation (applying command-line overrides).
+    pub fn build(&self, ov: &Overrides) -> Result<Simulation> {
+        ov.check()?;
+        ov.check_for_scene()?;
+        let f = &self.file;
+        let ctx = || self.ctx();
+        let obstacles = self.build_obstacles()?;
+        let cloth_pose = self.cloth_pose(&obstacles)?;
+        let cloth = self.build_cloth(ov, cloth_pose)?;
+        // the obstacles lie within reach of the cloth (as a message's must),
+        // and the cloth starts outside them (meshes may be open, with no
+        // inside: not checked)
+        for (k, ob) in obstacles.iter().enumerate() {
+            limits::check_reach(
+                &format!("obstacles[{k}] ({:?}) pose.position", ob.id),
+                &ob.pose.translation.vector,
+                &cloth.x,
+            )
+            .with_context(ctx)?;
+            ob.check_overlap(&cloth.x)
+                .with_context(|| format!("obstacles[{k}]"))
+                .with_context(ctx)?;
+        }
+        let params = ov.apply(Params {
+            dt: f.dt,
+            gravity: Vector3::from(f.gravity),
+            linear_solver: f.solver.unwrap_or_default(),
+            cloth_thickness: f.cloth.thickness,
+            hysteresis: f.cloth.hysteresis,
+            self_collision: f.self_collision,
+            obstacle_edges: f.obstacle_edges,
+            cell_shear: f.cell_shear,
+            cg_tolerance: f.cg_tolerance.unwrap_or(Params::default().cg_tolerance),
+            threads: 0,
+            ..Params::default()
+        });
+        let pins = self.build_pins(&cloth)?;
         let mut sim = Simulation::new(cloth, self.fabric.clone(), params).with_context(ctx)?;
         sim.set_obstacles(obstacles.into_iter().collect());
         sim.set_pins(pins)?;

@@ -355,6 +355,321 @@ fn buffers(doc: &gltf::Gltf, path: &Path) -> Result<Vec<Vec<u8>>> {
     Ok(out)
 }
 
+/// The nodes' rest transforms and parents, and an order with parents first.
+fn node_hierarchy(doc: &gltf::Gltf) -> Result<(Vec<NodeRest>, Vec<usize>)> {
+    let n = doc.nodes().count();
+    let mut parent = vec![None; n];
+    for node in doc.nodes() {
+        for c in node.children() {
+            parent[c.index()] = Some(node.index());
+        }
+    }
+    let nodes: Vec<NodeRest> = doc
+        .nodes()
+        .map(|node| {
+            let (t, r, s) = node.transform().decomposed();
+            NodeRest {
+                parent: parent[node.index()],
+                t: t.map(f64::from),
+                r: r.map(f64::from),
+                s: s.map(f64::from),
+            }
+        })
+        .collect();
+    let mut order = Vec::with_capacity(n);
+    let mut stack: Vec<usize> = (0..n).filter(|&k| parent[k].is_none()).collect();
+    while let Some(k) = stack.pop() {
+        order.push(k);
+        stack.extend(
+            doc.nodes()
+                .nth(k)
+                .expect("node")
+                .children()
+                .map(|c| c.index()),
+        );
+    }
+    if order.len() != n {
+        bail!("its node hierarchy has a cycle");
+    }
+    Ok((nodes, order))
+}
+
+/// The animation named `animation` (its name, or its index as a number;
+/// the first if `None`).
+fn find_animation<'a>(
+    doc: &'a gltf::Gltf,
+    animation: Option<&str>,
+) -> Result<Option<gltf::Animation<'a>>> {
+    Ok(match animation {
+        None => doc.animations().next(),
+        Some(a) => Some(
+            doc.animations()
+                .find(|x| x.name() == Some(a) || a.parse::<usize>().ok() == Some(x.index()))
+                .with_context(|| {
+                    let names: Vec<String> = doc
+                        .animations()
+                        .map(|x| x.name().map_or(format!("#{}", x.index()), str::to_string))
+                        .collect();
+                    format!("no animation {a:?}; it has {names:?}")
+                })?,
+        ),
+    })
+}
+
+/// One channel of an animation, checked (`None`: morph target weights,
+/// which are not read).
+fn read_channel(
+    anim: &gltf::Animation,
+    ch: &gltf::animation::Channel,
+    bufs: &[Vec<u8>],
+) -> Result<Option<Channel>> {
+    let get = |b: gltf::Buffer| bufs.get(b.index()).map(|v| v.as_slice());
+    let what = || format!("animation {}, channel {}", anim.index(), ch.index());
+    let prop = match ch.target().property() {
+        gltf::animation::Property::Translation => Prop::Translation,
+        gltf::animation::Property::Rotation => Prop::Rotation,
+        gltf::animation::Property::Scale => Prop::Scale,
+        // morph targets are not read
+        gltf::animation::Property::MorphTargetWeights => return Ok(None),
+    };
+    let interp = match ch.sampler().interpolation() {
+        gltf::animation::Interpolation::Linear => Interp::Linear,
+        gltf::animation::Interpolation::Step => Interp::Step,
+        gltf::animation::Interpolation::CubicSpline => bail!(
+            "{}: CUBICSPLINE interpolation is not read; export with LINEAR (e.g. \
+             Blender: bake the animation) or STEP",
+            what()
+        ),
+    };
+    let r = ch.reader(get);
+    let times: Vec<f64> = r
+        .read_inputs()
+        .with_context(|| format!("{}: no input times", what()))?
+        .map(f64::from)
+        .collect();
+    let values: Vec<[f64; 4]> = match r
+        .read_outputs()
+        .with_context(|| format!("{}: no output values", what()))?
+    {
+        gltf::animation::util::ReadOutputs::Translations(it)
+        | gltf::animation::util::ReadOutputs::Scales(it) => it
+            .map(|v| [v[0].into(), v[1].into(), v[2].into(), 0.0])
+            .collect(),
+        gltf::animation::util::ReadOutputs::Rotations(it) => {
+            it.into_f32().map(|v| v.map(f64::from)).collect()
+        }
+        gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => return Ok(None),
+    };
+    if times.is_empty() || values.len() != times.len() {
+        bail!(
+            "{}: {} times for {} values",
+            what(),
+            times.len(),
+            values.len()
+        );
+    }
+    if times.windows(2).any(|w| w[1] <= w[0]) || !times.iter().all(|t| t.is_finite()) {
+        bail!("{}: its times must be finite and increase", what());
+    }
+    if values.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
+        bail!("{}: a non-finite value", what());
+    }
+    Ok(Some(Channel {
+        node: ch.target().node().index(),
+        prop,
+        interp,
+        times,
+        values,
+    }))
+}
+
+/// The glTF nodes of `scene` and their descendants, by index.
+fn scene_nodes(scene: &gltf::Scene) -> Vec<usize> {
+    let mut in_scene = Vec::new();
+    let mut stack: Vec<gltf::Node> = scene.nodes().collect();
+    while let Some(node) = stack.pop() {
+        in_scene.push(node.index());
+        stack.extend(node.children());
+    }
+    in_scene.sort();
+    in_scene
+}
+
+/// The skinned mesh as it is read: matrix slots, welded vertices (bind
+/// position and skinning) and triangles.
+#[derive(Default)]
+struct MeshReader {
+    slots: Vec<(usize, Matrix4<f64>)>,
+    bind: Vec<V>,
+    influences: Vec<[(u32, f64); 4]>,
+    weld: HashMap<WeldKey, u32>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl MeshReader {
+    /// Adds node `k`'s matrix slots (one per joint of its skin, or one for
+    /// the node itself) and reads its mesh's primitives.
+    fn add_node(&mut self, node: &gltf::Node, mesh: &gltf::Mesh, bufs: &[Vec<u8>]) -> Result<()> {
+        let get = |b: gltf::Buffer| bufs.get(b.index()).map(|v| v.as_slice());
+        let k = node.index();
+        // the matrix slots of this node's vertices
+        let skin_slots: Option<Vec<u32>> = match node.skin() {
+            Some(skin) => {
+                let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+                let ibm: Vec<Matrix4<f64>> = match skin.reader(get).read_inverse_bind_matrices() {
+                    Some(it) => it
+                        .map(|m| Matrix4::from_fn(|r, c| f64::from(m[c][r])))
+                        .collect(),
+                    None => vec![Matrix4::identity(); joints.len()],
+                };
+                if ibm.len() != joints.len() {
+                    bail!(
+                        "skin {}: {} inverse bind matrices for {} joints",
+                        skin.index(),
+                        ibm.len(),
+                        joints.len()
+                    );
+                }
+                Some(
+                    joints
+                        .iter()
+                        .zip(ibm)
+                        .map(|(&j, m)| {
+                            self.slots.push((j, m));
+                            (self.slots.len() - 1) as u32
+                        })
+                        .collect(),
+                )
+            }
+            None => None,
+        };
+        let rigid_slot = if skin_slots.is_none() {
+            self.slots.push((k, Matrix4::identity()));
+            Some((self.slots.len() - 1) as u32)
+        } else {
+            None
+        };
+        for prim in mesh.primitives() {
+            self.add_primitive(mesh, &prim, skin_slots.as_deref(), rigid_slot, bufs)?;
+        }
+        Ok(())
+    }
+
+    /// Reads a triangle primitive: its vertices welded by bind position and
+    /// skinning, and its triangles (degenerate ones dropped).
+    fn add_primitive(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+        skin_slots: Option<&[u32]>,
+        rigid_slot: Option<u32>,
+        bufs: &[Vec<u8>],
+    ) -> Result<()> {
+        let get = |b: gltf::Buffer| bufs.get(b.index()).map(|v| v.as_slice());
+        let what = || format!("mesh {}, primitive {}", mesh.index(), prim.index());
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            bail!(
+                "{}: mode {:?}; only triangles are read",
+                what(),
+                prim.mode()
+            );
+        }
+        let r = prim.reader(get);
+        let pos: Vec<[f32; 3]> = r
+            .read_positions()
+            .with_context(|| format!("{}: no POSITION", what()))?
+            .collect();
+        let inf: Vec<[(u32, f64); 4]> = match skin_slots {
+            Some(ss) => skin_influences(&r, ss, pos.len(), &what)?,
+            None => {
+                let s = rigid_slot.expect("rigid");
+                vec![[(s, 1.0), (s, 0.0), (s, 0.0), (s, 0.0)]; pos.len()]
+            }
+        };
+        let idx: Vec<u32> = match r.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..pos.len() as u32).collect(),
+        };
+        if !idx.len().is_multiple_of(3) {
+            bail!("{}: {} indices, not whole triangles", what(), idx.len());
+        }
+        let mut map = Vec::with_capacity(pos.len());
+        for (i, p) in pos.iter().enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                bail!("{}: vertex {i} is not finite: {p:?}", what());
+            }
+            let key = (
+                p.map(|c| f64::from(c).to_bits()),
+                inf[i].map(|(s, w)| (s, w.to_bits())),
+            );
+            let next = self.bind.len() as u32;
+            let id = *self.weld.entry(key).or_insert(next);
+            if id == next {
+                self.bind
+                    .push(V::new(p[0].into(), p[1].into(), p[2].into()));
+                self.influences.push(inf[i]);
+            }
+            map.push(id);
+        }
+        for t in idx.chunks(3) {
+            let v = [t[0], t[1], t[2]].map(|i| map.get(i as usize).copied());
+            let [Some(a), Some(b), Some(c)] = v else {
+                bail!(
+                    "{}: a triangle uses a vertex beyond its {}",
+                    what(),
+                    pos.len()
+                );
+            };
+            if a != b && b != c && a != c {
+                self.triangles.push([a, b, c]);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A skinned primitive's vertices' (slot, weight) from JOINTS_0 and
+/// WEIGHTS_0, the weights normalised to sum 1.
+fn skin_influences<'a, 's, F>(
+    r: &gltf::mesh::Reader<'a, 's, F>,
+    ss: &[u32],
+    count: usize,
+    what: &dyn Fn() -> String,
+) -> Result<Vec<[(u32, f64); 4]>>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let j: Vec<[u16; 4]> = r
+        .read_joints(0)
+        .with_context(|| format!("{}: skinned but no JOINTS_0", what()))?
+        .into_u16()
+        .collect();
+    let w: Vec<[f32; 4]> = r
+        .read_weights(0)
+        .with_context(|| format!("{}: skinned but no WEIGHTS_0", what()))?
+        .into_f32()
+        .collect();
+    if j.len() != count || w.len() != count {
+        bail!("{}: JOINTS_0 or WEIGHTS_0 not one per vertex", what());
+    }
+    let mut out = Vec::with_capacity(count);
+    for (i, (j, w)) in j.iter().zip(&w).enumerate() {
+        let sum: f64 = w.iter().map(|&x| f64::from(x)).sum();
+        if !(sum.is_finite() && sum > 0.0) || w.iter().any(|&x| x < 0.0) {
+            bail!("{}: vertex {i} has skin weights {w:?}", what());
+        }
+        let mut e = [(0u32, 0.0); 4];
+        for q in 0..4 {
+            let slot = *ss.get(j[q] as usize).with_context(|| {
+                format!("{}: vertex {i} uses joint {} of {}", what(), j[q], ss.len())
+            })?;
+            e[q] = (slot, f64::from(w[q]) / sum);
+        }
+        out.push(e);
+    }
+    Ok(out)
+}
+
 /// Reads a glTF 2.0 file (`.gltf` with its buffers, or `.glb`): the meshes
 /// of its default scene (or first scene) moved by the animation named
 /// `animation` (its name, or its index as a number; the first if `None`;
@@ -375,119 +690,20 @@ pub fn load_gltf(
         let bytes = std::fs::read(path).context("cannot read it")?;
         let doc = gltf::Gltf::from_slice(&bytes).context("not valid glTF 2.0")?;
         let bufs = buffers(&doc, path)?;
-        let get = |b: gltf::Buffer| bufs.get(b.index()).map(|v| v.as_slice());
         // nodes, their parents and an order with parents first
         let n = doc.nodes().count();
-        let mut parent = vec![None; n];
-        for node in doc.nodes() {
-            for c in node.children() {
-                parent[c.index()] = Some(node.index());
-            }
-        }
-        let nodes: Vec<NodeRest> = doc
-            .nodes()
-            .map(|node| {
-                let (t, r, s) = node.transform().decomposed();
-                NodeRest {
-                    parent: parent[node.index()],
-                    t: t.map(f64::from),
-                    r: r.map(f64::from),
-                    s: s.map(f64::from),
-                }
-            })
-            .collect();
-        let mut order = Vec::with_capacity(n);
-        let mut stack: Vec<usize> = (0..n).filter(|&k| parent[k].is_none()).collect();
-        while let Some(k) = stack.pop() {
-            order.push(k);
-            stack.extend(
-                doc.nodes()
-                    .nth(k)
-                    .expect("node")
-                    .children()
-                    .map(|c| c.index()),
-            );
-        }
-        if order.len() != n {
-            bail!("its node hierarchy has a cycle");
-        }
+        let (nodes, order) = node_hierarchy(&doc)?;
         // the animation
-        let anim = match animation {
-            None => doc.animations().next(),
-            Some(a) => Some(
-                doc.animations()
-                    .find(|x| x.name() == Some(a) || a.parse::<usize>().ok() == Some(x.index()))
-                    .with_context(|| {
-                        let names: Vec<String> = doc
-                            .animations()
-                            .map(|x| x.name().map_or(format!("#{}", x.index()), str::to_string))
-                            .collect();
-                        format!("no animation {a:?}; it has {names:?}")
-                    })?,
-            ),
-        };
+        let anim = find_animation(&doc, animation)?;
         let mut channels = Vec::new();
         let mut duration: f64 = 0.0;
         if let Some(anim) = &anim {
             for ch in anim.channels() {
-                let what = || format!("animation {}, channel {}", anim.index(), ch.index());
-                let prop = match ch.target().property() {
-                    gltf::animation::Property::Translation => Prop::Translation,
-                    gltf::animation::Property::Rotation => Prop::Rotation,
-                    gltf::animation::Property::Scale => Prop::Scale,
-                    // morph targets are not read
-                    gltf::animation::Property::MorphTargetWeights => continue,
+                let Some(c) = read_channel(anim, &ch, &bufs)? else {
+                    continue;
                 };
-                let interp = match ch.sampler().interpolation() {
-                    gltf::animation::Interpolation::Linear => Interp::Linear,
-                    gltf::animation::Interpolation::Step => Interp::Step,
-                    gltf::animation::Interpolation::CubicSpline => bail!(
-                        "{}: CUBICSPLINE interpolation is not read; export with LINEAR (e.g. \
-                         Blender: bake the animation) or STEP",
-                        what()
-                    ),
-                };
-                let r = ch.reader(get);
-                let times: Vec<f64> = r
-                    .read_inputs()
-                    .with_context(|| format!("{}: no input times", what()))?
-                    .map(f64::from)
-                    .collect();
-                let values: Vec<[f64; 4]> = match r
-                    .read_outputs()
-                    .with_context(|| format!("{}: no output values", what()))?
-                {
-                    gltf::animation::util::ReadOutputs::Translations(it)
-                    | gltf::animation::util::ReadOutputs::Scales(it) => it
-                        .map(|v| [v[0].into(), v[1].into(), v[2].into(), 0.0])
-                        .collect(),
-                    gltf::animation::util::ReadOutputs::Rotations(it) => {
-                        it.into_f32().map(|v| v.map(f64::from)).collect()
-                    }
-                    gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
-                };
-                if times.is_empty() || values.len() != times.len() {
-                    bail!(
-                        "{}: {} times for {} values",
-                        what(),
-                        times.len(),
-                        values.len()
-                    );
-                }
-                if times.windows(2).any(|w| w[1] <= w[0]) || !times.iter().all(|t| t.is_finite()) {
-                    bail!("{}: its times must be finite and increase", what());
-                }
-                if values.iter().any(|v| !v.iter().all(|c| c.is_finite())) {
-                    bail!("{}: a non-finite value", what());
-                }
-                duration = duration.max(*times.last().expect("non-empty"));
-                channels.push(Channel {
-                    node: ch.target().node().index(),
-                    prop,
-                    interp,
-                    times,
-                    values,
-                });
+                duration = duration.max(*c.times.last().expect("non-empty"));
+                channels.push(c);
             }
         }
         // the meshes of the scene
@@ -495,155 +711,13 @@ pub fn load_gltf(
             .default_scene()
             .or_else(|| doc.scenes().next())
             .context("it has no scene")?;
-        let mut in_scene = Vec::new();
-        let mut stack: Vec<gltf::Node> = scene.nodes().collect();
-        while let Some(node) = stack.pop() {
-            in_scene.push(node.index());
-            stack.extend(node.children());
-        }
-        in_scene.sort();
-        let mut slots: Vec<(usize, Matrix4<f64>)> = Vec::new();
-        let mut bind = Vec::new();
-        let mut influences = Vec::new();
-        let mut weld: HashMap<WeldKey, u32> = HashMap::new();
-        let mut triangles = Vec::new();
-        for &k in &in_scene {
+        let mut mesh = MeshReader::default();
+        for k in scene_nodes(&scene) {
             let node = doc.nodes().nth(k).expect("node");
-            let Some(mesh) = node.mesh() else { continue };
-            // the matrix slots of this node's vertices
-            let skin_slots: Option<Vec<u32>> = match node.skin() {
-                Some(skin) => {
-                    let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-                    let ibm: Vec<Matrix4<f64>> = match skin.reader(get).read_inverse_bind_matrices()
-                    {
-                        Some(it) => it
-                            .map(|m| Matrix4::from_fn(|r, c| f64::from(m[c][r])))
-                            .collect(),
-                        None => vec![Matrix4::identity(); joints.len()],
-                    };
-                    if ibm.len() != joints.len() {
-                        bail!(
-                            "skin {}: {} inverse bind matrices for {} joints",
-                            skin.index(),
-                            ibm.len(),
-                            joints.len()
-                        );
-                    }
-                    Some(
-                        joints
-                            .iter()
-                            .zip(ibm)
-                            .map(|(&j, m)| {
-                                slots.push((j, m));
-                                (slots.len() - 1) as u32
-                            })
-                            .collect(),
-                    )
-                }
-                None => None,
-            };
-            let rigid_slot = if skin_slots.is_none() {
-                slots.push((k, Matrix4::identity()));
-                Some((slots.len() - 1) as u32)
-            } else {
-                None
-            };
-            for prim in mesh.primitives() {
-                let what = || format!("mesh {}, primitive {}", mesh.index(), prim.index());
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    bail!(
-                        "{}: mode {:?}; only triangles are read",
-                        what(),
-                        prim.mode()
-                    );
-                }
-                let r = prim.reader(get);
-                let pos: Vec<[f32; 3]> = r
-                    .read_positions()
-                    .with_context(|| format!("{}: no POSITION", what()))?
-                    .collect();
-                let inf: Vec<[(u32, f64); 4]> = match &skin_slots {
-                    Some(ss) => {
-                        let j: Vec<[u16; 4]> = r
-                            .read_joints(0)
-                            .with_context(|| format!("{}: skinned but no JOINTS_0", what()))?
-                            .into_u16()
-                            .collect();
-                        let w: Vec<[f32; 4]> = r
-                            .read_weights(0)
-                            .with_context(|| format!("{}: skinned but no WEIGHTS_0", what()))?
-                            .into_f32()
-                            .collect();
-                        if j.len() != pos.len() || w.len() != pos.len() {
-                            bail!("{}: JOINTS_0 or WEIGHTS_0 not one per vertex", what());
-                        }
-                        let mut out = Vec::with_capacity(pos.len());
-                        for (i, (j, w)) in j.iter().zip(&w).enumerate() {
-                            let sum: f64 = w.iter().map(|&x| f64::from(x)).sum();
-                            if !(sum.is_finite() && sum > 0.0) || w.iter().any(|&x| x < 0.0) {
-                                bail!("{}: vertex {i} has skin weights {w:?}", what());
-                            }
-                            let mut e = [(0u32, 0.0); 4];
-                            for q in 0..4 {
-                                let slot = *ss.get(j[q] as usize).with_context(|| {
-                                    format!(
-                                        "{}: vertex {i} uses joint {} of {}",
-                                        what(),
-                                        j[q],
-                                        ss.len()
-                                    )
-                                })?;
-                                e[q] = (slot, f64::from(w[q]) / sum);
-                            }
-                            out.push(e);
-                        }
-                        out
-                    }
-                    None => {
-                        let s = rigid_slot.expect("rigid");
-                        vec![[(s, 1.0), (s, 0.0), (s, 0.0), (s, 0.0)]; pos.len()]
-                    }
-                };
-                let idx: Vec<u32> = match r.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..pos.len() as u32).collect(),
-                };
-                if !idx.len().is_multiple_of(3) {
-                    bail!("{}: {} indices, not whole triangles", what(), idx.len());
-                }
-                let mut map = Vec::with_capacity(pos.len());
-                for (i, p) in pos.iter().enumerate() {
-                    if !p.iter().all(|c| c.is_finite()) {
-                        bail!("{}: vertex {i} is not finite: {p:?}", what());
-                    }
-                    let key = (
-                        p.map(|c| f64::from(c).to_bits()),
-                        inf[i].map(|(s, w)| (s, w.to_bits())),
-                    );
-                    let next = bind.len() as u32;
-                    let id = *weld.entry(key).or_insert(next);
-                    if id == next {
-                        bind.push(V::new(p[0].into(), p[1].into(), p[2].into()));
-                        influences.push(inf[i]);
-                    }
-                    map.push(id);
-                }
-                for t in idx.chunks(3) {
-                    let v = [t[0], t[1], t[2]].map(|i| map.get(i as usize).copied());
-                    let [Some(a), Some(b), Some(c)] = v else {
-                        bail!(
-                            "{}: a triangle uses a vertex beyond its {}",
-                            what(),
-                            pos.len()
-                        );
-                    };
-                    if a != b && b != c && a != c {
-                        triangles.push([a, b, c]);
-                    }
-                }
-            }
+            let Some(m) = node.mesh() else { continue };
+            mesh.add_node(&node, &m, &bufs)?;
         }
-        if triangles.is_empty() {
+        if mesh.triangles.is_empty() {
             bail!("its scene has no triangle mesh");
         }
         for c in &channels {
@@ -656,12 +730,12 @@ pub fn load_gltf(
             order,
             channels,
             duration,
-            slots,
-            bind,
-            influences,
+            slots: mesh.slots,
+            bind: mesh.bind,
+            influences: mesh.influences,
             scale,
         };
-        Ok((triangles, skinned))
+        Ok((mesh.triangles, skinned))
     })()
     .with_context(ctx)
 }

@@ -851,6 +851,7 @@ pub fn openings(g: &Garment, x: &[V3], tol: f64) -> Vec<(Vec<usize>, f64)> {
 /// A ring of garment vertices the gripper holds: its length around as
 /// sewn, each vertex's fraction of it, which way it turns about the axis
 /// as placed (±1) and where its first vertex is in the axis' frame.
+#[derive(Default)]
 struct HeldRing {
     perimeter: f64,
     fractions: Vec<f64>,
@@ -979,6 +980,555 @@ pub fn grown_hull(pts: &[[f64; 2]], r: f64) -> (Vec<[f64; 2]>, f64) {
     (out, perimeter + std::f64::consts::TAU * r)
 }
 
+/// The gripper's path: its hoops, the held ring's places on them, how many
+/// axis points it reaches and how far its last hoop is tilted, degrees.
+struct GripperPath {
+    hoops: Vec<PlacedHoop>,
+    rings: Vec<Vec<V3>>,
+    reach: usize,
+    end_tilt: f64,
+}
+
+/// When the gripper lets the sleeve's cuff go, s, and its vertices.
+type Release = (f64, Vec<usize>);
+
+/// What the gripper's path is planned from (phase 3): the arm and its
+/// frames, the body's section meshes, the garment as sewn (`x0`) and as
+/// placed past the fingertips (`x`), and the cuff's held ring.
+struct PathPlan<'a> {
+    arm: &'a Arm,
+    d: &'a DressingFile,
+    g: &'a Garment,
+    ob: &'a Obstacle,
+    hull: &'a Option<HandHull>,
+    bv: &'a [V3],
+    bedges: Vec<(usize, usize)>,
+    x0: &'a [V3],
+    x: &'a [V3],
+    /// Frames carried along the axis without turning about it.
+    e1: Vec<V3>,
+    /// The axis' direction at its start (into the arm).
+    t0v: V3,
+    start: V3,
+    /// Holding a seam, the direction each ring's plane normal is turned
+    /// toward; holding the cuff, `None`.
+    toward: Option<V3>,
+    contact: f64,
+    lim_hand: f64,
+    lim_arm: f64,
+    /// The held ring's vertex count.
+    nc: usize,
+    /// The cuff's held ring.
+    held: HeldRing,
+}
+
+/// The `hand: hull` obstacle: the convex hull of the hand's body vertices,
+/// with the body's contact layer and friction (`None` for `hand: mesh`).
+fn hand_hull(
+    ob: &Obstacle,
+    bv: &[V3],
+    arm: &Arm,
+    lim_hand: f64,
+    d: &DressingFile,
+) -> Result<Option<HandHull>> {
+    Ok(match d.hand {
+        Hand::Mesh => None,
+        Hand::Hull => {
+            let pts: Vec<nalgebra::Point3<f64>> = (0..bv.len())
+                .filter(|&i| arm.vertices[i] && arm.geodesic[i] <= lim_hand)
+                .map(|i| bv[i].into())
+                .collect();
+            if pts.len() < 4 {
+                bail!(
+                    "dressing.hand: hull: the hand has {} body vertices, too few for a hull",
+                    pts.len()
+                );
+            }
+            let (hv, ht) = parry3d_f64::transformation::convex_hull(&pts);
+            let vertices: Vec<V3> = hv.iter().map(|p| p.coords).collect();
+            let edges = mesh_edges(&ht);
+            let obstacle = Obstacle::new(
+                &format!("{}_hand_hull", ob.id),
+                crate::collision::ShapeSpec::Triangles {
+                    vertices: vertices.iter().map(|p| [p.x, p.y, p.z]).collect(),
+                    triangles: ht,
+                },
+                nalgebra::Isometry3::identity(),
+                ob.thickness,
+                ob.friction,
+            )?;
+            Some(HandHull {
+                obstacle,
+                vertices,
+                edges,
+            })
+        }
+    })
+}
+
+/// Distance of `p` from the skin (or the hand's hull), m.
+fn skin_distance(ob: &Obstacle, hull: &Option<HandHull>, p: &V3) -> f64 {
+    let d = ob.proximity(p).distance;
+    match hull {
+        Some(h) => d.min(h.obstacle.proximity(p).distance),
+        None => d,
+    }
+}
+
+/// The direction of the garment from the held ring (centroid `c`) that is
+/// turned away from the body along the axis; holding the armhole, also the
+/// length around of the opening the arm enters by, m.
+fn garment_direction(
+    g: &Garment,
+    x0: &[V3],
+    cuff: &[usize],
+    sleeve_end: &[usize],
+    c: &V3,
+    grip: Grip,
+) -> Result<(V3, Option<f64>)> {
+    Ok(match grip {
+        Grip::Cuff => {
+            // the cuff's plane (normal: the covariance's weakest
+            // direction), toward the garment's centroid
+            let gc = x0.iter().sum::<V3>() / x0.len() as f64;
+            let n = plane_normal(x0, cuff, c);
+            let n = if n.dot(&(gc - c)) < 0.0 { -n } else { n };
+            (n, None)
+        }
+        Grip::Armhole => {
+            // the garment's widest opening other than the sleeve's
+            // (a T-shirt's hem) toward the shoulder: the arm goes in
+            // there and out through the armhole
+            let sleeve = panels_of(g, sleeve_end);
+            let entry = openings(g, x0, 0.03)
+                .into_iter()
+                .find(|(v, _)| !panels_of(g, v).iter().zip(&sleeve).any(|(a, b)| *a && *b))
+                .context(
+                    "the garment has no opening besides the sleeve's to thread the arm through",
+                )?;
+            let e = centroid(x0, &entry.0);
+            ((c - e).normalize(), Some(entry.1))
+        }
+    })
+}
+
+/// The sewn garment moved past the fingertips, its held ring (centroid `c`)
+/// at `start`, its direction `n` turned onto `out`, at the one of 24 turns
+/// about the axis farthest from the skin.
+fn place_past_fingertips(
+    x0: &[V3],
+    start: V3,
+    c: V3,
+    n: V3,
+    out: V3,
+    contact: f64,
+    skin: impl Fn(&V3) -> f64,
+) -> Result<Vec<V3>> {
+    let base = UnitQuaternion::rotation_between(&n, &out).unwrap_or_else(|| {
+        UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(up_across(&out)),
+            std::f64::consts::PI,
+        )
+    });
+    let mut best: Option<(f64, Vec<V3>)> = None;
+    for r in 0..24 {
+        let roll = UnitQuaternion::from_axis_angle(
+            &nalgebra::Unit::new_normalize(out),
+            r as f64 * std::f64::consts::TAU / 24.0,
+        );
+        let q = roll * base;
+        let placed: Vec<V3> = x0.iter().map(|p| start + q * (p - c)).collect();
+        let near = placed.iter().map(&skin).fold(f64::INFINITY, f64::min);
+        if best.as_ref().is_none_or(|b| near > b.0) {
+            best = Some((near, placed));
+        }
+    }
+    let (near, placed) = best.expect("24 turns tried");
+    if near < contact {
+        bail!(
+            "the garment, placed past the fingertips, comes within {:.1} mm of the body \
+             (under the contact distance {:.1} mm) at every turn about the arm's axis: \
+             start it farther (dressing.beyond)",
+            1e3 * near,
+            1e3 * contact
+        );
+    }
+    Ok(placed)
+}
+
+/// Frames carried along the arm's axis without turning about it, the first
+/// across `-out`.
+fn carried_frames(arm: &Arm, out: &V3) -> Vec<V3> {
+    let m = arm.axis.len();
+    let mut e1 = vec![up_across(&(-out)); m];
+    for k in 1..m {
+        let t = arm.tangent(k);
+        let p = e1[k - 1] - t * e1[k - 1].dot(&t);
+        e1[k] = if p.norm() > 1e-9 {
+            p.normalize()
+        } else {
+            up_across(&t)
+        };
+    }
+    e1
+}
+
+/// The cloth vertices of the panels the cuff's vertices belong to.
+fn sleeve_mask(g: &Garment, cuff: &[usize], len: usize) -> Vec<bool> {
+    let mut sleeve = vec![false; len];
+    for p in &g.panels {
+        let r = p.first..p.first + p.count;
+        if cuff.iter().any(|c| r.contains(c)) {
+            sleeve[r].iter_mut().for_each(|b| *b = true);
+        }
+    }
+    sleeve
+}
+
+impl PathPlan<'_> {
+    /// Distance of `p` from the skin (or the hand's hull), m.
+    fn skin(&self, p: &V3) -> f64 {
+        skin_distance(self.ob, self.hull, p)
+    }
+
+    /// A held ring: its length around as sewn (the hoop's perimeter), each
+    /// vertex's fraction of it, which way the placed ring turns about the
+    /// axis and where it begins. `toward`: holding a seam, each ring is read
+    /// in its own plane (normal turned toward `toward`, then onto the axis),
+    /// so that rings placed askew keep their twist; holding the cuff (placed
+    /// across the axis), about the axis. Holding the armhole, the rings open
+    /// to their lengths as cut (the pattern's), whatever the sewing left
+    /// stretched or open; holding the cuff, to its length as sewn.
+    fn ring_of(&self, ring: &[usize]) -> HeldRing {
+        let (g, x0, x, t0v, e1) = (self.g, self.x0, self.x, self.t0v, &self.e1);
+        let nc = ring.len();
+        let gaps: Vec<f64> = match self.d.grip {
+            Grip::Armhole => cut_gaps(g, ring),
+            Grip::Cuff => (0..nc)
+                .map(|k| (x0[ring[(k + 1) % nc]] - x0[ring[k]]).norm())
+                .collect(),
+        };
+        let mut s_of = vec![0.0; nc];
+        for k in 1..nc {
+            s_of[k] = s_of[k - 1] + gaps[k - 1];
+        }
+        let perimeter = s_of[nc - 1] + gaps[nc - 1];
+        let (c, q) = match self.toward {
+            None => (self.start, UnitQuaternion::identity()),
+            Some(dir) => {
+                let c = centroid(x, ring);
+                let mut n = plane_normal(x, ring, &c);
+                if n.dot(&dir) < 0.0 {
+                    n = -n;
+                }
+                let q = UnitQuaternion::rotation_between(&n, &t0v)
+                    .unwrap_or_else(UnitQuaternion::identity);
+                (c, q)
+            }
+        };
+        let at = |i: usize| q * (x[ring[i]] - c);
+        let w: f64 = (0..nc)
+            .map(|k| at(k).cross(&at((k + 1) % nc)).dot(&t0v))
+            .sum();
+        let r = at(0);
+        let r = r - t0v * r.dot(&t0v);
+        HeldRing {
+            perimeter,
+            fractions: s_of.iter().map(|s| s / perimeter).collect(),
+            turn: if w >= 0.0 { 1.0 } else { -1.0 },
+            first: (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0]))),
+        }
+    }
+
+    /// The hoop at axis point `k` for a ring of length `perimeter`: round
+    /// where nothing of the body is near (past the fingertips), else around
+    /// the arm's section: where the plane across the axis cuts the edges of
+    /// the hand's (before the wrist) or the arm's vertices (after), within
+    /// 15 cm (hand) or 10 cm (arm) of the axis, and those vertices within
+    /// 1 cm of the plane; the torso is left to the check of the whole path.
+    /// `tilt` turns the plane (and the frame in it) about the axis point.
+    /// `None`: past the wrist, the ring is too short to pass round.
+    fn hoop_at(
+        &self,
+        k: usize,
+        tilt: &UnitQuaternion<f64>,
+        perimeter: f64,
+    ) -> Result<Option<Hoop>> {
+        let (arm, d) = (self.arm, self.d);
+        let t = tilt * if k == 0 { self.t0v } else { arm.tangent(k) };
+        let a3 = arm.axis[k];
+        let u1 = tilt * self.e1[k];
+        let u2 = t.cross(&u1);
+        let (lim, reach) = if k < arm.wrist_at {
+            (self.lim_hand, 0.15)
+        } else {
+            (self.lim_arm, 0.10)
+        };
+        // the hand's hull where there is one, else the body's mesh
+        let (vs, es, keep): Section = match self.hull {
+            Some(h) if k < arm.wrist_at => (&h.vertices, &h.edges, &|_| true),
+            _ => (self.bv, &self.bedges, &|i| arm.geodesic[i] <= lim),
+        };
+        let pts: Vec<[f64; 2]> = es
+            .iter()
+            .filter(|&&(i, j)| keep(i) || keep(j))
+            .filter_map(|&(i, j)| {
+                let (di, dj) = ((vs[i] - a3).dot(&t), (vs[j] - a3).dot(&t));
+                if di * dj > 0.0 || di == dj {
+                    return None;
+                }
+                let p = vs[i] + (vs[j] - vs[i]) * (di / (di - dj)) - a3;
+                (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
+            })
+            .chain(
+                // and the vertices within a centimetre of the plane
+                (0..vs.len())
+                    .filter(|&i| keep(i))
+                    .map(|i| vs[i] - a3)
+                    .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
+                    .map(|p| [p.dot(&u1), p.dot(&u2)]),
+            )
+            .collect();
+        if pts.len() < 3 {
+            return Ok(Some(Hoop::circle(a3, t, u1, perimeter)));
+        }
+        // the section's convex hull grown as far as the cuff's length
+        // allows (the same gap all round), at least by the clearance
+        let (_, p0) = grown_hull(&pts, 0.0);
+        let grow = (perimeter - p0) / std::f64::consts::TAU;
+        if grow < d.clearance && k > arm.wrist_at + 5 {
+            return Ok(None);
+        }
+        if grow < d.clearance {
+            bail!(
+                "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
+                 from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
+                 is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
+                 dressing.clearance",
+                100.0 * perimeter,
+                100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
+                a3.x,
+                a3.y,
+                a3.z,
+                100.0 * p0,
+                100.0 * (p0 + std::f64::consts::TAU * d.clearance)
+            );
+        }
+        let (curve, _) = grown_hull(&pts, grow);
+        let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
+        let centre = curve.iter().sum::<V3>() / curve.len() as f64;
+        Ok(Some(Hoop { centre, curve }))
+    }
+
+    /// The direction from a hoop's centre at axis point `k` (tilted by
+    /// `tilt`) in which a ring's first vertex `first` lies.
+    fn from(&self, k: usize, tilt: &UnitQuaternion<f64>, first: (f64, f64)) -> V3 {
+        let e1 = &self.e1;
+        let (u1, u2) = (
+            e1[k],
+            if k == 0 {
+                self.t0v
+            } else {
+                self.arm.tangent(k)
+            }
+            .cross(&e1[k]),
+        );
+        tilt * (u1 * first.0 + u2 * first.1)
+    }
+
+    /// The cuff vertices' places on a run of hoops.
+    fn rings_of(&self, hoops: &[PlacedHoop]) -> Vec<Vec<V3>> {
+        let held = &self.held;
+        hoops
+            .iter()
+            .map(|(k, h, q)| h.points(&held.fractions, &self.from(*k, q, held.first), held.turn))
+            .collect()
+    }
+
+    /// How many legs of a path (the cuff as placed, then its rings) clear
+    /// the skin by the contact distance, every cuff vertex at every
+    /// waypoint and halfway between; before the wrist a leg too near is an
+    /// error, past it the path ends there.
+    fn clear_legs(&self, legs: &[Vec<V3>], from_leg: usize) -> Result<usize> {
+        let (arm, contact) = (self.arm, self.contact);
+        for (q, w) in legs.windows(2).enumerate().skip(from_leg) {
+            for f in [0.0, 0.5, 1.0] {
+                for j in 0..self.nc {
+                    let p = w[0][j] + (w[1][j] - w[0][j]) * f;
+                    let gap = self.skin(&p);
+                    if gap < contact && q > arm.wrist_at + 5 {
+                        return Ok(q);
+                    }
+                    if gap < contact {
+                        bail!(
+                            "the gripper would hold the cuff {:.1} mm from the skin at \
+                             ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
+                             dressing.clearance or start farther (dressing.beyond)",
+                            1e3 * gap,
+                            p.x,
+                            p.y,
+                            p.z,
+                            100.0 * (q as f64 + f) / (legs.len() - 1) as f64
+                        );
+                    }
+                }
+            }
+        }
+        Ok(legs.len() - 1)
+    }
+
+    /// The untilted hoops along the axis and the cuff's rings on them, as
+    /// far as the path clears the skin (their count).
+    fn level_path(&self, placed_cuff: &[V3]) -> Result<GripperPath> {
+        let m = self.arm.axis.len();
+        let level = UnitQuaternion::identity();
+        let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
+        for k in 0..m {
+            match self.hoop_at(k, &level, self.held.perimeter)? {
+                Some(h) => hoops.push((k, h, level)),
+                None => break,
+            }
+        }
+        let mut rings = self.rings_of(&hoops);
+        let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.to_vec())
+            .chain(rings.iter().cloned())
+            .collect();
+        let reach = self.clear_legs(&legs, 0)?;
+        hoops.truncate(reach);
+        rings.truncate(reach);
+        Ok(GripperPath {
+            hoops,
+            rings,
+            reach,
+            end_tilt: 0.0,
+        })
+    }
+
+    /// Where a hoop across the axis meets the body short of the shoulder
+    /// (the torso, where the arm joins it), the gripper tilts it like an
+    /// armhole seam: over the last `TILT_RAMP` m of the axis the hoop's
+    /// plane turns about a line across the axis, evenly up to `tilt_max` at
+    /// the shoulder point; of 12 directions of that line and tilts up to
+    /// 60° every 10°, the one whose path goes farthest (the least tilt of
+    /// those). Returns the path reached, its length and the tilt at its
+    /// end, degrees (unchanged, 0°, when no tilt goes farther).
+    fn tilted_path(&self, placed_cuff: &[V3], level: GripperPath) -> Result<GripperPath> {
+        let arm = self.arm;
+        let (e1, m) = (&self.e1, arm.axis.len());
+        let (hoops, rings, reach) = (&level.hoops, &level.rings, level.reach);
+        if !(reach < m && reach > arm.wrist_at + 5) {
+            return Ok(level);
+        }
+        let s_end = arm.s[m - 1];
+        let k0 = (arm.wrist_at..reach)
+            .find(|&k| arm.s[k] >= (s_end - TILT_RAMP).min(arm.s[reach - 1] - 0.02))
+            .unwrap_or(reach - 1);
+        let mut best: Option<(usize, f64, Vec<PlacedHoop>)> = None;
+        for deg in (1..=6).map(|i| 10.0 * i as f64) {
+            for dir in 0..12 {
+                let phi = std::f64::consts::TAU * dir as f64 / 12.0;
+                let mut run: Vec<PlacedHoop> = hoops[..k0].to_vec();
+                for k in k0..m {
+                    let t = arm.tangent(k);
+                    let (u1, u2) = (e1[k], t.cross(&e1[k]));
+                    let line = nalgebra::Unit::new_normalize(u1 * phi.cos() + u2 * phi.sin());
+                    let f = ((arm.s[k] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
+                    let q = UnitQuaternion::from_axis_angle(&line, (deg * f).to_radians());
+                    match self.hoop_at(k, &q, self.held.perimeter)? {
+                        Some(h) => run.push((k, h, q)),
+                        None => break,
+                    }
+                }
+                let r = self.rings_of(&run[k0..]);
+                let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.to_vec())
+                    .chain(rings[..k0].iter().cloned())
+                    .chain(r)
+                    .collect();
+                let got = self.clear_legs(&legs, k0)?;
+                if got > best.as_ref().map_or(reach, |b| b.0) {
+                    run.truncate(got);
+                    best = Some((got, deg, run));
+                }
+            }
+        }
+        Ok(match best {
+            Some((got, deg, run)) => {
+                let end_tilt =
+                    deg * ((arm.s[got - 1] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
+                let rings = self.rings_of(&run);
+                GripperPath {
+                    hoops: run,
+                    rings,
+                    reach: got,
+                    end_tilt,
+                }
+            }
+            None => level,
+        })
+    }
+
+    /// Holding the armhole, the gripper also holds the sleeve's cuff open a
+    /// sleeve's length ahead of it on the axis, until the cuff has passed
+    /// the hand (as a carer slips a sleeve over the hand before drawing it
+    /// up the arm); then lets it go. The cuff's pins and its release (time
+    /// and vertices).
+    fn sleeve_cuff_pins(
+        &self,
+        cuff: &[usize],
+        sleeve_end: &[usize],
+        out: V3,
+        t_start: f64,
+        times: &[f64],
+    ) -> Result<(Vec<Pin>, Release)> {
+        let (arm, x0, x, e1) = (self.arm, self.x0, self.x, &self.e1);
+        let m = times.len();
+        let level = UnitQuaternion::identity();
+        let ends: Vec<usize> = sleeve_end
+            .iter()
+            .copied()
+            .filter(|v| !cuff.contains(v))
+            .collect();
+        let end = self.ring_of(&ends);
+        let step = arm.s[1] - arm.s[0];
+        let lag = ((centroid(x0, &ends) - centroid(x0, cuff)).norm() / step).round() as usize;
+        let k_rel = arm.wrist_at + 2 + lag;
+        if k_rel >= m {
+            bail!(
+                "the gripper's path ends {:.0} cm past the wrist, before the sleeve's cuff \
+                 ({:.0} cm from the armhole) has passed the hand",
+                100.0 * (arm.s[m - 1] - arm.s[arm.wrist_at]),
+                100.0 * lag as f64 * step
+            );
+        }
+        let mut legs = Vec::with_capacity(k_rel + 1);
+        for k in 0..=k_rel {
+            let (at, hoop) = if k >= lag {
+                let h = self
+                    .hoop_at(k - lag, &level, end.perimeter)?
+                    .with_context(|| {
+                        format!(
+                            "the sleeve's cuff ({:.1} cm around) is too small to pass the arm \
+                             near the wrist",
+                            100.0 * end.perimeter
+                        )
+                    })?;
+                (k - lag, h)
+            } else {
+                let c = arm.axis[0] + out * ((lag - k) as f64 * step);
+                (0, Hoop::circle(c, self.t0v, e1[0], end.perimeter))
+            };
+            legs.push(hoop.points(&end.fractions, &self.from(at, &level, end.first), end.turn));
+        }
+        let placed_ends: Vec<V3> = ends.iter().map(|&i| x[i]).collect();
+        let path: Vec<Vec<V3>> = std::iter::once(placed_ends)
+            .chain(legs.iter().cloned())
+            .collect();
+        self.clear_legs(&path, 0)?;
+        let pins = ring_pins(&ends, x, t_start, &times[..=k_rel], &legs);
+        Ok((pins, (times[k_rel], ends)))
+    }
+}
+
 impl Dressing {
     /// Places the sewn garment past the fingertips and sets the gripper's
     /// pins (see the module's phases 2 and 3).
@@ -995,47 +1545,7 @@ impl Dressing {
         let lim_hand = arm.rings[arm.wrist_ring].level;
         // `hand: hull`: the hand's convex hull, an obstacle of its own, with
         // the body's contact layer and friction
-        let hull: Option<HandHull> = match d.hand {
-            Hand::Mesh => None,
-            Hand::Hull => {
-                let pts: Vec<nalgebra::Point3<f64>> = (0..bv.len())
-                    .filter(|&i| arm.vertices[i] && arm.geodesic[i] <= lim_hand)
-                    .map(|i| bv[i].into())
-                    .collect();
-                if pts.len() < 4 {
-                    bail!(
-                        "dressing.hand: hull: the hand has {} body vertices, too few for a hull",
-                        pts.len()
-                    );
-                }
-                let (hv, ht) = parry3d_f64::transformation::convex_hull(&pts);
-                let vertices: Vec<V3> = hv.iter().map(|p| p.coords).collect();
-                let edges = mesh_edges(&ht);
-                let obstacle = Obstacle::new(
-                    &format!("{}_hand_hull", ob.id),
-                    crate::collision::ShapeSpec::Triangles {
-                        vertices: vertices.iter().map(|p| [p.x, p.y, p.z]).collect(),
-                        triangles: ht,
-                    },
-                    nalgebra::Isometry3::identity(),
-                    ob.thickness,
-                    ob.friction,
-                )?;
-                Some(HandHull {
-                    obstacle,
-                    vertices,
-                    edges,
-                })
-            }
-        };
-        // distance from the skin (or the hand's hull), m
-        let skin = |p: &V3| -> f64 {
-            let d = ob.proximity(p).distance;
-            match &hull {
-                Some(h) => d.min(h.obstacle.proximity(p).distance),
-                None => d,
-            }
-        };
+        let hull: Option<HandHull> = hand_hull(&ob, &bv, &arm, lim_hand, d)?;
         let sleeve_end = find_cuff(g, &sim.cloth.x, &arm)?;
         let x0 = sim.cloth.x.clone();
         // the held ring (called the cuff below whichever it is): holding the
@@ -1049,377 +1559,62 @@ impl Dressing {
         let out = (arm.axis[0] - arm.axis[1]).normalize();
         // the direction of the garment from the held ring that is turned
         // away from the body along the axis (`out`)
-        let mut entry_opening_m = None;
-        let n: V3 = match d.grip {
-            Grip::Cuff => {
-                // the cuff's plane (normal: the covariance's weakest
-                // direction), toward the garment's centroid
-                let gc = x0.iter().sum::<V3>() / x0.len() as f64;
-                let n = plane_normal(&x0, &cuff, &c);
-                if n.dot(&(gc - c)) < 0.0 {
-                    -n
-                } else {
-                    n
-                }
-            }
-            Grip::Armhole => {
-                // the garment's widest opening other than the sleeve's
-                // (a T-shirt's hem) toward the shoulder: the arm goes in
-                // there and out through the armhole
-                let sleeve = panels_of(g, &sleeve_end);
-                let entry = openings(g, &x0, 0.03)
-                    .into_iter()
-                    .find(|(v, _)| !panels_of(g, v).iter().zip(&sleeve).any(|(a, b)| *a && *b))
-                    .context(
-                        "the garment has no opening besides the sleeve's to thread the arm through",
-                    )?;
-                let e = centroid(&x0, &entry.0);
-                entry_opening_m = Some(entry.1);
-                (c - e).normalize()
-            }
-        };
-        let base = UnitQuaternion::rotation_between(&n, &out).unwrap_or_else(|| {
-            UnitQuaternion::from_axis_angle(
-                &nalgebra::Unit::new_normalize(up_across(&out)),
-                std::f64::consts::PI,
-            )
-        });
+        let (n, entry_opening_m) = garment_direction(g, &x0, &cuff, &sleeve_end, &c, d.grip)?;
         let contact = ob.thickness + sim.params().cloth_thickness;
-        let mut best: Option<(f64, Vec<V3>)> = None;
-        for r in 0..24 {
-            let roll = UnitQuaternion::from_axis_angle(
-                &nalgebra::Unit::new_normalize(out),
-                r as f64 * std::f64::consts::TAU / 24.0,
-            );
-            let q = roll * base;
-            let placed: Vec<V3> = x0.iter().map(|p| start + q * (p - c)).collect();
-            let near = placed.iter().map(&skin).fold(f64::INFINITY, f64::min);
-            if best.as_ref().is_none_or(|b| near > b.0) {
-                best = Some((near, placed));
-            }
-        }
-        let (near, placed) = best.expect("24 turns tried");
-        if near < contact {
-            bail!(
-                "the garment, placed past the fingertips, comes within {:.1} mm of the body \
-                 (under the contact distance {:.1} mm) at every turn about the arm's axis: \
-                 start it farther (dressing.beyond)",
-                1e3 * near,
-                1e3 * contact
-            );
-        }
+        let placed = place_past_fingertips(&x0, start, c, n, out, contact, |p| {
+            skin_distance(&ob, &hull, p)
+        })?;
         sim.cloth.x = placed;
         sim.cloth.v.iter_mut().for_each(|v| *v = V3::zeros());
         let x = sim.cloth.x.clone();
-        // frames carried along the axis without turning about it
-        let m = arm.axis.len();
-        let mut e1 = vec![up_across(&(-out)); m];
-        for k in 1..m {
-            let t = arm.tangent(k);
-            let p = e1[k - 1] - t * e1[k - 1].dot(&t);
-            e1[k] = if p.norm() > 1e-9 {
-                p.normalize()
-            } else {
-                up_across(&t)
-            };
-        }
+        let e1 = carried_frames(&arm, &out);
         let t0v = -out;
-        // a held ring: its length around as sewn (the hoop's perimeter),
-        // each vertex's fraction of it, which way the placed ring turns
-        // about the axis and where it begins
-        // `toward`: holding a seam, each ring is read in its own plane
-        // (normal turned toward `toward`, then onto the axis), so that rings
-        // placed askew keep their twist; holding the cuff (placed across the
-        // axis), about the axis
         let toward: Option<V3> = match d.grip {
             Grip::Cuff => None,
             Grip::Armhole => Some(centroid(&x, &cuff) - centroid(&x, &sleeve_end)),
         };
-        // holding the armhole, the rings open to their lengths as cut (the
-        // pattern's), whatever the sewing left stretched or open; holding the
-        // cuff, to its length as sewn
-        let ring_of = |ring: &[usize]| -> HeldRing {
-            let nc = ring.len();
-            let gaps: Vec<f64> = match d.grip {
-                Grip::Armhole => cut_gaps(g, ring),
-                Grip::Cuff => (0..nc)
-                    .map(|k| (x0[ring[(k + 1) % nc]] - x0[ring[k]]).norm())
-                    .collect(),
-            };
-            let mut s_of = vec![0.0; nc];
-            for k in 1..nc {
-                s_of[k] = s_of[k - 1] + gaps[k - 1];
-            }
-            let perimeter = s_of[nc - 1] + gaps[nc - 1];
-            let (c, q) = match toward {
-                None => (start, UnitQuaternion::identity()),
-                Some(dir) => {
-                    let c = centroid(&x, ring);
-                    let mut n = plane_normal(&x, ring, &c);
-                    if n.dot(&dir) < 0.0 {
-                        n = -n;
-                    }
-                    let q = UnitQuaternion::rotation_between(&n, &t0v)
-                        .unwrap_or_else(UnitQuaternion::identity);
-                    (c, q)
-                }
-            };
-            let at = |i: usize| q * (x[ring[i]] - c);
-            let w: f64 = (0..nc)
-                .map(|k| at(k).cross(&at((k + 1) % nc)).dot(&t0v))
-                .sum();
-            let r = at(0);
-            let r = r - t0v * r.dot(&t0v);
-            HeldRing {
-                perimeter,
-                fractions: s_of.iter().map(|s| s / perimeter).collect(),
-                turn: if w >= 0.0 { 1.0 } else { -1.0 },
-                first: (r.dot(&e1[0]), r.dot(&t0v.cross(&e1[0]))),
-            }
+        let mut plan = PathPlan {
+            arm: &arm,
+            d,
+            g,
+            ob: &ob,
+            hull: &hull,
+            bv: &bv,
+            bedges: mesh_edges(&bt),
+            x0: &x0,
+            x: &x,
+            e1,
+            t0v,
+            start,
+            toward,
+            contact,
+            lim_hand,
+            lim_arm: arm.rings[arm.shoulder_ring].level,
+            nc: cuff.len(),
+            held: HeldRing::default(),
         };
-        let held = ring_of(&cuff);
-        let nc = cuff.len();
-        let perimeter = held.perimeter;
-        // the hoop at each axis point: round where nothing of the body is
-        // near (past the fingertips), else around the arm's section: where
-        // the plane across the axis cuts the edges of the hand's (before the
-        // wrist) or the arm's vertices (after), within 15 cm (hand) or 10 cm
-        // (arm) of the axis, and those vertices within 1 cm of the plane;
-        // the torso is left to the check of the whole path below. `tilt`
-        // turns the plane (and the frame in it) about the axis point.
-        // `None`: past the wrist, the cuff is too short to pass round.
-        let lim_arm = arm.rings[arm.shoulder_ring].level;
-        let bedges = mesh_edges(&bt);
-        let hoop_at =
-            |k: usize, tilt: &UnitQuaternion<f64>, perimeter: f64| -> Result<Option<Hoop>> {
-                let t = tilt * if k == 0 { t0v } else { arm.tangent(k) };
-                let a3 = arm.axis[k];
-                let u1 = tilt * e1[k];
-                let u2 = t.cross(&u1);
-                let (lim, reach) = if k < arm.wrist_at {
-                    (lim_hand, 0.15)
-                } else {
-                    (lim_arm, 0.10)
-                };
-                // the hand's hull where there is one, else the body's mesh
-                let (vs, es, keep): Section = match &hull {
-                    Some(h) if k < arm.wrist_at => (&h.vertices, &h.edges, &|_| true),
-                    _ => (&bv, &bedges, &|i| arm.geodesic[i] <= lim),
-                };
-                let pts: Vec<[f64; 2]> = es
-                    .iter()
-                    .filter(|&&(i, j)| keep(i) || keep(j))
-                    .filter_map(|&(i, j)| {
-                        let (di, dj) = ((vs[i] - a3).dot(&t), (vs[j] - a3).dot(&t));
-                        if di * dj > 0.0 || di == dj {
-                            return None;
-                        }
-                        let p = vs[i] + (vs[j] - vs[i]) * (di / (di - dj)) - a3;
-                        (p.norm() <= reach).then(|| [p.dot(&u1), p.dot(&u2)])
-                    })
-                    .chain(
-                        // and the vertices within a centimetre of the plane
-                        (0..vs.len())
-                            .filter(|&i| keep(i))
-                            .map(|i| vs[i] - a3)
-                            .filter(|p| p.dot(&t).abs() <= 0.01 && p.norm() <= reach)
-                            .map(|p| [p.dot(&u1), p.dot(&u2)]),
-                    )
-                    .collect();
-                if pts.len() < 3 {
-                    return Ok(Some(Hoop::circle(a3, t, u1, perimeter)));
-                }
-                // the section's convex hull grown as far as the cuff's length
-                // allows (the same gap all round), at least by the clearance
-                let (_, p0) = grown_hull(&pts, 0.0);
-                let grow = (perimeter - p0) / std::f64::consts::TAU;
-                if grow < d.clearance && k > arm.wrist_at + 5 {
-                    return Ok(None);
-                }
-                if grow < d.clearance {
-                    bail!(
-                        "the cuff ({:.1} cm around) is too small to pass the arm {:.0} cm \
-                     from the wrist near ({:.3}, {:.3}, {:.3}) m: the arm's section there \
-                     is {:.1} cm around (convex hull), {:.1} cm with the clearance; lower \
-                     dressing.clearance",
-                        100.0 * perimeter,
-                        100.0 * (arm.s[k] - arm.s[arm.wrist_at]),
-                        a3.x,
-                        a3.y,
-                        a3.z,
-                        100.0 * p0,
-                        100.0 * (p0 + std::f64::consts::TAU * d.clearance)
-                    );
-                }
-                let (curve, _) = grown_hull(&pts, grow);
-                let curve: Vec<V3> = curve.iter().map(|q| a3 + u1 * q[0] + u2 * q[1]).collect();
-                let centre = curve.iter().sum::<V3>() / curve.len() as f64;
-                Ok(Some(Hoop { centre, curve }))
-            };
-        let from = |k: usize, tilt: &UnitQuaternion<f64>, first: (f64, f64)| {
-            let (u1, u2) = (
-                e1[k],
-                if k == 0 { t0v } else { arm.tangent(k) }.cross(&e1[k]),
-            );
-            tilt * (u1 * first.0 + u2 * first.1)
-        };
-        // the cuff vertices' places on a run of hoops
-        let rings_of = |hoops: &[PlacedHoop]| -> Vec<Vec<V3>> {
-            hoops
-                .iter()
-                .map(|(k, h, q)| h.points(&held.fractions, &from(*k, q, held.first), held.turn))
-                .collect()
-        };
-        // how many legs of a path (the cuff as placed, then its rings)
-        // clear the skin by the contact distance, every cuff vertex at every
-        // waypoint and halfway between; before the wrist a leg too near is
-        // an error, past it the path ends there
-        let clear_legs = |legs: &[Vec<V3>], from_leg: usize| -> Result<usize> {
-            for (q, w) in legs.windows(2).enumerate().skip(from_leg) {
-                for f in [0.0, 0.5, 1.0] {
-                    for j in 0..nc {
-                        let p = w[0][j] + (w[1][j] - w[0][j]) * f;
-                        let gap = skin(&p);
-                        if gap < contact && q > arm.wrist_at + 5 {
-                            return Ok(q);
-                        }
-                        if gap < contact {
-                            bail!(
-                                "the gripper would hold the cuff {:.1} mm from the skin at \
-                                 ({:.3}, {:.3}, {:.3}) m ({:.0} % of the way): lower \
-                                 dressing.clearance or start farther (dressing.beyond)",
-                                1e3 * gap,
-                                p.x,
-                                p.y,
-                                p.z,
-                                100.0 * (q as f64 + f) / (legs.len() - 1) as f64
-                            );
-                        }
-                    }
-                }
-            }
-            Ok(legs.len() - 1)
-        };
+        plan.held = plan.ring_of(&cuff);
+        let perimeter = plan.held.perimeter;
         let placed_cuff: Vec<V3> = cuff.iter().map(|&i| x[i]).collect();
-        let level = UnitQuaternion::identity();
-        let mut hoops: Vec<PlacedHoop> = Vec::with_capacity(m);
-        for k in 0..m {
-            match hoop_at(k, &level, perimeter)? {
-                Some(h) => hoops.push((k, h, level)),
-                None => break,
-            }
-        }
-        let mut rings = rings_of(&hoops);
-        let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.clone())
-            .chain(rings.iter().cloned())
-            .collect();
-        let mut reach = clear_legs(&legs, 0)?;
-        hoops.truncate(reach);
-        rings.truncate(reach);
-        // where a hoop across the axis meets the body short of the
-        // shoulder (the torso, where the arm joins it), the gripper tilts
-        // it like an armhole seam: over the last `TILT_RAMP` m of the axis
-        // the hoop's plane turns about a line across the axis, evenly up to
-        // `tilt_max` at the shoulder point; of 12 directions of that line
-        // and tilts up to 60° every 10°, the one whose path goes farthest
-        // (the least tilt of those)
-        let mut end_tilt = 0.0;
-        if reach < m && reach > arm.wrist_at + 5 {
-            let s_end = arm.s[m - 1];
-            let k0 = (arm.wrist_at..reach)
-                .find(|&k| arm.s[k] >= (s_end - TILT_RAMP).min(arm.s[reach - 1] - 0.02))
-                .unwrap_or(reach - 1);
-            let mut best: Option<(usize, f64, Vec<PlacedHoop>)> = None;
-            for deg in (1..=6).map(|i| 10.0 * i as f64) {
-                for dir in 0..12 {
-                    let phi = std::f64::consts::TAU * dir as f64 / 12.0;
-                    let mut run: Vec<PlacedHoop> = hoops[..k0].to_vec();
-                    for k in k0..m {
-                        let t = arm.tangent(k);
-                        let (u1, u2) = (e1[k], t.cross(&e1[k]));
-                        let line = nalgebra::Unit::new_normalize(u1 * phi.cos() + u2 * phi.sin());
-                        let f = ((arm.s[k] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
-                        let q = UnitQuaternion::from_axis_angle(&line, (deg * f).to_radians());
-                        match hoop_at(k, &q, perimeter)? {
-                            Some(h) => run.push((k, h, q)),
-                            None => break,
-                        }
-                    }
-                    let r = rings_of(&run[k0..]);
-                    let legs: Vec<Vec<V3>> = std::iter::once(placed_cuff.clone())
-                        .chain(rings[..k0].iter().cloned())
-                        .chain(r)
-                        .collect();
-                    let got = clear_legs(&legs, k0)?;
-                    if got > best.as_ref().map_or(reach, |b| b.0) {
-                        run.truncate(got);
-                        best = Some((got, deg, run));
-                    }
-                }
-            }
-            if let Some((got, deg, run)) = best {
-                reach = got;
-                end_tilt =
-                    deg * ((arm.s[got - 1] - arm.s[k0]) / (s_end - arm.s[k0])).clamp(0.0, 1.0);
-                rings = rings_of(&run);
-                hoops = run;
-            }
-        }
-        let m = reach;
+        let level = plan.level_path(&placed_cuff)?;
+        let GripperPath {
+            hoops,
+            rings,
+            reach: m,
+            end_tilt,
+        } = plan.tilted_path(&placed_cuff, level)?;
         let t_start = sim.time;
         let t_move = t_start + d.hang;
         let times: Vec<f64> = (0..m).map(|k| t_move + arm.s[k] / d.speed).collect();
         let mut pins = ring_pins(&cuff, &x, t_start, &times, &rings[..m]);
         let mut gripped = cuff.clone();
-        // holding the armhole, the gripper also holds the sleeve's cuff open
-        // a sleeve's length ahead of it on the axis, until the cuff has
-        // passed the hand (as a carer slips a sleeve over the hand before
-        // drawing it up the arm); then lets it go
         let mut release = None;
         if d.grip == Grip::Armhole {
-            let ends: Vec<usize> = sleeve_end
-                .iter()
-                .copied()
-                .filter(|v| !cuff.contains(v))
-                .collect();
-            let end = ring_of(&ends);
-            let step = arm.s[1] - arm.s[0];
-            let lag =
-                ((centroid(&x0, &ends) - centroid(&x0, &cuff)).norm() / step).round() as usize;
-            let k_rel = arm.wrist_at + 2 + lag;
-            if k_rel >= m {
-                bail!(
-                    "the gripper's path ends {:.0} cm past the wrist, before the sleeve's cuff \
-                     ({:.0} cm from the armhole) has passed the hand",
-                    100.0 * (arm.s[m - 1] - arm.s[arm.wrist_at]),
-                    100.0 * lag as f64 * step
-                );
-            }
-            let mut legs = Vec::with_capacity(k_rel + 1);
-            for k in 0..=k_rel {
-                let (at, hoop) = if k >= lag {
-                    let h = hoop_at(k - lag, &level, end.perimeter)?.with_context(|| {
-                        format!(
-                            "the sleeve's cuff ({:.1} cm around) is too small to pass the arm \
-                             near the wrist",
-                            100.0 * end.perimeter
-                        )
-                    })?;
-                    (k - lag, h)
-                } else {
-                    let c = arm.axis[0] + out * ((lag - k) as f64 * step);
-                    (0, Hoop::circle(c, t0v, e1[0], end.perimeter))
-                };
-                legs.push(hoop.points(&end.fractions, &from(at, &level, end.first), end.turn));
-            }
-            let placed_ends: Vec<V3> = ends.iter().map(|&i| x[i]).collect();
-            let path: Vec<Vec<V3>> = std::iter::once(placed_ends)
-                .chain(legs.iter().cloned())
-                .collect();
-            clear_legs(&path, 0)?;
-            pins.extend(ring_pins(&ends, &x, t_start, &times[..=k_rel], &legs));
-            gripped.extend(&ends);
-            release = Some((times[k_rel], ends));
+            let (end_pins, rel) =
+                plan.sleeve_cuff_pins(&cuff, &sleeve_end, out, t_start, &times)?;
+            pins.extend(end_pins);
+            gripped.extend(&rel.1);
+            release = Some(rel);
         }
         sim.set_pins(pins)?;
         let hand = hull.map(|h| sim.add_obstacle(h.obstacle));
@@ -1429,13 +1624,7 @@ impl Dressing {
         let t_arrive = times[m - 1];
         gripped.sort_unstable();
         gripped.dedup();
-        let mut sleeve = vec![false; x.len()];
-        for p in &g.panels {
-            let r = p.first..p.first + p.count;
-            if cuff.iter().any(|c| r.contains(c)) {
-                sleeve[r].iter_mut().for_each(|b| *b = true);
-            }
-        }
+        let sleeve = sleeve_mask(g, &cuff, x.len());
         Ok(Dressing {
             arm,
             cuff,

@@ -939,20 +939,12 @@ pub fn body_now<'a>(sim: &'a Simulation, trial: &'a Trial) -> &'a Obstacle {
         .unwrap_or(&trial.body)
 }
 
-/// Measures the fit of the garment as it is now, with the pressure on the
-/// body's vertices.
-pub fn fit(
-    sim: &Simulation,
-    g: &Garment,
-    trial: &Trial,
-    run: RunStats,
-) -> (Fit, VertexFit, Option<BodyPressure>) {
-    let c = &sim.cloth;
-    let x = &c.x;
-    let n = c.len();
-    let body = body_now(sim, trial);
-    let vf = vertex_fit(sim, g, body);
-    let np = g.panels.len();
+/// Per panel and spring direction (warp, weft, bias): the largest strain,
+/// the strains' sum and their count.
+type StrainAcc = [(f64, f64, usize); 3];
+
+/// Every panel's spring strains gathered by direction.
+fn panel_strains(c: &crate::cloth::Cloth, vf: &VertexFit, np: usize) -> Vec<StrainAcc> {
     let mut acc = vec![[(f64::NEG_INFINITY, 0.0, 0usize); 3]; np];
     for (k, a, _, e) in spring_strains(c) {
         let s = &mut acc[vf.panel[a]][k];
@@ -960,6 +952,11 @@ pub fn fit(
         s.1 += e;
         s.2 += 1;
     }
+    acc
+}
+
+/// The panels' fit: their fabric, size and strains, %.
+fn panel_fits(sim: &Simulation, g: &Garment, acc: &[StrainAcc]) -> Vec<PanelFit> {
     let stat = |s: (f64, f64, usize)| StrainStat {
         max_percent: if s.2 > 0 { 100.0 * s.0 } else { 0.0 },
         mean_percent: if s.2 > 0 {
@@ -968,8 +965,7 @@ pub fn fit(
             0.0
         },
     };
-    let panels = g
-        .panels
+    g.panels
         .iter()
         .enumerate()
         .map(|(k, p)| PanelFit {
@@ -981,34 +977,66 @@ pub fn fit(
             weft: stat(acc[k][1]),
             bias: stat(acc[k][2]),
         })
-        .collect();
-    let (pressure, force, distance, stretch) = (&vf.pressure, &vf.force, &vf.distance, &vf.stretch);
-    let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
-        (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
-    let mut pressure_force = Vector3::zeros();
-    for i in 0..n {
-        if force[i] == Vector3::zeros() {
-            continue;
+        .collect()
+}
+
+/// The contact between garment and body summed over the vertices in
+/// contact.
+struct ContactSums {
+    /// Contact area, m².
+    area: f64,
+    /// Contact force, N.
+    total: Vector3<f64>,
+    /// Σ pressure × area, N.
+    normal_sum: f64,
+    /// Peak pressure, Pa.
+    peak: f64,
+    /// Vertices in contact.
+    count: usize,
+    /// −Σ normal × pressure × area, N.
+    pressure_force: Vector3<f64>,
+}
+
+impl ContactSums {
+    /// Sums over the vertices with a contact force.
+    fn of(vf: &VertexFit, n: usize) -> ContactSums {
+        let (pressure, force) = (&vf.pressure, &vf.force);
+        let (mut area, mut total, mut normal_sum, mut peak, mut nc) =
+            (0.0, Vector3::zeros(), 0.0, 0.0f64, 0usize);
+        let mut pressure_force = Vector3::zeros();
+        for i in 0..n {
+            if force[i] == Vector3::zeros() {
+                continue;
+            }
+            total += force[i];
+            let a = vf.area[i];
+            pressure_force -= vf.normal[i] * (pressure[i] * a);
+            normal_sum += pressure[i] * a;
+            peak = peak.max(pressure[i]);
+            area += a;
+            nc += 1;
         }
-        total += force[i];
-        let a = vf.area[i];
-        pressure_force -= vf.normal[i] * (pressure[i] * a);
-        normal_sum += pressure[i] * a;
-        peak = peak.max(pressure[i]);
-        area += a;
-        nc += 1;
+        ContactSums {
+            area,
+            total,
+            normal_sum,
+            peak,
+            count: nc,
+            pressure_force,
+        }
     }
-    let mut hist = vec![0usize; 11];
-    for &d in distance {
-        hist[((d.max(0.0) * 100.0).floor() as usize).min(10)] += 1;
-    }
-    let (pen, deepest) = distance
-        .iter()
-        .filter(|d| **d < 0.0)
-        .fold((0, 0.0f64), |(k, m), d| (k + 1, m.max(-d)));
-    let (gap, at) = g.largest_gap(x);
-    let mass = c.total_mass();
-    let weight = mass * sim.params().gravity.norm();
+}
+
+/// The girths the body file names: the body's and the garment's
+/// perimeters (convex hulls) at each height, the ease and the mean
+/// distance of the garment's band within 1 cm of the height.
+fn girth_fits(
+    c: &crate::cloth::Cloth,
+    body: &Obstacle,
+    trial: &Trial,
+    distance: &[f64],
+) -> BTreeMap<String, GirthFit> {
+    let (x, n) = (&c.x, c.len());
     let mut girths = BTreeMap::new();
     let (bv, bt) = body.local_triangles();
     let bw: Vec<[f64; 3]> = bv
@@ -1057,6 +1085,17 @@ pub fn fit(
             },
         );
     }
+    girths
+}
+
+/// A warning for every panel stretched beyond `OVERSTRETCH` along a
+/// direction, near its most stretched vertex.
+fn overstretch_warnings(
+    g: &Garment,
+    acc: &[StrainAcc],
+    stretch: &[f64],
+    x: &[Vector3<f64>],
+) -> Vec<String> {
     let mut warnings = Vec::new();
     for (k, p) in g.panels.iter().enumerate() {
         let worst = [(0, "warp"), (1, "weft"), (2, "bias")]
@@ -1083,6 +1122,39 @@ pub fn fit(
             ));
         }
     }
+    warnings
+}
+
+/// Measures the fit of the garment as it is now, with the pressure on the
+/// body's vertices.
+pub fn fit(
+    sim: &Simulation,
+    g: &Garment,
+    trial: &Trial,
+    run: RunStats,
+) -> (Fit, VertexFit, Option<BodyPressure>) {
+    let c = &sim.cloth;
+    let x = &c.x;
+    let n = c.len();
+    let body = body_now(sim, trial);
+    let vf = vertex_fit(sim, g, body);
+    let acc = panel_strains(c, &vf, g.panels.len());
+    let panels = panel_fits(sim, g, &acc);
+    let (pressure, distance, stretch) = (&vf.pressure, &vf.distance, &vf.stretch);
+    let contact = ContactSums::of(&vf, n);
+    let mut hist = vec![0usize; 11];
+    for &d in distance {
+        hist[((d.max(0.0) * 100.0).floor() as usize).min(10)] += 1;
+    }
+    let (pen, deepest) = distance
+        .iter()
+        .filter(|d| **d < 0.0)
+        .fold((0, 0.0f64), |(k, m), d| (k + 1, m.max(-d)));
+    let (gap, at) = g.largest_gap(x);
+    let mass = c.total_mass();
+    let weight = mass * sim.params().gravity.norm();
+    let girths = girth_fits(c, body, trial, distance);
+    let mut warnings = overstretch_warnings(g, &acc, stretch, x);
     for m in &g.moved {
         warnings.push(m.note(g));
     }
@@ -1108,6 +1180,14 @@ pub fn fit(
         ));
     }
     let on_body = body_handle(sim).and_then(|b| body_forces::body_pressure(sim, b));
+    let ContactSums {
+        area,
+        total,
+        normal_sum,
+        peak,
+        count: nc,
+        pressure_force,
+    } = contact;
     let fit = Fit {
         body_wrench: BodyWrenchFit::of(&run.wrench, weight, run.sewing_s),
         body_pressure: on_body.as_ref().map(BodyPressureFit::of),

@@ -330,9 +330,9 @@ pub fn read_c3d(path: &Path) -> Result<Capture, CaptureError> {
     parse_c3d(&bytes).map_err(|e| e.with_path(path))
 }
 
-/// Parses the bytes of a C3D file; see the [`crate::capture`] documentation for what is
-/// supported.
-pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
+/// The parameter section's start (byte) and the processor type it names,
+/// from the header's first bytes.
+fn parameter_start(bytes: &[u8]) -> Result<(usize, Processor), CaptureError> {
     if bytes.len() < BLOCK {
         return Err(c3d_err(
             0,
@@ -377,16 +377,12 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
             ),
         )
     })?;
-    let r = Bytes { b: bytes, proc };
-    let h = parse_header(&r)?;
-    let prm = parse_params(&r, param_start)?;
+    Ok((param_start, proc))
+}
 
-    // --- POINT group -------------------------------------------------------------------
-    let used = prm
-        .count("POINT", "USED")
-        .map_or(u32::from(h.points), |v| v.0);
-    let used = usize::try_from(used).unwrap_or(usize::MAX);
-
+/// POINT:SCALE (else the header's): non-zero and finite, negative for
+/// float data.
+fn point_scale(prm: &Params, h: &Header) -> Result<f64, CaptureError> {
     let (scale, scale_at) = match prm.float("POINT", "SCALE") {
         Some((s, at)) => (s, at),
         None => (f64::from(h.scale), 12),
@@ -399,8 +395,11 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
             ),
         ));
     }
-    let float_data = scale < 0.0;
+    Ok(scale)
+}
 
+/// The frame rate, Hz: POINT:RATE if usable, else the header's.
+fn frame_rate(prm: &Params, h: &Header) -> Result<f64, CaptureError> {
     let rate = match prm.float("POINT", "RATE") {
         Some((v, _)) if v.is_finite() && v > 0.0 => v,
         Some((v, at)) if !(f64::from(h.rate).is_finite() && h.rate > 0.0) => {
@@ -420,7 +419,12 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
             format!("header frame rate is {rate}; no POINT:RATE parameter gives a usable one"),
         ));
     }
+    Ok(rate)
+}
 
+/// The data section's first block (POINT:DATA_START, else the header's)
+/// and its byte offset.
+fn data_start(prm: &Params, h: &Header) -> Result<(u32, usize), CaptureError> {
     let data_start = match prm.count("POINT", "DATA_START") {
         Some((v, _)) if v > 0 => v,
         _ => u32::from(h.data_start),
@@ -434,8 +438,12 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
     let data_pos = (data_start as usize - 1)
         .checked_mul(BLOCK)
         .ok_or_else(|| c3d_err(16, format!("data start block {data_start} overflows")))?;
+    Ok((data_start, data_pos))
+}
 
-    // Frame numbering and count.
+/// The first frame's number and the frame count: TRIAL's fields, else
+/// POINT:LONG_FRAMES, POINT:FRAMES or the header's.
+fn frame_numbering(prm: &Params, h: &Header) -> (u32, u32) {
     let header_frames = if h.last_frame >= h.first_frame {
         u32::from(h.last_frame) - u32::from(h.first_frame) + 1
     } else {
@@ -455,7 +463,11 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
             _ => prm.count("POINT", "FRAMES").map_or(header_frames, |v| v.0),
         },
     };
+    (first_frame, n_frames)
+}
 
+/// POINT:UNITS (default mm) and the divisor that turns them into metres.
+fn point_units(prm: &Params) -> Result<(String, f64), CaptureError> {
     let units = prm
         .get("POINT", "UNITS")
         .and_then(|p| p.strings().into_iter().next())
@@ -467,8 +479,11 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
             format!("POINT:UNITS '{units}' is not one of mm, cm, dm, m"),
         )
     })?;
+    Ok((units, divisor))
+}
 
-    // Labels: LABELS, LABELS2, LABELS3, ...
+/// The points' labels: LABELS, LABELS2, LABELS3, ..., at most `used`.
+fn point_labels(prm: &Params, used: usize) -> Vec<String> {
     let mut labels: Vec<String> = Vec::new();
     let mut k = 1usize;
     while labels.len() < used {
@@ -484,90 +499,173 @@ pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
         k += 1;
     }
     labels.truncate(used);
+    labels
+}
 
-    // --- Analog samples to skip ---------------------------------------------------------
-    let analog_total: usize = {
-        let from_params = match (prm.count("ANALOG", "USED"), prm.float("ANALOG", "RATE")) {
-            (Some((0, _)), _) => Some(0usize),
-            (Some((ch, _)), Some((arate, _))) if arate.is_finite() && arate > 0.0 => {
-                let per = arate / rate;
-                let n = per.round();
-                ((per - n).abs() < 1e-3 && (1.0..=65535.0).contains(&n))
-                    .then(|| (ch as usize).saturating_mul(n as usize))
-            }
-            _ => None,
-        };
-        from_params.unwrap_or(usize::from(h.analog_per_frame_total))
-    };
-
-    // --- Data section ---------------------------------------------------------------
-    let word = if float_data { 4usize } else { 2 };
-    let values_per_frame = used
-        .checked_mul(4)
-        .and_then(|v| v.checked_add(analog_total));
-    let frame_bytes = values_per_frame.and_then(|v| v.checked_mul(word)).ok_or_else(|| {
-        c3d_err(
-            data_pos,
-            format!("data section: {used} points and {analog_total} analog samples per frame overflow"),
-        )
-    })?;
-    let available = bytes.len().saturating_sub(data_pos);
-    let n_frames_us = n_frames as usize;
-    if frame_bytes == 0 {
-        if n_frames > 65535 {
-            return Err(c3d_err(
-                data_pos,
-                format!("data section: {n_frames} frames announced but frames hold no data"),
-            ));
+/// The analog samples per frame to skip: from ANALOG:USED and ANALOG:RATE
+/// when they give a whole number per frame, else the header's.
+fn analog_samples(prm: &Params, h: &Header, rate: f64) -> usize {
+    let from_params = match (prm.count("ANALOG", "USED"), prm.float("ANALOG", "RATE")) {
+        (Some((0, _)), _) => Some(0usize),
+        (Some((ch, _)), Some((arate, _))) if arate.is_finite() && arate > 0.0 => {
+            let per = arate / rate;
+            let n = per.round();
+            ((per - n).abs() < 1e-3 && (1.0..=65535.0).contains(&n))
+                .then(|| (ch as usize).saturating_mul(n as usize))
         }
-    } else {
-        let need = frame_bytes.checked_mul(n_frames_us);
-        if need.is_none_or(|n| n > available) {
-            return Err(c3d_err(
-                data_pos,
-                format!(
-                    "data section at byte {data_pos} (block {data_start}): {n_frames} frames of {used} points + {analog_total} analog samples ({frame_bytes} bytes each) need {} bytes but only {available} remain in the file",
-                    need.map_or_else(|| "more than usize::MAX".to_string(), |n| n.to_string())
-                ),
-            ));
+        _ => None,
+    };
+    from_params.unwrap_or(usize::from(h.analog_per_frame_total))
+}
+
+/// Where the 3D points are in the data section and how to read them.
+struct PointData {
+    data_start: u32,
+    data_pos: usize,
+    used: usize,
+    analog_total: usize,
+    n_frames: u32,
+    float_data: bool,
+    scale: f64,
+    divisor: f64,
+}
+
+impl PointData {
+    /// Bytes per value (4 for float data, 2 for integer).
+    fn word(&self) -> usize {
+        if self.float_data {
+            4
+        } else {
+            2
         }
     }
+
+    /// Bytes per frame, checked against what the file holds after the
+    /// data section's start.
+    fn frame_bytes(&self, file_len: usize) -> Result<usize, CaptureError> {
+        let (data_pos, data_start, used, analog_total, n_frames) = (
+            self.data_pos,
+            self.data_start,
+            self.used,
+            self.analog_total,
+            self.n_frames,
+        );
+        let word = self.word();
+        let values_per_frame = used
+            .checked_mul(4)
+            .and_then(|v| v.checked_add(analog_total));
+        let frame_bytes = values_per_frame.and_then(|v| v.checked_mul(word)).ok_or_else(|| {
+            c3d_err(
+                data_pos,
+                format!("data section: {used} points and {analog_total} analog samples per frame overflow"),
+            )
+        })?;
+        let available = file_len.saturating_sub(data_pos);
+        let n_frames_us = n_frames as usize;
+        if frame_bytes == 0 {
+            if n_frames > 65535 {
+                return Err(c3d_err(
+                    data_pos,
+                    format!("data section: {n_frames} frames announced but frames hold no data"),
+                ));
+            }
+        } else {
+            let need = frame_bytes.checked_mul(n_frames_us);
+            if need.is_none_or(|n| n > available) {
+                return Err(c3d_err(
+                    data_pos,
+                    format!(
+                        "data section at byte {data_pos} (block {data_start}): {n_frames} frames of {used} points + {analog_total} analog samples ({frame_bytes} bytes each) need {} bytes but only {available} remain in the file",
+                        need.map_or_else(|| "more than usize::MAX".to_string(), |n| n.to_string())
+                    ),
+                ));
+            }
+        }
+        Ok(frame_bytes)
+    }
+
+    /// The points of every frame, in metres (`None`: missing, by negative
+    /// residual or a non-finite value).
+    fn read(
+        &self,
+        r: &Bytes,
+        frame_bytes: usize,
+    ) -> Result<Vec<Vec<Option<Vector3<f64>>>>, CaptureError> {
+        let (word, used, scale, divisor) = (self.word(), self.used, self.scale, self.divisor);
+        let n_frames_us = self.n_frames as usize;
+        let mut frames = Vec::with_capacity(n_frames_us);
+        for f in 0..n_frames_us {
+            let base = self.data_pos + f * frame_bytes; // bounded by the check in `frame_bytes`
+            let mut row = Vec::with_capacity(used);
+            for m in 0..used {
+                let at = base + m * 4 * word;
+                let what = "3D point";
+                let (xyz, valid) = if self.float_data {
+                    let x = r.f32(at, what)?;
+                    let y = r.f32(at + 4, what)?;
+                    let z = r.f32(at + 8, what)?;
+                    let res = r.f32(at + 12, what)?;
+                    // The residual word is a float to be read as a signed integer.
+                    let valid = !res.is_nan() && res.trunc() >= 0.0;
+                    (
+                        Vector3::new(f64::from(x), f64::from(y), f64::from(z)),
+                        valid,
+                    )
+                } else {
+                    let x = r.i16(at, what)?;
+                    let y = r.i16(at + 2, what)?;
+                    let z = r.i16(at + 4, what)?;
+                    let res = r.i16(at + 6, what)?;
+                    (
+                        Vector3::new(f64::from(x), f64::from(y), f64::from(z)) * scale,
+                        res >= 0,
+                    )
+                };
+                row.push((valid && xyz.iter().all(|c| c.is_finite())).then(|| xyz / divisor));
+            }
+            frames.push(row);
+        }
+        Ok(frames)
+    }
+}
+
+/// Parses the bytes of a C3D file; see the [`crate::capture`] documentation for what is
+/// supported.
+pub fn parse_c3d(bytes: &[u8]) -> Result<Capture, CaptureError> {
+    let (param_start, proc) = parameter_start(bytes)?;
+    let r = Bytes { b: bytes, proc };
+    let h = parse_header(&r)?;
+    let prm = parse_params(&r, param_start)?;
+
+    // --- POINT group -------------------------------------------------------------------
+    let used = prm
+        .count("POINT", "USED")
+        .map_or(u32::from(h.points), |v| v.0);
+    let used = usize::try_from(used).unwrap_or(usize::MAX);
+    let scale = point_scale(&prm, &h)?;
+    let rate = frame_rate(&prm, &h)?;
+    let (data_start, data_pos) = data_start(&prm, &h)?;
+    let (first_frame, n_frames) = frame_numbering(&prm, &h);
+    let (units, divisor) = point_units(&prm)?;
+    let mut labels = point_labels(&prm, used);
+    let analog_total = analog_samples(&prm, &h, rate);
+
+    // --- Data section ---------------------------------------------------------------
+    let data = PointData {
+        data_start,
+        data_pos,
+        used,
+        analog_total,
+        n_frames,
+        float_data: scale < 0.0,
+        scale,
+        divisor,
+    };
+    let frame_bytes = data.frame_bytes(bytes.len())?;
     for i in labels.len()..used {
         labels.push(format!("POINT{}", i + 1));
     }
-
-    let mut frames = Vec::with_capacity(n_frames_us);
-    for f in 0..n_frames_us {
-        let base = data_pos + f * frame_bytes; // bounded by the check above
-        let mut row = Vec::with_capacity(used);
-        for m in 0..used {
-            let at = base + m * 4 * word;
-            let what = "3D point";
-            let (xyz, valid) = if float_data {
-                let x = r.f32(at, what)?;
-                let y = r.f32(at + 4, what)?;
-                let z = r.f32(at + 8, what)?;
-                let res = r.f32(at + 12, what)?;
-                // The residual word is a float to be read as a signed integer.
-                let valid = !res.is_nan() && res.trunc() >= 0.0;
-                (
-                    Vector3::new(f64::from(x), f64::from(y), f64::from(z)),
-                    valid,
-                )
-            } else {
-                let x = r.i16(at, what)?;
-                let y = r.i16(at + 2, what)?;
-                let z = r.i16(at + 4, what)?;
-                let res = r.i16(at + 6, what)?;
-                (
-                    Vector3::new(f64::from(x), f64::from(y), f64::from(z)) * scale,
-                    res >= 0,
-                )
-            };
-            row.push((valid && xyz.iter().all(|c| c.is_finite())).then(|| xyz / divisor));
-        }
-        frames.push(row);
-    }
+    let frames = data.read(&r, frame_bytes)?;
 
     Ok(Capture {
         labels,

@@ -195,14 +195,17 @@ impl GarmentDef {
             .with_context(|| format!("garment file {}", path.display()))
     }
 
-    pub fn from_file(file: GarmentFile, path: &Path) -> Result<GarmentDef> {
-        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    /// The panels of the file's GarmentCode pattern (if any), and its
+    /// stitches as (panel, edge, panel, edge).
+    fn garmentcode_cuts(
+        file: &GarmentFile,
+        dir: &Path,
+    ) -> Result<(Vec<PanelCut>, Vec<PendingSeam>)> {
         let default_grain = file.grain_deg.unwrap_or(90.0);
         let hinges = file.hinges.layout();
         let border = file.border.border();
-        let grain = |deg: f64| [deg.to_radians().cos(), deg.to_radians().sin()];
         let mut cuts: Vec<PanelCut> = Vec::new();
-        let mut pending: Vec<(String, usize, String, usize)> = Vec::new();
+        let mut pending: Vec<PendingSeam> = Vec::new();
         if let Some(gc) = &file.garmentcode {
             let gcp = dir.join(gc);
             let pat = garmentcode::load(&gcp)?;
@@ -226,6 +229,15 @@ impl GarmentDef {
                 pending.push((s.a.0.clone(), s.a.1, s.b.0.clone(), s.b.1));
             }
         }
+        Ok((cuts, pending))
+    }
+
+    /// Adds the panels the file gives by their vertices (a GarmentCode
+    /// panel named here takes only its grain and fabric).
+    fn vertex_cuts(file: &GarmentFile, cuts: &mut Vec<PanelCut>) -> Result<()> {
+        let default_grain = file.grain_deg.unwrap_or(90.0);
+        let hinges = file.hinges.layout();
+        let border = file.border.border();
         for (name, pf) in &file.panels {
             if cuts.iter().any(|c| &c.name == name) {
                 if pf.vertices.is_some() || pf.translation.is_some() || pf.rotation_deg.is_some() {
@@ -272,10 +284,19 @@ impl GarmentDef {
                 ),
             });
         }
-        // each panel's fabric: the garment's unless the panel names its own
+        Ok(())
+    }
+
+    /// Each panel's fabric: the garment's unless the panel names its own;
+    /// the fabric files and each panel's index into them.
+    fn panel_fabrics(
+        file: &GarmentFile,
+        dir: &Path,
+        cuts: &[PanelCut],
+    ) -> (Vec<PathBuf>, Vec<u16>) {
         let mut fabrics: Vec<PathBuf> = vec![dir.join(&file.fabric)];
         let mut fabric_of = Vec::with_capacity(cuts.len());
-        for c in &cuts {
+        for c in cuts {
             let k = match file.panels.get(&c.name).and_then(|p| p.fabric.as_ref()) {
                 None => 0,
                 Some(f) => {
@@ -291,12 +312,17 @@ impl GarmentDef {
             };
             fabric_of.push(k as u16);
         }
-        if cuts.is_empty() {
-            bail!("no panels: give a garmentcode pattern or panels with vertices");
-        }
-        for c in &cuts {
-            check_panel_size(c)?;
-        }
+        (fabrics, fabric_of)
+    }
+
+    /// The seams: the pattern's stitches, then the file's seams, each
+    /// checked (its panels and edges exist, its edges' lengths within
+    /// `MAX_SEAM_RATIO`), with their names.
+    fn seams(
+        file: &GarmentFile,
+        cuts: &[PanelCut],
+        pending: Vec<PendingSeam>,
+    ) -> Result<(Vec<SeamSpec>, Vec<String>)> {
         let stiff = file.seam_stiffness.unwrap_or(DEFAULT_SEAM_STIFFNESS);
         let damping = file.seam_damping.unwrap_or(DEFAULT_SEAM_DAMPING);
         let mut seams = Vec::new();
@@ -344,6 +370,21 @@ impl GarmentDef {
             });
             seam_names.push(format!("{pa}:{ea} – {pb}:{eb}"));
         }
+        Ok((seams, seam_names))
+    }
+
+    pub fn from_file(file: GarmentFile, path: &Path) -> Result<GarmentDef> {
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let (mut cuts, pending) = GarmentDef::garmentcode_cuts(&file, &dir)?;
+        GarmentDef::vertex_cuts(&file, &mut cuts)?;
+        let (fabrics, fabric_of) = GarmentDef::panel_fabrics(&file, &dir, &cuts);
+        if cuts.is_empty() {
+            bail!("no panels: give a garmentcode pattern or panels with vertices");
+        }
+        for c in &cuts {
+            check_panel_size(c)?;
+        }
+        let (seams, seam_names) = GarmentDef::seams(&file, &cuts, pending)?;
         Ok(GarmentDef {
             name: file.name.unwrap_or_else(|| {
                 path.file_stem()
@@ -358,6 +399,15 @@ impl GarmentDef {
             source: path.to_path_buf(),
         })
     }
+}
+
+/// A stitch of the GarmentCode pattern: (panel, edge, panel, edge).
+type PendingSeam = (String, usize, String, usize);
+
+/// The grain direction in the panel's plane at `deg` degrees from its x
+/// axis.
+fn grain(deg: f64) -> [f64; 2] {
+    [deg.to_radians().cos(), deg.to_radians().sin()]
 }
 
 /// Refuses panels whose size says the pattern is in the wrong unit.
