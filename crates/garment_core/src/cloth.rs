@@ -10,6 +10,8 @@
 
 use crate::conform;
 use crate::fabric::LawState;
+pub(crate) use crate::plane::seg_dist;
+pub use crate::plane::{polygon_contains, REMOVED};
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -316,9 +318,6 @@ pub struct Cloth {
     pub vertex_fabric: Vec<u16>,
 }
 
-/// Marks a grid node that a clipped cloth does not keep.
-pub const REMOVED: usize = usize::MAX;
-
 /// Edge length and mean wing height over the edge line of hinge `v`, from
 /// the material positions `m`.
 fn hinge_rest(m: &[[f64; 2]], v: [usize; 4]) -> (f64, f64) {
@@ -421,35 +420,6 @@ impl Outline {
         }
         Ok(())
     }
-}
-
-/// Distance from `p` to the segment `ab`.
-pub(crate) fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
-}
-
-/// Is the point inside the closed polygon (either orientation; even-odd
-/// rule)?
-pub fn polygon_contains(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = poly.len();
-    for k in 0..n {
-        let (a, b) = (poly[k], poly[(k + 1) % n]);
-        if (a[1] > p[1]) != (b[1] > p[1]) {
-            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-            if p[0] < x {
-                inside = !inside;
-            }
-        }
-    }
-    inside
 }
 
 /// The convex hull of points in the plane, counter-clockwise (Andrew's

@@ -18,6 +18,7 @@ pub mod deforming;
 pub mod fabric;
 pub mod garment;
 pub mod limits;
+pub mod plane;
 pub mod self_contact;
 pub mod set;
 pub mod solver;

@@ -421,20 +421,6 @@ impl Precond for Direct {
     }
 }
 
-impl Precond for super::amg::Amg {
-    /// One V-cycle, whose output is filtered already
-    /// ([`super::amg::Amg::apply_dot`]).
-    fn apply_dot(
-        &mut self,
-        a: &BlockMatrix,
-        filter: &[Filter],
-        r: &[Vector3<f64>],
-        out: &mut [Vector3<f64>],
-    ) -> f64 {
-        super::amg::Amg::apply_dot(self, a, filter, r, out)
-    }
-}
-
 /// The block-Jacobi preconditioner's block for the diagonal block `d`: its
 /// inverse, or the inverse of its diagonal if it is singular.
 #[inline]
@@ -1647,7 +1633,7 @@ impl Direct {
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_systems::{grid_edges, spd_grid_sized};
+    use super::super::test_systems::{mixed_constraints, spd_grid_sized};
     use super::*;
 
     /// A 6 × 5 (or `nx` × `ny`) grid of vertices with random PSD springs to their right,
@@ -1877,32 +1863,6 @@ mod tests {
         }
     }
 
-    /// Every fifth vertex in contact along one normal, every fifth pinned, the
-    /// rest free; a right-hand side, and prescribed parts z only in the
-    /// constrained directions.
-    #[allow(clippy::type_complexity)]
-    fn mixed_constraints(n: usize) -> (Vec<Filter>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
-        let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
-        let filter: Vec<Filter> = (0..n)
-            .map(|i| match i % 5 {
-                1 => Filter::Normal(nrm),
-                3 => Filter::Fixed,
-                _ => Filter::Free,
-            })
-            .collect();
-        let b: Vec<Vector3<f64>> = (0..n)
-            .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
-            .collect();
-        let z: Vec<Vector3<f64>> = (0..n)
-            .map(|i| match filter[i] {
-                Filter::Normal(m) => m * 0.05,
-                Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
-                Filter::Free => Vector3::zeros(),
-            })
-            .collect();
-        (filter, b, z)
-    }
-
     fn agree_under_the_constraint_filter(a: BlockMatrix, mass: Vec<f64>) {
         let n = a.n;
         let (filter, b, z) = mixed_constraints(n);
@@ -2053,99 +2013,6 @@ mod tests {
         }
         // not a trivial system: the solution differs from the right-hand side
         assert!((0..n).any(|i| (exact[i] - r[i]).amax() > 0.1 * scale));
-    }
-
-    /// The multigrid-preconditioned PCG gives the direct solver's constrained
-    /// solution on a grid with free, contact and pinned vertices, in far
-    /// fewer iterations than the block-Jacobi PCG; its cycle is a symmetric
-    /// positive definite operator on the free directions (as CG needs) whose
-    /// output obeys the filter; a repeat is the same bit for bit.
-    #[test]
-    fn multigrid_pcg_matches_the_direct_solve_under_the_filter() {
-        use super::super::amg::Amg;
-        let (nx, ny) = (60, 55);
-        let (a, mass) = spd_grid_sized(nx, ny, 17);
-        let n = a.n;
-        let (filter, b, z) = mixed_constraints(n);
-        let edges = grid_edges(nx, ny);
-        let x: Vec<Vector3<f64>> = (0..n)
-            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
-            .collect();
-        let mut amg = Amg::new(&a, &edges).unwrap();
-        let sizes = amg.sizes();
-        assert!(sizes.len() >= 2 && sizes[1] < n / 3, "levels {sizes:?}");
-        amg.setup(&a, &filter, &mass, &x).unwrap();
-        // the cycle: symmetric and positive on the free directions, and its
-        // output has no part along the constrained ones
-        amg.check_cycle(&a, &filter);
-        // the solve
-        let mut direct = Direct::new(&a).unwrap();
-        let mut exact = vec![Vector3::zeros(); n];
-        direct
-            .solve(&a, &b, &filter, &z, &mass, &mut exact)
-            .unwrap();
-        let mut pcg = Pcg::default();
-        let mut xm = vec![Vector3::zeros(); n];
-        let it = pcg
-            .solve_factor(
-                &a,
-                &b,
-                &filter,
-                &z,
-                &mut xm,
-                1e-10,
-                Cap::Hard(500),
-                &mut amg,
-            )
-            .unwrap();
-        let mut xj = vec![Vector3::zeros(); n];
-        let it_jacobi = pcg
-            .solve(
-                &a,
-                &b,
-                &filter,
-                &z,
-                &mut xj,
-                1e-10,
-                Cap::Hard(10_000),
-                Preconditioner::BlockJacobi,
-                &mut Team::new(1),
-            )
-            .unwrap();
-        assert!(
-            3 * it < it_jacobi,
-            "multigrid {it} iterations, block-Jacobi {it_jacobi}"
-        );
-        let scale = exact.iter().map(|v| v.amax()).fold(0.0, f64::max);
-        for i in 0..n {
-            assert!(
-                (xm[i] - exact[i]).amax() <= 1e-7 * scale,
-                "vertex {i}: {:?} vs {:?}",
-                xm[i],
-                exact[i]
-            );
-            // the constrained part is z exactly
-            assert!((xm[i] - filter[i].apply(&xm[i]) - z[i]).amax() <= 1e-15);
-        }
-        // reproducible: a second hierarchy, set up and solved alike, gives
-        // the same bits
-        let mut amg2 = Amg::new(&a, &edges).unwrap();
-        amg2.setup(&a, &filter, &mass, &x).unwrap();
-        let mut again = vec![Vector3::zeros(); n];
-        let it2 = pcg
-            .solve_factor(
-                &a,
-                &b,
-                &filter,
-                &z,
-                &mut again,
-                1e-10,
-                Cap::Hard(500),
-                &mut amg2,
-            )
-            .unwrap();
-        assert_eq!(it2, it);
-        assert!(xm.iter().zip(&again).all(|(p, q)| p == q));
     }
 
     /// The filter's one-sided products are `S m` and `m S`.

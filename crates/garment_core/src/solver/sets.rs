@@ -14,7 +14,6 @@
 //! fresh state wherever an element takes one.
 
 use super::elements::*;
-use super::family::Family;
 use super::sparse::BlockMatrix;
 use super::{Energies, Fabrics};
 use crate::cloth::{
@@ -23,6 +22,15 @@ use crate::cloth::{
 use crate::fabric::{Fabric, LawState};
 use anyhow::{bail, Result};
 use nalgebra::{Matrix3, Vector3};
+
+/// A spring family: what the per-family force and Jacobian queries
+/// ([`super::family`]) name the sets by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    Tension,
+    Shear,
+    Bending,
+}
 
 /// When the step adds a set's elements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1236,7 +1244,6 @@ mod tests {
     /// The largest shear force on any vertex and the largest strain each
     /// diagonal alone reads (thesis eq. 4.34: `(l² − l₀²) / (2 l_c l_t)`).
     fn shear_reading(sim: &Simulation) -> (f64, f64) {
-        use crate::solver::family::Family;
         let f = sim
             .family_forces(Family::Shear)
             .iter()
