@@ -24,11 +24,12 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
+/// Which linear solver a step uses.
 pub enum LinearSolverKind {
     /// Filtered preconditioned conjugate gradient (block-Jacobi preconditioner).
     Pcg,
     /// The filtered PCG preconditioned by symmetric block Gauss–Seidel
-    /// ([`Preconditioner::Sgs`]).
+    /// (`Preconditioner::Sgs`).
     Sgs,
     /// Sparse Cholesky (faer), symbolic factorisation reused.
     Cholesky,
@@ -47,7 +48,7 @@ pub enum LinearSolverKind {
     #[default]
     Auto,
     /// The filtered PCG preconditioned by smoothed-aggregation multigrid
-    /// ([`super::amg`]).
+    /// (`super::amg`).
     Amg,
 }
 
@@ -70,6 +71,7 @@ impl std::str::FromStr for LinearSolverKind {
 /// The constraint on one vertex for this step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Filter {
+    /// Unconstrained.
     Free,
     /// In contact: motion along `normal` is prescribed.
     Normal(Vector3<f64>),
@@ -79,6 +81,7 @@ pub enum Filter {
 
 impl Filter {
     #[inline]
+    /// `S v`.
     pub fn apply(&self, v: &Vector3<f64>) -> Vector3<f64> {
         match self {
             Filter::Free => *v,
@@ -105,6 +108,7 @@ impl Filter {
         }
     }
     #[inline]
+    /// `S` as a matrix.
     pub fn matrix(&self) -> Matrix3<f64> {
         match self {
             Filter::Free => Matrix3::identity(),

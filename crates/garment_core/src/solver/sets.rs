@@ -27,8 +27,11 @@ use nalgebra::{Matrix3, Vector3};
 /// ([`super::family`]) name the sets by.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Family {
+    /// Tension springs.
     Tension,
+    /// Shear springs or cells.
     Shear,
+    /// Hinges and egg-crate guards.
     Bending,
 }
 
