@@ -497,8 +497,9 @@ pub(crate) trait Spring: Copy + Send + Sync {
     fn memory_law<'f>(&self, f: &'f Fabric) -> &'f Law;
     fn strain(&self, l: f64) -> f64;
     /// Tension, its branch tangent and its step tangent at length `l` (see
-    /// [`crate::fabric::Law::eval_for_step`]).
-    fn response(&self, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64);
+    /// [`crate::fabric::Law::eval_for_step`]), `law` its [`Spring::memory_law`]
+    /// in `f`.
+    fn response(&self, law: &Law, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64);
     /// Elastic energy at length `l`, J.
     fn energy_at(&self, f: &Fabric, l: f64) -> f64;
     /// The family's Rayleigh coefficient.
@@ -522,8 +523,8 @@ impl Spring for TensionSpring {
         l / self.l0 - 1.0
     }
     #[inline(always)]
-    fn response(&self, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
-        let (t, dt, dts, _) = tension_law_step(self, &f.dir(self.weft).tensile, &f.shear, st, l);
+    fn response(&self, law: &Law, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
+        let (t, dt, dts, _) = tension_law_step(self, law, &f.shear, st, l);
         (t, dt, dts)
     }
     fn energy_at(&self, f: &Fabric, l: f64) -> f64 {
@@ -553,8 +554,8 @@ impl Spring for ShearSpring {
         ShearSpring::strain(self, l)
     }
     #[inline(always)]
-    fn response(&self, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
-        let (t, dt, dts, _) = shear_law_step(self, &f.shear, st, l);
+    fn response(&self, law: &Law, _: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
+        let (t, dt, dts, _) = shear_law_step(self, law, st, l);
         (t, dt, dts)
     }
     fn energy_at(&self, f: &Fabric, l: f64) -> f64 {
@@ -592,8 +593,9 @@ impl<S: Spring> Element for S {
         let (a, b) = self.ends();
         let f = i.fabrics.at(a);
         let (l, dir) = axial(&i.x[a], &i.x[b]);
-        self.memory_law(f).commit(st, self.strain(l));
-        let (t, dt, dts) = self.response(f, st, l);
+        let law = self.memory_law(f);
+        law.commit(st, self.strain(l));
+        let (t, dt, dts) = self.response(law, f, st, l);
         let sp = AxialStep {
             a,
             b,
@@ -625,7 +627,8 @@ impl<S: Spring> Element for S {
     fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
         let (a, b) = self.ends();
         let (l, dir) = axial(&x[a], &x[b]);
-        let (t, _, _) = self.response(f.at(a), st, l);
+        let fa = f.at(a);
+        let (t, _, _) = self.response(self.memory_law(fa), fa, st, l);
         out[a] += dir * t;
         out[b] -= dir * t;
     }
@@ -640,7 +643,8 @@ impl<S: Spring> Element for S {
     ) {
         let (a, b) = self.ends();
         let (l, dir) = axial(&x[a], &x[b]);
-        let (t, dt, dts) = self.response(f.at(a), st, l);
+        let fa = f.at(a);
+        let (t, dt, dts) = self.response(self.memory_law(fa), fa, st, l);
         let (dt, projected) = match kind {
             Jacobian::Exact => (dt, false),
             Jacobian::Projected => (dt, true),
