@@ -665,15 +665,25 @@ fn an_interrupted_dressing_writes_the_steps_it_took() {
         d["path_end_progress"].as_f64().unwrap(),
     );
     assert!(rows > 0 && end < moved - 0.2, "ended at {end} of {moved}");
-    for f in [
-        "dressing.png",
-        "dressing_0.png",
-        "dressing_1.png",
-        "garment.obj",
-        "body_pressure.ply",
+    // the pictures so far, drawn: the dressing's three plots (900 × 400
+    // each: background, axes, text and a few curves) and the first shot
+    // (the garment coloured by its strain, the body)
+    for (f, size, colours_at_least) in [
+        ("dressing.png", (900, 1200), 5),
+        ("dressing_0.png", (1200, 800), 50),
+        ("dressing_1.png", (1200, 800), 50),
     ] {
-        assert!(out.join(f).exists(), "{f}");
+        let (w, h, colours) = support::png_summary(&out.join(f));
+        assert_eq!((w, h), size, "{f}");
+        assert!(colours >= colours_at_least, "{f}: {colours} colours");
     }
+    // the garment where it stopped: as many vertices as the fit reports,
+    // its faces naming only them
+    let (obj, top) = support::obj_vertices(&out.join("garment.obj"));
+    assert_eq!(Some(obj.len() as u64), fit["vertices"].as_u64(), "{fit}");
+    assert_eq!(top, obj.len());
+    assert!(obj.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    support::check_body_pressure_ply(&out.join("body_pressure.ply"));
     assert!(!out.join("dressing_4.png").exists());
 }
 

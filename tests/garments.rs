@@ -857,8 +857,27 @@ fn a_tube_sewn_on_both_sides_hangs_round_on_a_cylinder() {
     );
     let ease = g["ease_cm"].as_f64().unwrap();
     assert!(ease > 0.0 && ease < 2.0 * std::f64::consts::PI * 0.5, "{g}");
-    for f in ["garment.obj", "fit_strain.png", "fit_pressure.png"] {
-        assert!(out.join(f).exists(), "{f}");
+    // garment.obj: the garment.ply's vertices (to its micrometre), faces
+    // naming only them
+    let (obj, top) = support::obj_vertices(&out.join("garment.obj"));
+    assert_eq!(obj.len(), pts.len(), "garment.obj against garment.ply");
+    assert!(
+        top == obj.len(),
+        "faces name vertices 1..={top} of {}",
+        obj.len()
+    );
+    for (o, p) in obj.iter().zip(&pts) {
+        assert!(
+            (0..3).all(|k| (o[k] - p[k]).abs() <= 1e-6),
+            "{o:?} against {p:?}"
+        );
+    }
+    // the pictures: 1500 × 800, drawn (a cloth coloured by its field, the
+    // body, the scale and text: many colours)
+    for f in ["fit_strain.png", "fit_pressure.png"] {
+        let (w, h, colours) = support::png_summary(&out.join(f));
+        assert_eq!((w, h), (1500, 800), "{f}");
+        assert!(colours > 50, "{f}: {colours} colours");
     }
 }
 
@@ -1272,7 +1291,18 @@ fn the_shipped_skirt_settles_on_a_frictionless_body_in_equilibrium() {
     // no vertex inside the body (ray parity, not the contact code), nothing
     // slid off: the waist stays above the hips
     skirt_on_the_body(&out);
-    assert!(out.join("fit_pressure.png").exists());
+    let (pw, ph, colours) = support::png_summary(&out.join("fit_pressure.png"));
+    assert_eq!((pw, ph), (1500, 800));
+    assert!(colours > 50, "fit_pressure.png: {colours} colours");
+    // the pressure map written per body vertex: consistent with its own
+    // areas, and its total normal force the one the garment's contact
+    // vertices report
+    let (_, total) = support::check_body_pressure_ply(&out.join("body_pressure.ply"));
+    let normal = fit["pressure_integral_n"].as_f64().unwrap();
+    assert!(
+        (total - normal).abs() <= 1e-3 * normal && normal > 0.5 * w,
+        "body_pressure.ply {total} N against the garment's {normal} N"
+    );
 }
 
 #[test]

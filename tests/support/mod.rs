@@ -252,3 +252,116 @@ pub fn pin_failing_at_step_6(sim: &mut garment_sim::solver::Simulation, v: usize
     ));
     sim.set_pins(pins).unwrap();
 }
+
+/// Width, height and number of distinct colours of an 8-bit RGB or RGBA PNG.
+pub fn png_summary(path: &Path) -> (usize, usize, usize) {
+    let f = std::io::BufReader::new(
+        std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    );
+    let mut r = png::Decoder::new(f).read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size().unwrap()];
+    let info = r.next_frame(&mut buf).unwrap();
+    assert_eq!(info.bit_depth, png::BitDepth::Eight, "{}", path.display());
+    let px = match info.color_type {
+        png::ColorType::Rgb => 3,
+        png::ColorType::Rgba => 4,
+        c => panic!("{}: colour type {c:?}", path.display()),
+    };
+    let colours: std::collections::HashSet<&[u8]> =
+        buf[..info.buffer_size()].chunks_exact(px).collect();
+    (info.width as usize, info.height as usize, colours.len())
+}
+
+/// The vertices (`v x y z`) and the largest vertex index a face (`f a/.. b/.. c/..`,
+/// from 1) names in a Wavefront OBJ file.
+pub fn obj_vertices(path: &Path) -> (Vec<[f64; 3]>, usize) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (mut v, mut top) = (Vec::new(), 0);
+    for l in text.lines() {
+        let mut w = l.split_whitespace();
+        match w.next() {
+            Some("v") => {
+                let c: Vec<f64> = w.map(|s| s.parse().unwrap()).collect();
+                v.push([c[0], c[1], c[2]]);
+            }
+            Some("f") => {
+                for c in w {
+                    let i: usize = c.split('/').next().unwrap().parse().unwrap();
+                    assert!(i >= 1, "{}: face index {i}", path.display());
+                    top = top.max(i);
+                }
+            }
+            _ => {}
+        }
+    }
+    (v, top)
+}
+
+/// Checks a `body_pressure.ply` (x y z pressure force area per vertex, then
+/// triangles) against itself: every vertex's area is a third of its
+/// triangles' areas (computed from the positions and faces), its force is
+/// its pressure times its area, pressures and forces are ≥ 0; returns the
+/// vertex count and the total force, N.
+pub fn check_body_pressure_ply(path: &Path) -> (usize, f64) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let (mut nv, mut nf) = (0, 0);
+    for l in lines.by_ref() {
+        if let Some(v) = l.strip_prefix("element vertex ") {
+            nv = v.trim().parse().unwrap();
+        }
+        if let Some(v) = l.strip_prefix("element face ") {
+            nf = v.trim().parse().unwrap();
+        }
+        if l == "end_header" {
+            break;
+        }
+    }
+    let rows: Vec<Vec<f64>> = lines
+        .by_ref()
+        .take(nv)
+        .map(|l| l.split_whitespace().map(|s| s.parse().unwrap()).collect())
+        .collect();
+    let faces: Vec<[usize; 3]> = lines
+        .take(nf)
+        .map(|l| {
+            let c: Vec<usize> = l.split_whitespace().map(|s| s.parse().unwrap()).collect();
+            assert_eq!(c[0], 3, "{}: a face of {} vertices", path.display(), c[0]);
+            [c[1], c[2], c[3]]
+        })
+        .collect();
+    assert!(nv > 0 && rows.len() == nv && faces.len() == nf && nf > 0);
+    let mut area = vec![0.0; nv];
+    for t in &faces {
+        let p = |k: usize| nalgebra::Vector3::new(rows[t[k]][0], rows[t[k]][1], rows[t[k]][2]);
+        let a = 0.5 * (p(1) - p(0)).cross(&(p(2) - p(0))).norm();
+        for &k in t {
+            area[k] += a / 3.0;
+        }
+    }
+    let total: f64 = area.iter().sum();
+    let mut force = 0.0;
+    for (i, r) in rows.iter().enumerate() {
+        let (pressure, f, a) = (r[3], r[4], r[5]);
+        // positions are written to a micrometre: areas agree to about 1e-4
+        assert!(
+            (a - area[i]).abs() <= 1e-4 * area[i] + 1e-12 * total,
+            "{}: vertex {i}: area {a} against {} from its triangles",
+            path.display(),
+            area[i]
+        );
+        assert!(
+            pressure >= 0.0 && f >= 0.0,
+            "{}: vertex {i}: {r:?}",
+            path.display()
+        );
+        assert!(
+            (f - pressure * a).abs() <= 1e-5 * f.max(pressure * a) + 1e-12,
+            "{}: vertex {i}: force {f} against pressure × area {}",
+            path.display(),
+            pressure * a
+        );
+        force += f;
+    }
+    (nv, force)
+}

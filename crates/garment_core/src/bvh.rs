@@ -11,11 +11,14 @@ use nalgebra::Vector3;
 /// Axis-aligned box (min, max corners).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// Lowest corner.
     pub lo: Vector3<f64>,
+    /// Highest corner.
     pub hi: Vector3<f64>,
 }
 
 impl Aabb {
+    /// The empty box (adding a point makes it that point).
     pub fn empty() -> Aabb {
         Aabb {
             lo: Vector3::repeat(f64::INFINITY),
@@ -23,11 +26,13 @@ impl Aabb {
         }
     }
 
+    /// Grows the box to hold `p`.
     pub fn add(&mut self, p: &Vector3<f64>) {
         self.lo = self.lo.inf(p);
         self.hi = self.hi.sup(p);
     }
 
+    /// The smallest box holding both.
     pub fn merge(&self, o: &Aabb) -> Aabb {
         Aabb {
             lo: self.lo.inf(&o.lo),
@@ -35,12 +40,14 @@ impl Aabb {
         }
     }
 
+    /// Grows the box by `r` on every side.
     pub fn grow(&mut self, r: f64) {
         self.lo.add_scalar_mut(-r);
         self.hi.add_scalar_mut(r);
     }
 
     #[inline]
+    /// Whether the two boxes share a point.
     pub fn overlaps(&self, o: &Aabb) -> bool {
         (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
     }

@@ -10,6 +10,8 @@
 
 use crate::conform;
 use crate::fabric::LawState;
+pub(crate) use crate::plane::seg_dist;
+pub use crate::plane::{polygon_contains, REMOVED};
 use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -17,6 +19,7 @@ use nalgebra::{Isometry3, Point3, Vector3};
 pub const MAX_VERTICES: usize = 4_000_000;
 
 #[derive(Debug, Clone)]
+/// A rectangular warp/weft grid: its size, spacing and pose ([`Cloth::grid`]).
 pub struct GridSpec {
     /// Size along warp and weft, m.
     pub size: [f64; 2],
@@ -39,7 +42,9 @@ impl GridSpec {
 /// A tension (structure) spring between grid neighbours.
 #[derive(Debug, Clone, Copy)]
 pub struct TensionSpring {
+    /// First end (vertex index).
     pub a: usize,
+    /// Second end (vertex index).
     pub b: usize,
     /// Along weft (true) or warp (false).
     pub weft: bool,
@@ -57,10 +62,13 @@ pub struct TensionSpring {
 /// A shear spring on a cell diagonal (Provot; thesis ch. 4).
 #[derive(Debug, Clone, Copy)]
 pub struct ShearSpring {
+    /// First end (vertex index).
     pub a: usize,
+    /// Second end (vertex index).
     pub b: usize,
     /// Cell sides l_c, l_t, m.
     pub lc: f64,
+    /// Cell side l_t (weft), m.
     pub lt: f64,
     /// Rest length sqrt(l_c² + l_t²), m.
     pub l0: f64,
@@ -93,9 +101,11 @@ pub struct ShearCell {
     pub v: [usize; 4],
     /// Cell sides l_c (warp), l_t (weft), m.
     pub lc: f64,
+    /// Cell side l_t (weft), m.
     pub lt: f64,
     /// Rest lengths of the two diagonals, m.
     pub l1: f64,
+    /// Rest length of diagonal 2, m.
     pub l2: f64,
 }
 
@@ -137,6 +147,7 @@ impl ShearCell {
 /// spacing.
 #[derive(Debug, Clone, Copy)]
 pub struct EggCrateGuard {
+    /// `v[0..3]` a row of three vertices along the thread, `v[3..6]` the next row.
     pub v: [usize; 6],
     /// The second difference runs along weft (true) or warp.
     pub weft: bool,
@@ -150,6 +161,7 @@ pub const EGG_CRATE_WEIGHTS: [f64; 6] = [1.0, -2.0, 1.0, -1.0, 2.0, -1.0];
 /// A bending hinge: shared edge `v[0]–v[1]`, wings `v[2]` and `v[3]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Hinge {
+    /// Shared edge `v[0]–v[1]`, wings `v[2]` and `v[3]`.
     pub v: [usize; 4],
     /// Bends the weft threads (curvature along weft) when true, warp otherwise.
     pub weft: bool,
@@ -168,7 +180,9 @@ pub struct Hinge {
 /// matrix `k c cᵀ ⊗ I₃` is exact and constant.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Stitch {
+    /// The sewn vertex `v[0]` and the edge `v[1]–v[2]` it is sewn to.
     pub v: [usize; 3],
+    /// The gap's coefficients: `g = Σ_k c[k]·x[v[k]]`.
     pub c: [f64; 3],
     /// Stiffness, N/m.
     pub k: f64,
@@ -280,27 +294,44 @@ fn snap_border(
 }
 
 #[derive(Debug, Clone, Default)]
+/// A cloth: its vertices (positions, velocities, masses), its elements
+/// (springs, hinges, cells, guards, seam stitches) with their hysteresis
+/// memories, and its triangles.
 pub struct Cloth {
+    /// Grid nodes along warp.
     pub nx: usize,
+    /// Grid nodes along weft.
     pub ny: usize,
+    /// Grid spacing along warp (l_c), m.
     pub lc: f64,
+    /// Grid spacing along weft (l_t), m.
     pub lt: f64,
     /// Material coordinates (u along warp, v along weft), m.
     pub material: Vec<[f64; 2]>,
+    /// Positions, m.
     pub x: Vec<Vector3<f64>>,
+    /// Velocities, m/s.
     pub v: Vec<Vector3<f64>>,
+    /// Masses, kg.
     pub mass: Vec<f64>,
+    /// Tension springs along warp and weft.
     pub tension: Vec<TensionSpring>,
+    /// Shear springs on the cells' diagonals.
     pub shear: Vec<ShearSpring>,
+    /// Bending hinges.
     pub hinges: Vec<Hinge>,
+    /// Hysteresis memory of each tension spring.
     pub tension_state: Vec<LawState>,
+    /// Hysteresis memory of each shear spring.
     pub shear_state: Vec<LawState>,
     /// The cells' shear elements and their memories, in place of `shear`
     /// after [`Cloth::use_cell_shear`] (empty otherwise).
     pub shear_cells: Vec<ShearCell>,
+    /// Hysteresis memory of each shear cell.
     pub shear_cell_state: Vec<LawState>,
     /// Guards of the egg-crate mode, with `shear_cells`.
     pub guards: Vec<EggCrateGuard>,
+    /// Hysteresis memory of each hinge.
     pub hinge_state: Vec<LawState>,
     /// Triangles of the surface (for output), counter-clockwise seen from +z.
     pub triangles: Vec<[usize; 3]>,
@@ -315,9 +346,6 @@ pub struct Cloth {
     /// Every spring and hinge lies within one panel and takes its fabric.
     pub vertex_fabric: Vec<u16>,
 }
-
-/// Marks a grid node that a clipped cloth does not keep.
-pub const REMOVED: usize = usize::MAX;
 
 /// Edge length and mean wing height over the edge line of hinge `v`, from
 /// the material positions `m`.
@@ -334,10 +362,14 @@ fn hinge_rest(m: &[[f64; 2]], v: [usize; 4]) -> (f64, f64) {
 pub enum Outline {
     /// The rectangle `[0, size[0]] × [0, size[1]]`, m.
     Rectangle {
+        /// Side lengths along warp and weft, m.
         size: [f64; 2],
     },
+    /// A circle.
     Circle {
+        /// Centre, m.
         center: [f64; 2],
+        /// Radius, m.
         radius: f64,
     },
     /// Simple polygon (either orientation), vertices in order, not repeated.
@@ -421,35 +453,6 @@ impl Outline {
         }
         Ok(())
     }
-}
-
-/// Distance from `p` to the segment `ab`.
-pub(crate) fn seg_dist(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let l2 = dx * dx + dy * dy;
-    let t = if l2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
-}
-
-/// Is the point inside the closed polygon (either orientation; even-odd
-/// rule)?
-pub fn polygon_contains(poly: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = poly.len();
-    for k in 0..n {
-        let (a, b) = (poly[k], poly[(k + 1) % n]);
-        if (a[1] > p[1]) != (b[1] > p[1]) {
-            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-            if p[0] < x {
-                inside = !inside;
-            }
-        }
-    }
-    inside
 }
 
 /// The convex hull of points in the plane, counter-clockwise (Andrew's
@@ -591,6 +594,7 @@ pub enum Border {
 /// fills it, where it lies in the world, and its hinge layout.
 #[derive(Debug, Clone)]
 pub struct PanelSpec {
+    /// The outline, material coordinates.
     pub outline: Outline,
     /// Grid spacing along warp (l_c) and weft (l_t), m (a rectangle's: the
     /// nearest that divides its sides).
@@ -602,7 +606,9 @@ pub struct PanelSpec {
     pub pose: Isometry3<f64>,
     /// kg/m².
     pub areal_mass: f64,
+    /// How the grid meets the outline.
     pub border: Border,
+    /// How the bending hinges are laid out.
     pub hinges: HingeLayout,
     /// Points of the outline that must be vertices (material coordinates),
     /// with [`Border::Conforming`]: a pattern's corners.
@@ -1401,10 +1407,12 @@ impl Cloth {
         Ok(c)
     }
 
+    /// Number of vertices.
     pub fn len(&self) -> usize {
         self.x.len()
     }
 
+    /// Whether the cloth has no vertices.
     pub fn is_empty(&self) -> bool {
         self.x.is_empty()
     }
@@ -1427,6 +1435,7 @@ impl Cloth {
         }
     }
 
+    /// Total mass, kg.
     pub fn total_mass(&self) -> f64 {
         self.mass.iter().sum()
     }

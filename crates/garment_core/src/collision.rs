@@ -31,46 +31,67 @@ pub const MAX_MESH_TRIANGLES: usize = 2_000_000;
 pub enum ShapeSpec {
     /// Box with full side lengths, m.
     Box {
+        /// Side lengths, m.
         size: [f64; 3],
     },
+    /// Sphere.
     Sphere {
+        /// Radius, m.
         radius: f64,
     },
     /// Capsule: cylinder of `length` between the centres of its end caps.
     Capsule {
+        /// Length between the end caps' centres, m.
         length: f64,
+        /// Radius, m.
         radius: f64,
     },
+    /// Cylinder along its frame's z axis.
     Cylinder {
+        /// Height, m.
         height: f64,
+        /// Radius, m.
         radius: f64,
     },
+    /// Cone along its frame's z axis.
     Cone {
+        /// Height, m.
         height: f64,
+        /// Radius of the base, m.
         radius: f64,
     },
     /// Triangle mesh (vertices in m, in the obstacle frame): read from an OBJ
     /// file by the scene loader, or given in a message.
     #[serde(skip)]
     Triangles {
+        /// Vertices in the obstacle's frame, m.
         vertices: Vec<[f64; 3]>,
+        /// Triangles, indices into `vertices`.
         triangles: Vec<[u32; 3]>,
     },
 }
 
 #[derive(Clone)]
+/// A rigid obstacle the cloth collides with: a shape, its pose and
+/// velocity, its thickness and friction.
 pub struct Obstacle {
+    /// Its name.
     pub id: String,
+    /// The shape as specified.
     pub spec: ShapeSpec,
+    /// The shape as the contact queries use it.
     pub shape: SharedShape,
     /// Pose of the obstacle frame.
     pub pose: Isometry3<f64>,
     /// Pose of the parry shape (pose × axis fix for z-axis primitives).
     shape_pose_offset: Isometry3<f64>,
+    /// Linear velocity of the obstacle frame's origin, m/s.
     pub linear_velocity: Vector3<f64>,
     /// Angular velocity about the obstacle frame's origin, rad/s (world axes).
     pub angular_velocity: Vector3<f64>,
+    /// Thickness the cloth keeps from its surface, m.
     pub thickness: f64,
+    /// Coulomb friction coefficient against the cloth.
     pub friction: f64,
     /// Mesh data for visualisation (vertices in the obstacle frame).
     pub mesh: Option<MeshData>,
@@ -110,6 +131,7 @@ pub struct Proximity {
 }
 
 impl Obstacle {
+    /// An obstacle of shape `spec` at `pose`, at rest.
     pub fn new(
         id: &str,
         spec: ShapeSpec,

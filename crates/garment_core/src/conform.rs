@@ -15,7 +15,7 @@
 //!   tips;
 //! - a kept node not tied to the panel along both threads is dropped.
 
-use crate::cloth::{polygon_contains, seg_dist, REMOVED};
+use crate::plane::{polygon_contains, seg_dist, REMOVED};
 
 /// Corners nearer each other than this many spacings share a vertex.
 pub const MERGE: f64 = 0.25;

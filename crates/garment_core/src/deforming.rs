@@ -102,6 +102,7 @@ impl Keyframes {
         Keyframes::new(times, frames)
     }
 
+    /// Number of frames.
     pub fn frames(&self) -> usize {
         self.frames.len()
     }
@@ -154,6 +155,7 @@ pub const HIT_TOLERANCE: f64 = 1e-9;
 pub struct Hit {
     /// Fraction of the step at which it meets the triangle.
     pub s: f64,
+    /// The triangle it meets.
     pub triangle: usize,
     /// Barycentric weights of the meeting point in the triangle.
     pub weights: [f64; 3],
@@ -165,8 +167,11 @@ pub struct Hit {
 /// Closest point of the body's surface to a point.
 #[derive(Debug, Clone, Copy)]
 pub struct Closest {
+    /// The triangle the closest point lies on.
     pub triangle: usize,
+    /// Its barycentric weights in that triangle.
     pub weights: [f64; 3],
+    /// The closest point, m.
     pub point: V,
     /// Signed distance (negative inside a closed mesh), m.
     pub distance: f64,
@@ -423,10 +428,12 @@ impl DeformingBody {
         self.clock
     }
 
+    /// How the body moves.
     pub fn motion(&self) -> &Arc<dyn Motion> {
         &self.motion
     }
 
+    /// Triangles, indices into the vertices.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.tris
     }
@@ -441,6 +448,7 @@ impl DeformingBody {
         &self.vel
     }
 
+    /// Whether the mesh is closed (every edge shared by two triangles).
     pub fn closed(&self) -> bool {
         self.closed
     }

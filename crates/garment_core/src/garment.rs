@@ -19,6 +19,7 @@ use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 /// One pattern piece, in its own plane (panel coordinates, m).
 #[derive(Debug, Clone)]
 pub struct PanelCut {
+    /// The panel's name.
     pub name: String,
     /// The edges in order around the outline: each a polyline (first point
     /// its start, last its end, the end of one the start of the next).
@@ -59,7 +60,9 @@ pub fn polyline_length(p: &[[f64; 2]]) -> f64 {
 /// A seam between edge `a.1` of panel `a.0` and edge `b.1` of panel `b.0`.
 #[derive(Debug, Clone)]
 pub struct SeamSpec {
+    /// (panel, edge) of one side.
     pub a: (usize, usize),
+    /// (panel, edge) of the other side.
     pub b: (usize, usize),
     /// Stiffness per metre of seam, N/m per m (a stitch standing for a
     /// length ℓ of seam gets `k = stiffness · ℓ / 2`, the two edges' stitches
@@ -72,9 +75,11 @@ pub struct SeamSpec {
 /// A panel of a built garment.
 #[derive(Debug, Clone)]
 pub struct Panel {
+    /// The panel's name.
     pub name: String,
     /// Its vertices are `first..first + count` of the garment's cloth.
     pub first: usize,
+    /// Number of its vertices.
     pub count: usize,
     /// Panel coordinates of each of its vertices, m.
     pub uv: Vec<[f64; 2]>,
@@ -83,7 +88,9 @@ pub struct Panel {
     pub edge_vertices: Vec<Vec<(usize, f64)>>,
     /// Length of each pattern edge, m.
     pub edge_lengths: Vec<f64>,
+    /// Grain direction (warp) in the pattern's plane.
     pub grain: [f64; 2],
+    /// Area of the panel, m².
     pub area: f64,
     /// Nodes of the panel's warp/weft grid along warp and weft. Its lines
     /// pass through the panel's origin; node (0, 0) is the grid's corner at
@@ -119,19 +126,25 @@ impl Panel {
 /// A built seam: its stitches are `stitches` of the cloth's seams.
 #[derive(Debug, Clone)]
 pub struct Seam {
+    /// (panel, edge) of one side.
     pub a: (usize, usize),
+    /// (panel, edge) of the other side.
     pub b: (usize, usize),
     /// The seam runs from `b`'s end to its start (it does for two panels
     /// facing each other).
     pub reversed: bool,
+    /// Its stitches in the cloth's `seams`.
     pub stitches: std::ops::Range<usize>,
 }
 
 /// Panels and seams as one cloth.
 #[derive(Debug, Clone)]
 pub struct Garment {
+    /// The panels as one cloth, stitched.
     pub cloth: Cloth,
+    /// The panels.
     pub panels: Vec<Panel>,
+    /// The seams.
     pub seams: Vec<Seam>,
     /// The panels [`Garment::bring_out`] moved out of a body.
     pub moved: Vec<PanelMove>,
@@ -140,11 +153,13 @@ pub struct Garment {
 /// A panel moved out of a body before sewing.
 #[derive(Debug, Clone)]
 pub struct PanelMove {
+    /// The panel moved.
     pub panel: usize,
     /// How deep under the skin its deepest vertex started, m.
     pub depth: f64,
     /// How far it moved, m, and along which unit direction.
     pub distance: f64,
+    /// Unit direction of the move.
     pub direction: Vector3<f64>,
 }
 

@@ -91,6 +91,7 @@ impl<T: Clone> Clone for Set<T> {
 }
 
 impl<T> Set<T> {
+    /// An empty set.
     pub fn new() -> Set<T> {
         Set::default()
     }
@@ -115,10 +116,12 @@ impl<T> Set<T> {
         self.ids.binary_search(&h.id).ok()
     }
 
+    /// The element `h` names, if still there.
     pub fn get(&self, h: Handle<T>) -> Option<&T> {
         self.position(h).map(|k| &self.items[k])
     }
 
+    /// Whether `h` names an element of the set.
     pub fn contains(&self, h: Handle<T>) -> bool {
         self.position(h).is_some()
     }
@@ -144,6 +147,7 @@ impl<T> Set<T> {
         Some(self.items.remove(k))
     }
 
+    /// The element `h` names, to change.
     pub fn get_mut(&mut self, h: Handle<T>) -> Option<&mut T> {
         self.position(h).map(|k| &mut self.items[k])
     }

@@ -108,7 +108,7 @@ pub fn tensile_curve(s: &TensileSummary, fm_gf_cm: f64) -> KesCurve {
 /// Shear curve from summary values: elastic `G·θ`, loop half-width
 /// `h(θ) = h0 + h1|θ|` through `2HG/2` at 0.5° and `2HG5/2` at 5°
 /// (h0 ≥ 0); loading branch `Gθ + h`, recovery `Gθ − h`, over ±8°, turning
-/// over as described at [`symmetric_loop`] (memory length `memory`, rad).
+/// over as described at `symmetric_loop` (memory length `memory`, rad).
 pub fn shear_curve(s: &ShearSummary, memory: f64) -> KesCurve {
     let g = s.g * GF_PER_CM / DEG;
     let (h0, h1) = shear_half_width(s);
@@ -134,7 +134,7 @@ pub fn shear_half_width(s: &ShearSummary) -> (f64, f64) {
 }
 
 /// Bending curve from summary values: elastic `Bκ`, loop half-width `2HB/2`,
-/// over ±2.5 cm⁻¹, turning over as described at [`symmetric_loop`].
+/// over ±2.5 cm⁻¹, turning over as described at `symmetric_loop`.
 pub fn bending_curve(s: &BendingSummary, memory: f64) -> KesCurve {
     let b = s.b * GF_CM2_PER_CM;
     let h = s.hb * GF_CM_PER_CM / 2.0;
@@ -184,7 +184,7 @@ fn symmetric_loop(
 }
 
 /// Travel after a reversal, in memory lengths, beyond which a loop built by
-/// [`symmetric_loop`] is on its saturated branch (e⁻⁸ = 0.03 % of the jump).
+/// `symmetric_loop` is on its saturated branch (e⁻⁸ = 0.03 % of the jump).
 pub const SATURATED_MEMORY_LENGTHS: f64 = 8.0;
 
 /// Linear interpolation of a branch (sorted or reverse-sorted in x) at `x`;

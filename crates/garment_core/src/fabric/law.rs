@@ -27,10 +27,12 @@ use serde::{Deserialize, Serialize};
 /// Odd polynomial `σe = c[0] x + c[1] x|x| + c[2] x³ + c[3] x³|x|` (thesis §3.4.2).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct ElasticPoly {
+    /// Coefficients `c0..c3` of `σ(x) = c0 x + c1 x|x| + c2 x³ + c3 x³|x|`.
     pub c: [f64; 4],
 }
 
 impl ElasticPoly {
+    /// The linear law `σ = k x`.
     pub fn linear(k: f64) -> Self {
         ElasticPoly {
             c: [k, 0.0, 0.0, 0.0],
@@ -63,13 +65,16 @@ impl ElasticPoly {
 pub struct Hysteresis {
     /// Half-width of the saturated loop: `h(x) = h0 + h1|x| + h2 x²`.
     pub h0: f64,
+    /// See `h0`.
     pub h1: f64,
+    /// See `h0`.
     pub h2: f64,
     /// Memory length (same unit as x): the loop saturates after a few `xs` of travel.
     pub xs: f64,
 }
 
 impl Hysteresis {
+    /// No hysteresis.
     pub const NONE: Hysteresis = Hysteresis {
         h0: 0.0,
         h1: 0.0,
@@ -77,11 +82,13 @@ impl Hysteresis {
         xs: 1.0,
     };
 
+    /// Whether there is no hysteresis.
     pub fn is_none(&self) -> bool {
         self.h0 == 0.0 && self.h1 == 0.0 && self.h2 == 0.0
     }
 
     #[inline]
+    /// The saturated loop's half-width `h(x)` and its derivative.
     pub fn half_width(&self, x: f64) -> (f64, f64) {
         let a = x.abs();
         (
@@ -130,6 +137,7 @@ pub struct LawState {
 }
 
 impl LawState {
+    /// A fresh memory at `x`.
     pub fn at(x: f64) -> Self {
         LawState {
             sp: 0.0,
@@ -142,11 +150,14 @@ impl LawState {
 /// A complete spring law: σ = σe(x) + σp(x; memory).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Law {
+    /// The elastic part.
     pub elastic: ElasticPoly,
+    /// The hysteretic part.
     pub hysteresis: Hysteresis,
 }
 
 impl Law {
+    /// A law without hysteresis.
     pub fn elastic_only(elastic: ElasticPoly) -> Self {
         Law {
             elastic,

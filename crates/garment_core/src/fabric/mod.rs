@@ -21,8 +21,11 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Family {
+    /// Tensile (KES-FB1).
     Tensile,
+    /// Shear (KES-FB1).
     Shear,
+    /// Pure bending (KES-FB2).
     Bending,
 }
 
@@ -44,28 +47,38 @@ impl Family {
 #[serde(deny_unknown_fields)]
 pub struct BehaviourSpec {
     #[serde(rename = "LT", default, skip_serializing_if = "Option::is_none")]
+    /// KES LT, tensile linearity.
     pub lt: Option<f64>,
     #[serde(rename = "WT", default, skip_serializing_if = "Option::is_none")]
+    /// KES WT, tensile energy, gf·cm/cm².
     pub wt: Option<f64>,
     #[serde(rename = "RT", default, skip_serializing_if = "Option::is_none")]
+    /// KES RT, tensile resilience, %.
     pub rt: Option<f64>,
     #[serde(rename = "EMT", default, skip_serializing_if = "Option::is_none")]
+    /// KES EMT, extension at the maximum load, %.
     pub emt: Option<f64>,
     #[serde(
         rename = "Fm_gf_per_cm",
         default,
         skip_serializing_if = "Option::is_none"
     )]
+    /// The tensile test's maximum load, gf/cm.
     pub fm_gf_per_cm: Option<f64>,
     #[serde(rename = "G", default, skip_serializing_if = "Option::is_none")]
+    /// KES G, shear stiffness, gf/(cm·°).
     pub g: Option<f64>,
     #[serde(rename = "2HG", default, skip_serializing_if = "Option::is_none")]
+    /// KES 2HG, shear hysteresis at 0.5°, gf/cm.
     pub hg: Option<f64>,
     #[serde(rename = "2HG5", default, skip_serializing_if = "Option::is_none")]
+    /// KES 2HG5, shear hysteresis at 5°, gf/cm.
     pub hg5: Option<f64>,
     #[serde(rename = "B", default, skip_serializing_if = "Option::is_none")]
+    /// KES B, bending rigidity, gf·cm²/cm.
     pub b: Option<f64>,
     #[serde(rename = "2HB", default, skip_serializing_if = "Option::is_none")]
+    /// KES 2HB, bending hysteresis, gf·cm/cm.
     pub hb: Option<f64>,
     /// Raw KES curve (CSV, path relative to the fabric file).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -77,9 +90,13 @@ pub struct BehaviourSpec {
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
+/// One thread direction's behaviours in a fabric file.
 pub struct DirectionSpec {
+    /// Tensile.
     pub tensile: BehaviourSpec,
+    /// Shear.
     pub shear: BehaviourSpec,
+    /// Pure bending.
     pub bending: BehaviourSpec,
 }
 
@@ -107,10 +124,13 @@ pub struct Damping {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FabricFile {
+    /// The fabric's name.
     pub name: String,
     #[serde(default)]
+    /// Where the values come from.
     pub source: String,
     #[serde(default)]
+    /// Free notes.
     pub notes: String,
     /// KES W, mg/cm².
     pub areal_mass_mg_per_cm2: f64,
@@ -122,33 +142,44 @@ pub struct FabricFile {
     /// ([`Fabric::cloth_friction`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cloth_friction: Option<f64>,
+    /// Along warp.
     pub warp: DirectionSpec,
+    /// Along weft.
     pub weft: DirectionSpec,
+    /// Rayleigh damping.
     pub damping: Damping,
 }
 
 /// Laws of one thread direction, SI.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DirectionLaws {
+    /// Tensile law of the threads along this direction (x: strain).
     pub tensile: Law,
+    /// Bending law of these threads (x: curvature, 1/m).
     pub bending: Law,
     /// The KES curves the laws were fitted to (SI).
     pub tensile_curve: KesCurve,
+    /// The shear curve (SI).
     pub shear_curve: KesCurve,
+    /// The bending curve (SI).
     pub bending_curve: KesCurve,
 }
 
 /// A fabric ready for simulation (SI).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fabric {
+    /// The fabric's name.
     pub name: String,
     /// kg/m².
     pub areal_mass: f64,
+    /// Laws along warp.
     pub warp: DirectionLaws,
+    /// Laws along weft.
     pub weft: DirectionLaws,
     /// Shear law of the KES shear curve `FK(θ)`, shared by both diagonals
     /// (thesis eq. 4.50: the mean of the warp and weft curves), with `x = sin θ`.
     pub shear: Law,
+    /// Rayleigh damping.
     pub damping: Damping,
     /// The file it came from, for reports.
     pub file: FabricFile,
@@ -244,6 +275,7 @@ impl Fabric {
         self.file.cloth_friction.unwrap_or(DEFAULT_CLOTH_FRICTION)
     }
 
+    /// The laws along weft (true) or warp.
     pub fn dir(&self, weft: bool) -> &DirectionLaws {
         if weft {
             &self.weft

@@ -56,7 +56,7 @@ pub fn point_triangle(p: &V, a: &V, b: &V, c: &V) -> [f64; 3] {
 const ON_BOUNDARY: f64 = 1e-9;
 
 /// Barycentric weights of the projection of p onto the plane of triangle
-/// (a, b, c), if it falls inside the triangle (to [`ON_BOUNDARY`]; the
+/// (a, b, c), if it falls inside the triangle (to `ON_BOUNDARY`; the
 /// weights then clamped to it).
 pub fn projection_weights(p: &V, a: &V, b: &V, c: &V) -> Option<[f64; 3]> {
     let (u, v, w) = (b - a, c - a, p - a);
@@ -77,7 +77,7 @@ pub fn projection_weights(p: &V, a: &V, b: &V, c: &V) -> Option<[f64; 3]> {
 }
 
 /// Parameters (s, t) of the closest points of the lines through p0–p1 and
-/// q0–q1, if both fall on the segments (to [`ON_BOUNDARY`]; then clamped);
+/// q0–q1, if both fall on the segments (to `ON_BOUNDARY`; then clamped);
 /// `None` for parallel lines.
 pub fn line_line(p0: &V, p1: &V, q0: &V, q1: &V) -> Option<(f64, f64)> {
     let d1 = p1 - p0;

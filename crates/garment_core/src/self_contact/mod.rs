@@ -120,6 +120,7 @@ pub struct SelfStats {
     pub zones: usize,
     /// Collisions left after the last zone pass (0 unless the step gave up).
     pub unresolved: usize,
+    /// Wall-clock time of the pass, s.
     pub time_s: f64,
 }
 
@@ -165,9 +166,13 @@ struct Active {
 /// and the friction coefficient of the cloth on it.
 #[derive(Debug, Clone, Default)]
 pub struct Kinematic {
+    /// Positions of the kinematic points, m.
     pub x: Vec<V>,
+    /// Triangles over them.
     pub tris: Vec<[usize; 3]>,
+    /// The gap each keeps from the cloth, m.
     pub gap: Vec<f64>,
+    /// Friction coefficient of each.
     pub friction: Vec<f64>,
 }
 

@@ -59,7 +59,7 @@
 use super::cpu::has_fma;
 #[cfg(target_arch = "x86_64")]
 use super::linear::sum_blocks_fma;
-use super::linear::{blocks_mul_best, Direct, Filter, Precision};
+use super::linear::{blocks_mul_best, Direct, Filter, Precision, Precond};
 use super::sparse::BlockMatrix;
 use anyhow::Result;
 use nalgebra::{Matrix3, Vector3};
@@ -1501,9 +1501,23 @@ impl Amg {
     }
 }
 
+/// The multigrid as the preconditioner of [`Pcg::solve_factor`](super::linear::Pcg::solve_factor).
+impl Precond for Amg {
+    /// One V-cycle, whose output is filtered already ([`Amg::apply_dot`]).
+    fn apply_dot(
+        &mut self,
+        a: &BlockMatrix,
+        filter: &[Filter],
+        r: &[Vector3<f64>],
+        out: &mut [Vector3<f64>],
+    ) -> f64 {
+        Amg::apply_dot(self, a, filter, r, out)
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::super::test_systems::{grid_edges, spd_grid_sized};
+    use super::super::test_systems::{grid_edges, mixed_constraints, spd_grid_sized};
     use super::*;
     use std::collections::BTreeMap;
 
@@ -1980,5 +1994,99 @@ mod tests {
                 assert!((w.x[i] - y[i]).amax() <= 1e-10 * sy, "fma {fma}, y {i}");
             }
         }
+    }
+
+    /// The multigrid-preconditioned PCG gives the direct solver's constrained
+    /// solution on a grid with free, contact and pinned vertices, in far
+    /// fewer iterations than the block-Jacobi PCG; its cycle is a symmetric
+    /// positive definite operator on the free directions (as CG needs) whose
+    /// output obeys the filter; a repeat is the same bit for bit.
+    #[test]
+    fn multigrid_pcg_matches_the_direct_solve_under_the_filter() {
+        use super::super::linear::{Cap, Direct, Pcg, Preconditioner};
+        use super::super::team::Team;
+        let (nx, ny) = (60, 55);
+        let (a, mass) = spd_grid_sized(nx, ny, 17);
+        let n = a.n;
+        let (filter, b, z) = mixed_constraints(n);
+        let edges = grid_edges(nx, ny);
+        let x: Vec<Vector3<f64>> = (0..n)
+            .map(|k| Vector3::new((k % nx) as f64 * 0.01, (k / nx) as f64 * 0.01, 0.0))
+            .collect();
+        let mut amg = Amg::new(&a, &edges).unwrap();
+        let sizes = amg.sizes();
+        assert!(sizes.len() >= 2 && sizes[1] < n / 3, "levels {sizes:?}");
+        amg.setup(&a, &filter, &mass, &x).unwrap();
+        // the cycle: symmetric and positive on the free directions, and its
+        // output has no part along the constrained ones
+        amg.check_cycle(&a, &filter);
+        // the solve
+        let mut direct = Direct::new(&a).unwrap();
+        let mut exact = vec![Vector3::zeros(); n];
+        direct
+            .solve(&a, &b, &filter, &z, &mass, &mut exact)
+            .unwrap();
+        let mut pcg = Pcg::default();
+        let mut xm = vec![Vector3::zeros(); n];
+        let it = pcg
+            .solve_factor(
+                &a,
+                &b,
+                &filter,
+                &z,
+                &mut xm,
+                1e-10,
+                Cap::Hard(500),
+                &mut amg,
+            )
+            .unwrap();
+        let mut xj = vec![Vector3::zeros(); n];
+        let it_jacobi = pcg
+            .solve(
+                &a,
+                &b,
+                &filter,
+                &z,
+                &mut xj,
+                1e-10,
+                Cap::Hard(10_000),
+                Preconditioner::BlockJacobi,
+                &mut Team::new(1),
+            )
+            .unwrap();
+        assert!(
+            3 * it < it_jacobi,
+            "multigrid {it} iterations, block-Jacobi {it_jacobi}"
+        );
+        let scale = exact.iter().map(|v| v.amax()).fold(0.0, f64::max);
+        for i in 0..n {
+            assert!(
+                (xm[i] - exact[i]).amax() <= 1e-7 * scale,
+                "vertex {i}: {:?} vs {:?}",
+                xm[i],
+                exact[i]
+            );
+            // the constrained part is z exactly
+            assert!((xm[i] - filter[i].apply(&xm[i]) - z[i]).amax() <= 1e-15);
+        }
+        // reproducible: a second hierarchy, set up and solved alike, gives
+        // the same bits
+        let mut amg2 = Amg::new(&a, &edges).unwrap();
+        amg2.setup(&a, &filter, &mass, &x).unwrap();
+        let mut again = vec![Vector3::zeros(); n];
+        let it2 = pcg
+            .solve_factor(
+                &a,
+                &b,
+                &filter,
+                &z,
+                &mut again,
+                1e-10,
+                Cap::Hard(500),
+                &mut amg2,
+            )
+            .unwrap();
+        assert_eq!(it2, it);
+        assert!(xm.iter().zip(&again).all(|(p, q)| p == q));
     }
 }

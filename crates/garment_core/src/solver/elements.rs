@@ -13,7 +13,7 @@
 //!   only removes the buckling instability from the *linearisation*; the force
 //!   itself is unchanged, so equilibria are the same.
 //! - shear cells: `K̃ = max(F', 0)/(4 l_c l_t) G Gᵀ` plus the Laplacian of the
-//!   diagonal in tension (see [`CellShear`]); egg-crate guards: their exact,
+//!   diagonal in tension (see `CellShear`); egg-crate guards: their exact,
 //!   constant `2k w wᵀ ⊗ I`.
 //! - bending hinges: `K̃ = (L/h) σ'(κ) ∇θ∇θᵀ` (Gauss–Newton; σ' clamped at ≥ 0):
 //!   the term `L σ ∇²θ` is indefinite and small for cloth (bending forces are
@@ -29,7 +29,7 @@ use nalgebra::{Matrix3, SMatrix, Vector3};
 /// Scalar response of an axial spring: tension `t` (N, > 0 pulls the ends
 /// together) and its derivative `dt` with respect to the current length `l`.
 #[derive(Debug, Clone, Copy)]
-pub struct Axial {
+pub(crate) struct Axial {
     pub t: f64,
     pub dt: f64,
     pub l: f64,
@@ -42,22 +42,11 @@ pub struct Axial {
 /// diagonals of a cell see when the cell is stretched along this spring).
 /// The correction uses the shear law's elastic part; it is signed (the thesis
 /// writes `|F⁺|` for the stretched case) so that compression is corrected too.
+///
+/// Returns (T, dT/dl, dT/dl for the step matrix (see
+/// [`Law::eval_for_step`]), ε).
 #[inline]
-pub fn tension_law(
-    s: &TensionSpring,
-    law: &Law,
-    shear: &Law,
-    st: &LawState,
-    l: f64,
-) -> (f64, f64, f64) {
-    let (t, dt, _, eps) = tension_law_step(s, law, shear, st, l);
-    (t, dt, eps)
-}
-
-/// [`tension_law`] plus the step tangent (see [`Law::eval_for_step`]):
-/// returns (T, dT/dl, dT/dl for the step matrix, ε).
-#[inline]
-pub fn tension_law_step(
+pub(crate) fn tension_law_step(
     s: &TensionSpring,
     law: &Law,
     shear: &Law,
@@ -90,15 +79,15 @@ pub fn tension_law_step(
 /// law's argument (sin θ ≈ θ over the KES range, Fig. 4.15). `T > 0` when the
 /// diagonal is longer than at rest: each diagonal measures the shear angle in
 /// its own sense, so both diagonals use the same expression.
+///
+/// Returns (T, dT/dl, step dT/dl, sin θ).
 #[inline]
-pub fn shear_law(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64) {
-    let (t, dt, _, u) = shear_law_step(s, law, st, l);
-    (t, dt, u)
-}
-
-/// [`shear_law`] plus the step tangent: (T, dT/dl, step dT/dl, sin θ).
-#[inline]
-pub fn shear_law_step(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64, f64, f64, f64) {
+pub(crate) fn shear_law_step(
+    s: &ShearSpring,
+    law: &Law,
+    st: &LawState,
+    l: f64,
+) -> (f64, f64, f64, f64) {
     let u = s.strain(l);
     let (sig, dsig, dsig_step) = law.eval_for_step(st, u);
     let k = l * l / (s.lc * s.lt);
@@ -121,11 +110,9 @@ pub fn shear_law_step(s: &ShearSpring, law: &Law, st: &LawState, l: f64) -> (f64
 /// second term (the diagonal in tension: `½ |F|` on `L₁` when `F > 0`, on `L₂`
 /// when `F < 0`), as the axial springs drop the geometric term in compression.
 #[derive(Debug, Clone, Copy)]
-pub struct CellShear {
+pub(crate) struct CellShear {
     /// `G` of the clique.
     pub g: [Vector3<f64>; 4],
-    /// sin θ.
-    pub u: f64,
     /// `F(u)` (N/m), its branch and step tangents.
     pub s: f64,
     pub ds: f64,
@@ -136,14 +123,14 @@ pub struct CellShear {
 
 /// Evaluates a shear cell at `x` with memory `st` (not committed).
 #[inline(always)]
-pub fn cell_shear(c: &ShearCell, law: &Law, st: &LawState, x: &[Vector3<f64>]) -> CellShear {
+pub(crate) fn cell_shear(c: &ShearCell, law: &Law, st: &LawState, x: &[Vector3<f64>]) -> CellShear {
     let (d1, d2) = c.diagonals(x);
     cell_shear_of(c, law, st, d1, d2, c.strain_of(&d1, &d2))
 }
 
 /// [`cell_shear`] of the diagonals `d1`, `d2` and their measure `u`.
 #[inline(always)]
-pub fn cell_shear_of(
+pub(crate) fn cell_shear_of(
     c: &ShearCell,
     law: &Law,
     st: &LawState,
@@ -154,7 +141,6 @@ pub fn cell_shear_of(
     let (s, ds, dss) = law.eval_for_step(st, u);
     CellShear {
         g: [-d1, d1, d2, -d2],
-        u,
         s,
         ds,
         dss,
@@ -203,12 +189,12 @@ impl CellShear {
 }
 
 /// Elastic energy of a shear cell (J): `l_c l_t Φ(u)`.
-pub fn shear_cell_energy(c: &ShearCell, law: &Law, x: &[Vector3<f64>]) -> f64 {
+pub(crate) fn shear_cell_energy(c: &ShearCell, law: &Law, x: &[Vector3<f64>]) -> f64 {
     c.lc * c.lt * law.elastic.energy(c.strain(x))
 }
 
 #[inline]
-pub fn axial(xa: &Vector3<f64>, xb: &Vector3<f64>) -> (f64, Vector3<f64>) {
+pub(crate) fn axial(xa: &Vector3<f64>, xb: &Vector3<f64>) -> (f64, Vector3<f64>) {
     let d = xb - xa;
     let l = d.norm();
     if l > 1e-300 {
@@ -220,7 +206,7 @@ pub fn axial(xa: &Vector3<f64>, xb: &Vector3<f64>) -> (f64, Vector3<f64>) {
 
 /// `P = T' d̂d̂ᵀ + T/l (I − d̂d̂ᵀ)`; exact: `∂f_b/∂x_b = −P`, `∂f_b/∂x_a = P`.
 #[inline]
-pub fn axial_block(a: &Axial, projected: bool) -> Matrix3<f64> {
+pub(crate) fn axial_block(a: &Axial, projected: bool) -> Matrix3<f64> {
     let ddt = a.dir * a.dir.transpose();
     let (dt, g) = if projected {
         (
@@ -238,7 +224,7 @@ pub fn axial_block(a: &Axial, projected: bool) -> Matrix3<f64> {
 }
 
 /// Elastic energy of a tension spring (J), elastic parts only.
-pub fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 {
+pub(crate) fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 {
     let eps = l / s.l0 - 1.0;
     let u = (l * l - s.l0 * s.l0) / (2.0 * s.l0 * s.l_other);
     let corr = if s.corrected {
@@ -250,12 +236,12 @@ pub fn tension_energy(s: &TensionSpring, law: &Law, shear: &Law, l: f64) -> f64 
 }
 
 /// Elastic energy of a shear spring (J): `½ l_c l_t Φ(u)`.
-pub fn shear_energy(s: &ShearSpring, law: &Law, l: f64) -> f64 {
+pub(crate) fn shear_energy(s: &ShearSpring, law: &Law, l: f64) -> f64 {
     0.5 * s.lc * s.lt * law.elastic.energy(s.strain(l))
 }
 
 /// Elastic energy of a hinge (J): `L h Φ(κ)`.
-pub fn hinge_energy(h: &Hinge, law: &Law, theta: f64) -> f64 {
+pub(crate) fn hinge_energy(h: &Hinge, law: &Law, theta: f64) -> f64 {
     h.len * h.h * law.elastic.energy(theta / h.h)
 }
 
@@ -263,7 +249,7 @@ pub fn hinge_energy(h: &Hinge, law: &Law, theta: f64) -> f64 {
 
 /// Minimal scalar arithmetic so the dihedral gradient can run on f64 and on
 /// dual numbers (forward-mode differentiation gives its exact Hessian).
-pub trait Num:
+pub(crate) trait Num:
     Copy
     + std::ops::Add<Output = Self>
     + std::ops::Sub<Output = Self>
@@ -288,7 +274,7 @@ impl Num for f64 {
 
 /// Dual number with 12 tangent directions.
 #[derive(Clone, Copy, Debug)]
-pub struct Dual {
+pub(crate) struct Dual {
     pub v: f64,
     pub d: [f64; 12],
 }
@@ -393,7 +379,7 @@ fn scale<T: Num>(a: V3<T>, s: T) -> V3<T> {
 /// vertices share `−(g2 + g3)` according to where each wing's foot falls on the
 /// edge (translation and rotation invariance).
 #[inline]
-pub fn dihedral_grad<T: Num>(x: [V3<T>; 4]) -> [V3<T>; 4] {
+pub(crate) fn dihedral_grad<T: Num>(x: [V3<T>; 4]) -> [V3<T>; 4] {
     let e = sub(x[1], x[0]);
     let r2 = sub(x[2], x[0]);
     let r3 = sub(x[3], x[0]);
@@ -430,7 +416,7 @@ pub fn dihedral(x: [Vector3<f64>; 4]) -> f64 {
 }
 
 #[inline]
-pub fn hinge_positions(h: &Hinge, x: &[Vector3<f64>]) -> [Vector3<f64>; 4] {
+pub(crate) fn hinge_positions(h: &Hinge, x: &[Vector3<f64>]) -> [Vector3<f64>; 4] {
     [x[h.v[0]], x[h.v[1]], x[h.v[2]], x[h.v[3]]]
 }
 
@@ -449,7 +435,7 @@ pub fn dihedral_and_grad(p: [Vector3<f64>; 4]) -> (f64, SMatrix<f64, 12, 1>) {
 }
 
 /// Exact Hessian of θ (12 × 12), by forward differentiation of the gradient.
-pub fn dihedral_hessian(p: [Vector3<f64>; 4]) -> SMatrix<f64, 12, 12> {
+pub(crate) fn dihedral_hessian(p: [Vector3<f64>; 4]) -> SMatrix<f64, 12, 12> {
     let mut x = [[Dual::c(0.0); 3]; 4];
     for k in 0..4 {
         for c in 0..3 {
@@ -474,7 +460,7 @@ pub fn dihedral_hessian(p: [Vector3<f64>; 4]) -> SMatrix<f64, 12, 12> {
 /// `f = −L σ ∇θ` (from the energy `L h Φ(κ)`), with `L` the hinge edge's rest
 /// length. Returns (θ, κ, σ, σ', ∇θ).
 #[inline]
-pub fn hinge_eval(
+pub(crate) fn hinge_eval(
     h: &Hinge,
     law: &Law,
     st: &LawState,
@@ -488,7 +474,7 @@ pub fn hinge_eval(
 }
 
 /// Exact Jacobian ∂f/∂x of a hinge (12 × 12).
-pub fn hinge_jacobian_exact(
+pub(crate) fn hinge_jacobian_exact(
     h: &Hinge,
     law: &Law,
     st: &LawState,

@@ -2,18 +2,11 @@
 //! finite-difference tests and by the damping identification (thesis §5.4.1,
 //! where `F_dissip = β K V` needs each family's K on its own).
 
+pub use super::sets::Family;
 use super::sets::{self, Jacobian};
 use super::sparse::BlockMatrix;
 use super::Simulation;
 use nalgebra::{Matrix3, Vector3};
-
-/// A spring family.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Family {
-    Tension,
-    Shear,
-    Bending,
-}
 
 impl Simulation {
     /// Elastic + hysteretic forces of one family (no damping).

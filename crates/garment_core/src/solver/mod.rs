@@ -15,18 +15,18 @@
 //! Pins and contacts act through the constraint filter (S, z) and the position
 //! correction y, never through penalty springs.
 
-pub mod amg;
-pub mod assemble;
+pub(crate) mod amg;
+pub(crate) mod assemble;
 mod cpu;
 pub mod elements;
 pub mod family;
-pub mod linear;
+pub(crate) mod linear;
 pub(crate) mod sets;
 pub mod sparse;
-pub mod team;
+pub(crate) mod team;
 #[cfg(test)]
 mod test_systems;
-pub mod trisolve;
+pub(crate) mod trisolve;
 mod vertices;
 
 use crate::cloth::Cloth;
@@ -47,9 +47,11 @@ pub struct Params {
     pub dt: f64,
     /// Gravity, m/s².
     pub gravity: Vector3<f64>,
+    /// The linear solver.
     pub linear_solver: LinearSolverKind,
     /// Relative tolerance of the PCG (on the preconditioned residual).
     pub cg_tolerance: f64,
+    /// Cap on the PCG's iterations per solve.
     pub cg_max_iterations: usize,
     /// Cloth thickness (thesis: 2 mm). A vertex rests at `obstacle thickness +
     /// cloth thickness` from an obstacle's surface (the contact distance e).
@@ -57,8 +59,8 @@ pub struct Params {
     /// Include the hysteretic parts of the laws.
     pub hysteresis: bool,
     /// Threads of the assembly, the PCG and the contacts, started once per
-    /// simulation ([`team::Team`]; 0: one per core for large cloths, see
-    /// [`team::threads_for`]; at most [`MAX_THREADS`]).
+    /// simulation (`team::Team`; 0: one per core for large cloths, see
+    /// `team::threads_for`; at most [`MAX_THREADS`]).
     pub threads: usize,
     /// Bound a sliding contact's kinetic friction by what stops it against
     /// this step's driving force instead of last step's. Garments need it:
@@ -181,8 +183,11 @@ pub enum PinPath {
     Fixed(Vector3<f64>),
     /// Moves from `start` (at time `t0`) with constant velocity.
     Velocity {
+        /// Position at `t0`, m.
         start: Vector3<f64>,
+        /// Velocity, m/s.
         velocity: Vector3<f64>,
+        /// Start time, s.
         t0: f64,
     },
     /// Piecewise-linear path through (time, position) waypoints; held at the
@@ -192,9 +197,13 @@ pub enum PinPath {
     /// `t0`) to where `then` is at time `t1`, then follows `then`: how a pin
     /// reaches a far target at a bounded speed ([`PinPath::travel`]).
     Travel {
+        /// Where the travel starts, m.
         from: Vector3<f64>,
+        /// When it starts, s.
         t0: f64,
+        /// When it arrives, s.
         t1: f64,
+        /// The path followed on arrival.
         then: Box<PinPath>,
     },
 }
@@ -270,8 +279,11 @@ impl PinPath {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
+/// A vertex held on a path.
 pub struct Pin {
+    /// The vertex.
     pub vertex: usize,
+    /// Its path.
     pub path: PinPath,
     /// The pin lets go at this time, s (thesis ch. 5: the square is held by
     /// its corners, then released).
@@ -279,6 +291,7 @@ pub struct Pin {
 }
 
 impl Pin {
+    /// A pin on `vertex` following `path`, never released.
     pub fn new(vertex: usize, path: PinPath) -> Pin {
         Pin {
             vertex,
@@ -314,27 +327,39 @@ pub struct StepStats {
     pub contacts: usize,
     /// Of those, the ones static friction held (moving with the obstacle).
     pub stuck: usize,
+    /// Wall-clock time of the assembly, s.
     pub assemble_s: f64,
+    /// Of the linear solve, s.
     pub solve_s: f64,
+    /// Of the obstacle contacts, s.
     pub collide_s: f64,
     /// The cloth against itself ([`Params::self_collision`]; all zero when
     /// off): pairs within the thickness pushed apart, pairs whose paths
     /// crossed, rigid impact zones, and the time it took (not in
     /// `collide_s`).
     pub self_contacts: usize,
+    /// See `self_contacts`.
     pub self_collisions: usize,
+    /// See `self_contacts`.
     pub self_zones: usize,
+    /// See `self_contacts`.
     pub self_s: f64,
+    /// Wall-clock time of the whole step, s.
     pub total_s: f64,
 }
 
 /// Energies of the current state, J.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
 pub struct Energies {
+    /// Kinetic.
     pub kinetic: f64,
+    /// Gravity's potential, `−Σ m g·x` (zero at the origin).
     pub gravity: f64,
+    /// Tension springs' elastic energy.
     pub tension: f64,
+    /// Shear elements' elastic energy.
     pub shear: f64,
+    /// Hinges' and guards' elastic energy.
     pub bending: f64,
     /// Seam stitches (garments).
     pub seam: f64,
@@ -376,12 +401,13 @@ impl<'a> Fabrics<'a> {
 /// alone decides what the next step does (the cloth with its positions,
 /// velocities and hysteresis memory, the fabrics, the obstacles and pins,
 /// time, the friction memory, last step's force, friction force and velocity
-/// change, and which linear solver `auto` is on); and a [`Workspace`], what a step computes and throws away
+/// change, and which linear solver `auto` is on); and a `Workspace`, what a step computes and throws away
 /// (matrix, right-hand side, filter, solver buffers, threads). Cloning a
 /// simulation clones its state and gives the clone a fresh workspace: it
 /// steps exactly as the original does.
 #[derive(Debug)]
 pub struct Simulation {
+    /// The cloth and its state.
     pub cloth: Cloth,
     /// The fabric (a garment of several fabrics: its first).
     pub fabric: Fabric,
@@ -398,7 +424,9 @@ pub struct Simulation {
     params: Params,
     /// Simulated time, s.
     pub time: f64,
+    /// Steps taken.
     pub steps: u64,
+    /// The last step's statistics.
     pub last: StepStats,
     dissipated: f64,
     /// Total force at the start of the last step (internal + external +
@@ -435,7 +463,9 @@ pub struct LinearSystem {
     pub step: u64,
     /// Simulated time at the step's start, s.
     pub time: f64,
+    /// Time step, s.
     pub dt: f64,
+    /// Gravity, m/s².
     pub gravity: Vector3<f64>,
     /// The relative tolerance the solve was asked for ([`Params::cg_tolerance`]).
     pub tolerance: f64,
@@ -445,6 +475,7 @@ pub struct LinearSystem {
     /// The right-hand side `h (f0 + h ∂f/∂x v0 + ∂f/∂x y)` with the kinetic
     /// friction's impulse, N·s.
     pub b: Vec<Vector3<f64>>,
+    /// The constraint filter of each vertex.
     pub filter: Vec<Filter>,
     /// The prescribed part of Δv, m/s.
     pub z: Vec<Vector3<f64>>,
@@ -454,8 +485,11 @@ pub struct LinearSystem {
     pub dv: Vec<Vector3<f64>>,
     /// Positions at the step's start, m, and masses, kg.
     pub x: Vec<Vector3<f64>>,
+    /// See `x`.
     pub mass: Vec<f64>,
+    /// The solve that gave the answer.
     pub solved_by: SolvedBy,
+    /// Its iterations.
     pub iterations: usize,
 }
 
@@ -566,7 +600,7 @@ impl Workspace {
 }
 
 impl Clone for Simulation {
-    /// The state and parameters, with a fresh [`Workspace`] (but for the
+    /// The state and parameters, with a fresh `Workspace` (but for the
     /// multigrid's hierarchy, which carries the coarse levels it keeps).
     fn clone(&self) -> Simulation {
         let mut cloth = self.cloth.clone();
@@ -600,6 +634,9 @@ impl Clone for Simulation {
 }
 
 impl Simulation {
+    /// A simulation of `cloth` in `fabric` with `params`, at time 0, without
+    /// obstacles or pins; refuses parameters out of range and elements that
+    /// do not fit the cloth.
     pub fn new(mut cloth: Cloth, fabric: Fabric, params: Params) -> Result<Simulation> {
         params.check()?;
         let fabric = if params.hysteresis {

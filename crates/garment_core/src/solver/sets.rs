@@ -14,15 +14,26 @@
 //! fresh state wherever an element takes one.
 
 use super::elements::*;
-use super::family::Family;
 use super::sparse::BlockMatrix;
 use super::{Energies, Fabrics};
 use crate::cloth::{
     Cloth, EggCrateGuard, Hinge, ShearCell, ShearSpring, Stitch, TensionSpring, EGG_CRATE_WEIGHTS,
 };
-use crate::fabric::{Fabric, LawState};
+use crate::fabric::{Fabric, Law, LawState};
 use anyhow::{bail, Result};
 use nalgebra::{Matrix3, Vector3};
+
+/// A spring family: what the per-family force and Jacobian queries
+/// ([`super::family`]) name the sets by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// Tension springs.
+    Tension,
+    /// Shear springs or cells.
+    Shear,
+    /// Hinges and egg-crate guards.
+    Bending,
+}
 
 /// When the step adds a set's elements.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -476,164 +487,150 @@ fn axial_add(k: &mut BlockMatrix, a: usize, b: usize, p: Matrix3<f64>) {
     k.val[ba] += p;
 }
 
-impl Element for TensionSpring {
-    const N: usize = 2;
-    const STAGE: Stage = Stage::Tiles;
-    const FAMILY: Option<Family> = Some(Family::Tension);
-    const MEMORY: bool = true;
-    type Clique = [usize; 2];
+/// An axial spring family (tension or shear): what tells one from the
+/// other. [`Element`] is implemented once for every such family.
+pub(crate) trait Spring: Copy + Send + Sync {
+    const FAMILY: Family;
+    /// Its two ends.
+    fn ends(&self) -> (usize, usize);
+    /// The law its memory follows in fabric `f`, and its strain at length `l`.
+    fn memory_law<'f>(&self, f: &'f Fabric) -> &'f Law;
+    fn strain(&self, l: f64) -> f64;
+    /// Tension, its branch tangent and its step tangent at length `l` (see
+    /// [`crate::fabric::Law::eval_for_step`]), `law` its [`Spring::memory_law`]
+    /// in `f`.
+    fn response(&self, law: &Law, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64);
+    /// Elastic energy at length `l`, J.
+    fn energy_at(&self, f: &Fabric, l: f64) -> f64;
+    /// The family's Rayleigh coefficient.
+    fn beta(f: &Fabric) -> f64;
+    /// The family's entry of the energies.
+    fn energy_in(e: &mut Energies) -> &mut f64;
+}
 
+impl Spring for TensionSpring {
+    const FAMILY: Family = Family::Tension;
     #[inline(always)]
-    fn clique(&self) -> [usize; 2] {
-        [self.a, self.b]
+    fn ends(&self) -> (usize, usize) {
+        (self.a, self.b)
     }
-
-    fn edges(&self, out: &mut Vec<[usize; 2]>) {
-        out.push([self.a, self.b]);
-    }
-
     #[inline(always)]
-    fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
-        let s = self;
-        let f = i.fabrics.at(s.a);
-        let (l, dir) = axial(&i.x[s.a], &i.x[s.b]);
-        let law = &f.dir(s.weft).tensile;
-        law.commit(st, l / s.l0 - 1.0);
-        let (t, dt, dts, _) = tension_law_step(s, law, &f.shear, st, l);
-        let sp = AxialStep {
-            a: s.a,
-            b: s.b,
-            t,
-            dt,
-            dts,
-            l,
-            dir,
-            beta: f.damping.beta_tension,
-        };
-        axial_element(i, o, slots, &sp);
+    fn memory_law<'f>(&self, f: &'f Fabric) -> &'f Law {
+        &f.dir(self.weft).tensile
     }
-
-    fn commit(&self, st: &mut LawState, x: &[Vector3<f64>], f: &Fabrics) {
-        let l = (x[self.b] - x[self.a]).norm();
-        f.at(self.a)
-            .dir(self.weft)
-            .tensile
-            .commit(st, l / self.l0 - 1.0);
+    #[inline(always)]
+    fn strain(&self, l: f64) -> f64 {
+        l / self.l0 - 1.0
     }
-
-    fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64 {
-        let fa = f.at(self.a);
-        tension_energy(
-            self,
-            &fa.dir(self.weft).tensile,
-            &fa.shear,
-            (x[self.b] - x[self.a]).norm(),
-        )
+    #[inline(always)]
+    fn response(&self, law: &Law, f: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
+        let (t, dt, dts, _) = tension_law_step(self, law, &f.shear, st, l);
+        (t, dt, dts)
     }
-
+    fn energy_at(&self, f: &Fabric, l: f64) -> f64 {
+        tension_energy(self, &f.dir(self.weft).tensile, &f.shear, l)
+    }
+    #[inline(always)]
+    fn beta(f: &Fabric) -> f64 {
+        f.damping.beta_tension
+    }
     fn energy_in(e: &mut Energies) -> &mut f64 {
         &mut e.tension
     }
+}
 
-    fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
-        let (l, dir) = axial(&x[self.a], &x[self.b]);
-        let fa = f.at(self.a);
-        let (t, _, _) = tension_law(self, &fa.dir(self.weft).tensile, &fa.shear, st, l);
-        out[self.a] += dir * t;
-        out[self.b] -= dir * t;
+impl Spring for ShearSpring {
+    const FAMILY: Family = Family::Shear;
+    #[inline(always)]
+    fn ends(&self) -> (usize, usize) {
+        (self.a, self.b)
     }
-
-    fn jacobian(
-        &self,
-        st: &LawState,
-        x: &[Vector3<f64>],
-        f: &Fabrics,
-        kind: Jacobian,
-        k: &mut BlockMatrix,
-    ) {
-        let (l, dir) = axial(&x[self.a], &x[self.b]);
-        let fa = f.at(self.a);
-        let (t, dt, dts, _) = tension_law_step(self, &fa.dir(self.weft).tensile, &fa.shear, st, l);
-        axial_jacobian(self.a, self.b, t, dt, dts, l, dir, kind, k);
+    #[inline(always)]
+    fn memory_law<'f>(&self, f: &'f Fabric) -> &'f Law {
+        &f.shear
+    }
+    #[inline(always)]
+    fn strain(&self, l: f64) -> f64 {
+        ShearSpring::strain(self, l)
+    }
+    #[inline(always)]
+    fn response(&self, law: &Law, _: &Fabric, st: &LawState, l: f64) -> (f64, f64, f64) {
+        let (t, dt, dts, _) = shear_law_step(self, law, st, l);
+        (t, dt, dts)
+    }
+    fn energy_at(&self, f: &Fabric, l: f64) -> f64 {
+        shear_energy(self, &f.shear, l)
+    }
+    #[inline(always)]
+    fn beta(f: &Fabric) -> f64 {
+        f.damping.beta_shear
+    }
+    fn energy_in(e: &mut Energies) -> &mut f64 {
+        &mut e.shear
     }
 }
 
-/// [`Element::jacobian`] of an axial spring of tension `t`, branch tangent
-/// `dt` and step tangent `dts`.
-#[allow(clippy::too_many_arguments)]
-fn axial_jacobian(
-    a: usize,
-    b: usize,
-    t: f64,
-    dt: f64,
-    dts: f64,
-    l: f64,
-    dir: Vector3<f64>,
-    kind: Jacobian,
-    k: &mut BlockMatrix,
-) {
-    let (dt, projected) = match kind {
-        Jacobian::Exact => (dt, false),
-        Jacobian::Projected => (dt, true),
-        Jacobian::Step => (dts, true),
-    };
-    axial_add(k, a, b, axial_block(&Axial { t, dt, l, dir }, projected));
-}
-
-impl Element for ShearSpring {
+/// Every axial spring family, its fabric that of its first end.
+impl<S: Spring> Element for S {
     const N: usize = 2;
     const STAGE: Stage = Stage::Tiles;
-    const FAMILY: Option<Family> = Some(Family::Shear);
+    const FAMILY: Option<Family> = Some(S::FAMILY);
     const MEMORY: bool = true;
     type Clique = [usize; 2];
 
     #[inline(always)]
     fn clique(&self) -> [usize; 2] {
-        [self.a, self.b]
+        let (a, b) = self.ends();
+        [a, b]
     }
 
     fn edges(&self, out: &mut Vec<[usize; 2]>) {
-        out.push([self.a, self.b]);
+        out.push(self.clique());
     }
 
     #[inline(always)]
     fn step(&self, st: &mut LawState, slots: &[usize], i: &StepIn, o: &mut StepOut) {
-        let s = self;
-        let f = i.fabrics.at(s.a);
-        let (l, dir) = axial(&i.x[s.a], &i.x[s.b]);
-        f.shear.commit(st, s.strain(l));
-        let (t, dt, dts, _) = shear_law_step(s, &f.shear, st, l);
+        let (a, b) = self.ends();
+        let f = i.fabrics.at(a);
+        let (l, dir) = axial(&i.x[a], &i.x[b]);
+        let law = self.memory_law(f);
+        law.commit(st, self.strain(l));
+        let (t, dt, dts) = self.response(law, f, st, l);
         let sp = AxialStep {
-            a: s.a,
-            b: s.b,
+            a,
+            b,
             t,
             dt,
             dts,
             l,
             dir,
-            beta: f.damping.beta_shear,
+            beta: S::beta(f),
         };
         axial_element(i, o, slots, &sp);
     }
 
     fn commit(&self, st: &mut LawState, x: &[Vector3<f64>], f: &Fabrics) {
-        let l = (x[self.b] - x[self.a]).norm();
-        f.at(self.a).shear.commit(st, self.strain(l));
+        let (a, b) = self.ends();
+        let l = (x[b] - x[a]).norm();
+        self.memory_law(f.at(a)).commit(st, self.strain(l));
     }
 
     fn energy(&self, x: &[Vector3<f64>], f: &Fabrics) -> f64 {
-        shear_energy(self, &f.at(self.a).shear, (x[self.b] - x[self.a]).norm())
+        let (a, b) = self.ends();
+        self.energy_at(f.at(a), (x[b] - x[a]).norm())
     }
 
     fn energy_in(e: &mut Energies) -> &mut f64 {
-        &mut e.shear
+        <S as Spring>::energy_in(e)
     }
 
     fn force(&self, st: &LawState, x: &[Vector3<f64>], f: &Fabrics, out: &mut [Vector3<f64>]) {
-        let (l, dir) = axial(&x[self.a], &x[self.b]);
-        let (t, _, _) = shear_law(self, &f.at(self.a).shear, st, l);
-        out[self.a] += dir * t;
-        out[self.b] -= dir * t;
+        let (a, b) = self.ends();
+        let (l, dir) = axial(&x[a], &x[b]);
+        let fa = f.at(a);
+        let (t, _, _) = self.response(self.memory_law(fa), fa, st, l);
+        out[a] += dir * t;
+        out[b] -= dir * t;
     }
 
     fn jacobian(
@@ -644,9 +641,16 @@ impl Element for ShearSpring {
         kind: Jacobian,
         k: &mut BlockMatrix,
     ) {
-        let (l, dir) = axial(&x[self.a], &x[self.b]);
-        let (t, dt, dts, _) = shear_law_step(self, &f.at(self.a).shear, st, l);
-        axial_jacobian(self.a, self.b, t, dt, dts, l, dir, kind, k);
+        let (a, b) = self.ends();
+        let (l, dir) = axial(&x[a], &x[b]);
+        let fa = f.at(a);
+        let (t, dt, dts) = self.response(self.memory_law(fa), fa, st, l);
+        let (dt, projected) = match kind {
+            Jacobian::Exact => (dt, false),
+            Jacobian::Projected => (dt, true),
+            Jacobian::Step => (dts, true),
+        };
+        axial_add(k, a, b, axial_block(&Axial { t, dt, l, dir }, projected));
     }
 }
 
@@ -1236,7 +1240,6 @@ mod tests {
     /// The largest shear force on any vertex and the largest strain each
     /// diagonal alone reads (thesis eq. 4.34: `(l² − l₀²) / (2 l_c l_t)`).
     fn shear_reading(sim: &Simulation) -> (f64, f64) {
-        use crate::solver::family::Family;
         let f = sim
             .family_forces(Family::Shear)
             .iter()

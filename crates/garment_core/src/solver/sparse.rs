@@ -7,11 +7,14 @@ use nalgebra::{Matrix3, Vector3};
 /// Block compressed rows, both triangles stored (for fast products).
 #[derive(Debug, Clone)]
 pub struct BlockMatrix {
+    /// Block rows (vertices).
     pub n: usize,
+    /// Row i's blocks are `row_ptr[i]..row_ptr[i + 1]`.
     pub row_ptr: Vec<usize>,
     /// Column of each block (32-bit: the products read 4 bytes less per
     /// 72-byte block than with `usize`).
     pub col: Vec<u32>,
+    /// The blocks.
     pub val: Vec<Matrix3<f64>>,
     /// Index of the diagonal block of each row.
     pub diag: Vec<usize>,
@@ -25,7 +28,7 @@ pub struct BlockMatrix {
 /// copies of the two triangles, and their columns: row i's lower blocks at
 /// `lptr[i]..lptr[i + 1]`, its upper ones at `uptr[i]..uptr[i + 1]`.
 #[derive(Debug, Clone)]
-pub struct Triangles {
+pub(crate) struct Triangles {
     pub lptr: Vec<u32>,
     pub uptr: Vec<u32>,
     pub lcol: Vec<u32>,
@@ -73,7 +76,7 @@ impl BlockMatrix {
 
     /// The pattern's lower and upper triangles, row by row ([`Triangles`]),
     /// built once.
-    pub fn triangles(&self) -> &Triangles {
+    pub(crate) fn triangles(&self) -> &Triangles {
         self.triangles.get_or_init(|| {
             let (rp, diag) = (&self.row_ptr, &self.diag);
             let mut t = Triangles {
@@ -102,6 +105,7 @@ impl BlockMatrix {
                 .unwrap_or_else(|_| panic!("block ({i},{j}) not in pattern"))
     }
 
+    /// Sets every block to zero (the pattern kept).
     pub fn clear(&mut self) {
         for v in self.val.iter_mut() {
             *v = Matrix3::zeros();
@@ -127,6 +131,7 @@ impl BlockMatrix {
         unsafe { std::slice::from_raw_parts(self.val.as_ptr() as *const f64, 9 * self.val.len()) }
     }
 
+    /// Number of stored blocks.
     pub fn nnz_blocks(&self) -> usize {
         self.col.len()
     }
@@ -136,7 +141,7 @@ impl BlockMatrix {
 /// from each block entry to its CSC position: filled every step without
 /// reallocation.
 #[derive(Debug, Clone)]
-pub struct LowerCsc {
+pub(crate) struct LowerCsc {
     pub dim: usize,
     pub col_ptr: Vec<usize>,
     pub row_idx: Vec<usize>,
@@ -243,7 +248,7 @@ impl LowerCsc {
 /// the block pattern: each vertex's three unknowns stay together, so the
 /// factor can be built directly in that order (no permutation of the matrix
 /// at every factorisation).
-pub fn amd_vertex_order(a: &BlockMatrix) -> Vec<usize> {
+pub(crate) fn amd_vertex_order(a: &BlockMatrix) -> Vec<usize> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::sparse::linalg::amd;
     use faer::sparse::SymbolicSparseColMatRef;

@@ -198,6 +198,7 @@ impl Parking {
     }
 
     /// Waiters asleep (or about to be).
+    #[cfg(test)]
     fn parked(&self) -> usize {
         self.parked.load(Ordering::SeqCst)
     }
@@ -264,6 +265,7 @@ impl Team {
     }
 
     /// [`Team::new`] with idle workers waiting for `spin` before they sleep.
+    #[cfg(test)]
     pub fn with_spin(size: usize, spin: Duration) -> Team {
         Team::with_waits(size, spin, PATIENCE)
     }
@@ -315,6 +317,7 @@ impl Team {
     }
 
     /// Workers asleep now.
+    #[cfg(test)]
     pub fn sleeping(&self) -> usize {
         self.shared.idle.parked()
     }

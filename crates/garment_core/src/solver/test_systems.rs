@@ -1,8 +1,9 @@
 //! Test systems shared by the linear solvers' tests: random SPD block
 //! matrices on a grid of vertices, as the assembly makes them.
 
+use super::linear::Filter;
 use super::sparse::BlockMatrix;
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The springs of an `nx` × `ny` grid: each vertex to its right, upper
 /// and diagonal neighbour.
@@ -57,4 +58,30 @@ pub(super) fn spd_grid_sized(nx: usize, ny: usize, seed: u64) -> (BlockMatrix, V
         a.val[ji] -= k.transpose();
     }
     (a, mass)
+}
+
+/// Every fifth vertex in contact along one normal, every fifth pinned, the
+/// rest free; a right-hand side, and prescribed parts z only in the
+/// constrained directions.
+#[allow(clippy::type_complexity)]
+pub(super) fn mixed_constraints(n: usize) -> (Vec<Filter>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+    let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
+    let filter: Vec<Filter> = (0..n)
+        .map(|i| match i % 5 {
+            1 => Filter::Normal(nrm),
+            3 => Filter::Fixed,
+            _ => Filter::Free,
+        })
+        .collect();
+    let b: Vec<Vector3<f64>> = (0..n)
+        .map(|i| Vector3::new((i as f64).sin(), (i as f64 * 0.7).cos(), 0.3))
+        .collect();
+    let z: Vec<Vector3<f64>> = (0..n)
+        .map(|i| match filter[i] {
+            Filter::Normal(m) => m * 0.05,
+            Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
+            Filter::Free => Vector3::zeros(),
+        })
+        .collect();
+    (filter, b, z)
 }
