@@ -71,13 +71,12 @@ def load(path: Path) -> Dict[str, Any]:
             if k[len("overrides."):] not in TRIAL_OVERRIDES:
                 raise SweepError(f"sweep file {path}: axes.{k}: not one of "
                                  f"overrides.{{{', '.join(TRIAL_OVERRIDES)}}}")
-        if k in PATH_KEYS:
-            axes[k] = [str(base / v) for v in vs]
     limit = doc.get("time_limit_s", 3600)
     if not (isinstance(limit, (int, float)) and limit > 0):
         raise SweepError(f"sweep file {path}: time_limit_s: a positive number of seconds")
     return {
         "path": str(path.absolute()),
+        "base": str(base),
         "trial": str(base / doc["trial"]) if "trial" in doc else None,
         "axes": axes,
         "time_limit_s": float(limit),
@@ -87,17 +86,20 @@ def load(path: Path) -> Dict[str, Any]:
     }
 
 
-def _slug(v: Any) -> str:
-    s = Path(v).stem if isinstance(v, str) and ("/" in v or v.endswith(".yaml")) else str(v)
+def _slug(k: str, v: Any) -> str:
+    s = str(v)
+    if isinstance(v, str) and ("/" in v or v.endswith(".yaml")):
+        p = Path(v)
+        s = p.stem if k != "trial" else f"{p.parent.name}_{p.stem}"
     s = s.replace(".trial", "").replace(".garment", "")
-    return re.sub(r"[^A-Za-z0-9.+-]+", "_", s)[:24]
+    return re.sub(r"[^A-Za-z0-9.+-]+", "_", s)[:32]
 
 
 def trial_id(values: Dict[str, Any]) -> str:
-    """A stable id of a trial from its axis values: readable values, then a
-    hash of them all (the same on every machine and every run)."""
+    """A stable id of a trial from its axis values (as the sweep file gives
+    them): readable values, then a hash of them all."""
     h = hashlib.sha1(json.dumps(values, sort_keys=True).encode()).hexdigest()[:10]
-    head = "_".join(_slug(values[k]) for k in sorted(values))
+    head = "_".join(_slug(k, v) for k, v in values.items())
     return f"{head}-{h}" if head else h
 
 
@@ -153,8 +155,10 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
         return json.loads(done.read_text())
     # one start file per attempt, named by the process that makes it
     (d / f".start-{os.getpid()}-{time.time_ns()}").touch()
-    values = spec["axes"]
-    row: Dict[str, Any] = {"id": spec["id"], "dir": str(d.absolute()), **values}
+    row: Dict[str, Any] = {"id": spec["id"], "dir": str(d.absolute()), **spec["axes"]}
+    # paths in the sweep file are relative to it
+    values = {k: str(Path(sweep["base"]) / v) if k in PATH_KEYS else v
+              for k, v in spec["axes"].items()}
     base = values.get("trial", sweep["trial"])
     t0 = time.monotonic()
     limit = sweep["time_limit_s"]
@@ -272,8 +276,19 @@ def run(sweep_file: Path, out: Path, scheduler: Optional[str] = None,
     try:
         futures = [client.submit(run_one, sweep, t, str(out), key=f"trial-{t['id']}",
                                  retries=sweep["retries"], pure=False) for t in left]
-        running = lambda: sum(len(v) for v in client.processing().values())  # noqa: E731
+        pending = {t["id"] for t in left}
+        seen = [0.0, 0]
+
+        def running() -> int:
+            # started (a start file) and not finished, looked at at most once a second
+            if time.monotonic() - seen[0] >= 1.0:
+                d = out / "trials"
+                seen[:] = [time.monotonic(),
+                           sum(1 for i in pending if (d / i).is_dir()
+                               and any((d / i).glob(".start-*")))]
+            return seen[1]
         for fut in as_completed(futures):
+            pending.discard(fut.key[len("trial-"):])
             try:
                 row = fut.result()
             except Exception as e:  # the worker died too often (memory, crash)

@@ -11,10 +11,10 @@ use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
 mod shim;
 use garment_sim::trial::{Trial, TrialOverrides};
-use shim::{Step, TrialOutcome};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
+use shim::{Step, TrialOutcome};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -125,6 +125,22 @@ fn load_trial(path: &Path, text: Option<&str>) -> anyhow::Result<Trial> {
     }
 }
 
+/// `f()`, a panic in it an error that says where it was (the command line
+/// would abort there): one trial of a sweep that panics fails alone.
+fn caught<T>(f: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(p) => {
+            let what = p
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "a panic".into());
+            Err(anyhow::anyhow!("panicked: {what}"))
+        }
+    }
+}
+
 /// A finished trial: its outcome, and the signal or callback error that
 /// stopped it, if any.
 #[pyclass(module = "garment_sim._native", unsendable)]
@@ -185,9 +201,7 @@ impl NativeTrial {
     /// The exception that stopped the run (KeyboardInterrupt, or the
     /// progress callback's), once.
     fn take_interrupt(&mut self, py: Python<'_>) -> Option<Py<PyAny>> {
-        self.interrupt
-            .take()
-            .map(|e| e.into_value(py).into_any())
+        self.interrupt.take().map(|e| e.into_value(py).into_any())
     }
 }
 
@@ -231,11 +245,13 @@ fn run_trial(
         let rep = SameThread(&mut rep);
         py.detach(move || {
             let rep = rep.into_inner();
-            let t = load_trial(&path, text.as_deref())?;
-            let outcome = shim::run_trial(&t, &ov, &mut |s: &Step| {
-                rep.observe(s.phase.name(), s.done, s.of)
-            })?;
-            anyhow::Ok(SameThread((t, outcome)))
+            caught(|| {
+                let t = load_trial(&path, text.as_deref())?;
+                let outcome = shim::run_trial(&t, &ov, &mut |s: &Step| {
+                    rep.observe(s.phase.name(), s.done, s.of)
+                })?;
+                Ok(SameThread((t, outcome)))
+            })
         })
     };
     let interrupt = rep.pending.take();
@@ -295,9 +311,7 @@ impl NativeScene {
     }
 
     fn take_interrupt(&mut self, py: Python<'_>) -> Option<Py<PyAny>> {
-        self.interrupt
-            .take()
-            .map(|e| e.into_value(py).into_any())
+        self.interrupt.take().map(|e| e.into_value(py).into_any())
     }
 }
 
@@ -343,38 +357,41 @@ fn run_scene(
     let ran = {
         let rep = SameThread(&mut rep);
         py.detach(move || {
-            use anyhow::Context;
-            let rep = rep.into_inner();
-            ov.check()?;
-            let scene = match &text {
-                None => Scene::load(&path)?,
-                Some(text) => {
-                    garment_sim::io::check_yaml_shape(text)
-                        .with_context(|| format!("scene {}", path.display()))?;
-                    let file = serde_yaml::from_str(text)
-                        .with_context(|| format!("scene {}: invalid field", path.display()))?;
-                    Scene::from_file(file, &path)?
-                }
-            };
-            let sim = scene.build(&ov)?;
-            let duration = scene.duration(&ov);
-            let t0 = sim.time;
-            let (sim, summary) = garment_sim::run::drape_with(
-                &scene,
-                &ov,
-                sim,
-                &out,
-                &mut |_, _| {},
-                &mut |s| Ok(rep.observe("drape", s.time - t0, duration)),
-            )?;
-            let positions: Vec<[f64; 3]> = sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect();
-            let faces = sim.cloth.triangles.clone();
-            anyhow::Ok(NativeScene {
-                summary: serde_json::to_string_pretty(&summary)?,
-                positions,
-                faces,
-                failure: summary.failure.clone(),
-                interrupt: None,
+            caught(|| {
+                use anyhow::Context;
+                let rep = rep.into_inner();
+                ov.check()?;
+                let scene = match &text {
+                    None => Scene::load(&path)?,
+                    Some(text) => {
+                        garment_sim::io::check_yaml_shape(text)
+                            .with_context(|| format!("scene {}", path.display()))?;
+                        let file = serde_yaml::from_str(text)
+                            .with_context(|| format!("scene {}: invalid field", path.display()))?;
+                        Scene::from_file(file, &path)?
+                    }
+                };
+                let sim = scene.build(&ov)?;
+                let duration = scene.duration(&ov);
+                let t0 = sim.time;
+                let (sim, summary) = garment_sim::run::drape_with(
+                    &scene,
+                    &ov,
+                    sim,
+                    &out,
+                    &mut |_, _| {},
+                    &mut |s| Ok(rep.observe("drape", s.time - t0, duration)),
+                )?;
+                let positions: Vec<[f64; 3]> =
+                    sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect();
+                let faces = sim.cloth.triangles.clone();
+                anyhow::Ok(NativeScene {
+                    summary: serde_json::to_string_pretty(&summary)?,
+                    positions,
+                    faces,
+                    failure: summary.failure.clone(),
+                    interrupt: None,
+                })
             })
         })
     };

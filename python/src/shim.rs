@@ -45,7 +45,11 @@ impl TrialOutcome {
         self.sim.cloth.triangles.clone()
     }
     pub fn error(&self) -> Option<anyhow::Error> {
-        self.fit.run.failure.as_ref().map(|f| anyhow::anyhow!("{f}"))
+        self.fit
+            .run
+            .failure
+            .as_ref()
+            .map(|f| anyhow::anyhow!("{f}"))
     }
     pub fn write(&self, t: &Trial, out: &Path) -> Result<()> {
         use garment_sim::render::{full_scale, FieldPicture, Surface};
@@ -114,12 +118,24 @@ pub fn run_trial(
                 "motion" => Phase::Motion,
                 _ => Phase::Drape,
             };
-            if observe(&Step { sim: s, phase, done, of }) == Control::Stop {
+            if observe(&Step {
+                sim: s,
+                phase,
+                done,
+                of,
+            }) == Control::Stop
+            {
                 stop.set(true);
             }
         },
         &|| stop.get(),
     )?;
     let (fit, vf, on_body) = trial::fit(&sim, &g, t, stats);
-    Ok(TrialOutcome { fit, sim, garment: g, vf, on_body })
+    Ok(TrialOutcome {
+        fit,
+        sim,
+        garment: g,
+        vf,
+        on_body,
+    })
 }
