@@ -264,3 +264,18 @@ def test_a_killed_worker_s_trial_is_done_once():
     assert row["run.steps"] == fit["run"]["steps"]
     assert len(list(victim.glob("result.json*"))) == 1
     assert not list(victim.glob(".result.json.*"))
+
+
+def test_scene_equals_drape():
+    d = TMP / "scene"
+    scene = REPO / "config/scenes/table_drape.yaml"
+    r = subprocess.run([BIN, "drape", str(scene), "--out", str(d / "cli"), "--spacing", "0.04",
+                        "--duration", "0.3", "--threads", "1"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    res = garment_sim.run_scene(str(scene), out=d / "py", spacing=0.04, duration=0.3, threads=1)
+    assert (d / "cli/final.ply").read_bytes() == (d / "py/final.ply").read_bytes()
+    # final.ply holds every digit
+    assert np.array_equal(res.positions, ply_vertices(d / "cli/final.ply"))
+    assert res.summary["vertices"] == len(res.positions)
+    with pytest.raises(TypeError, match="max_time"):
+        garment_sim.run_scene(str(scene), max_time=1.0)
