@@ -24,19 +24,12 @@ pub use garment_core::{
 };
 
 pub mod bag;
-pub mod body_forces;
 pub mod capture;
-pub mod dressing;
 pub mod io;
 pub mod lab;
 pub mod live;
-pub mod motion;
 pub mod msgs;
-pub mod pattern;
-pub mod plot;
-pub mod render;
+pub mod pictures;
 pub mod ros;
-pub mod run;
 pub mod scene;
-pub mod system_file;
 pub mod trial;

@@ -4,13 +4,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::io::IsTerminal;
 
-mod cli_bag;
-mod cli_bench;
-mod cli_drape;
-mod cli_identify;
-mod cli_lab;
-mod cli_recon;
-mod cli_trial;
+mod cli;
 
 #[derive(Parser)]
 #[command(
@@ -34,37 +28,37 @@ enum Cmd {
         ros_args: Vec<String>,
     },
     /// Run a scene headless and write final.ply, energy.csv and summary.json.
-    Drape(cli_drape::DrapeArgs),
+    Drape(cli::drape::DrapeArgs),
     /// Read rosbag2 (MCAP) bags: info, export a cloth shape, repair after a crash.
     Bag {
         #[command(subcommand)]
-        cmd: cli_bag::BagCmd,
+        cmd: cli::bag::BagCmd,
     },
     /// Measure a fabric's damping from a motion capture of a free fall (thesis ch. 5).
-    Identify(cli_identify::IdentifyArgs),
+    Identify(cli::identify::IdentifyArgs),
     /// Benchmark ms per step and real-time factor of the table drape.
-    Bench(cli_bench::BenchArgs),
+    Bench(cli::bench::BenchArgs),
     /// Virtual Kawabata lab: KES-FB tensile, shear and bending tests on a simulated specimen.
-    Kes(cli_lab::KesArgs),
+    Kes(cli::lab::KesArgs),
     /// Fit the spring laws to raw KES curves (global least squares) and write a fabric file.
-    FitKes(cli_lab::FitKesArgs),
+    FitKes(cli::lab::FitKesArgs),
     /// Drapemeter: drape coefficient and nodes of a circular specimen on a disk.
-    Drapemeter(cli_lab::DrapemeterArgs),
+    Drapemeter(cli::lab::DrapemeterArgs),
     /// Cantilever bending test (Peirce; ASTM D1388): bending length and flexural rigidity of a strip.
-    Cantilever(cli_lab::CantileverArgs),
+    Cantilever(cli::lab::CantileverArgs),
     /// Virtual garment trial: sew a garment from its pattern onto a body, drape it and
     /// report the fit (garment.obj, garment.ply, fit.json, fit_strain.png, fit_pressure.png).
-    Trial(cli_trial::TrialArgs),
+    Trial(cli::trial::TrialArgs),
     /// 3D shape of a drape from marked photos (thesis §6.3): camera poses, marks and
     /// the model deformed through them (reconstructed.ply, report.json, view_*.png).
-    Reconstruct(cli_recon::ReconstructArgs),
+    Reconstruct(cli::recon::ReconstructArgs),
     /// Distance between two shapes of a cloth (thesis eq. 6.2): mean and largest,
     /// with a map (compare.json, distance.png).
-    Compare(cli_recon::CompareArgs),
+    Compare(cli::recon::CompareArgs),
 }
 
 fn main() {
-    cli_lab::quiet_broken_pipe();
+    cli::lab::quiet_broken_pipe();
     let cli = Cli::parse();
     if let Err(e) = real_main(cli) {
         eprintln!("error: {e:#}");
@@ -109,16 +103,16 @@ pub(crate) fn progress_printer(label: String) -> impl FnMut(f64, f64) {
 fn real_main(cli: Cli) -> Result<()> {
     match cli.cmd {
         Cmd::Node { ros_args } => garment_sim::ros::node::run(&ros_args),
-        Cmd::Drape(a) => cli_drape::drape(a),
-        Cmd::Bag { cmd } => cli_bag::bag_cmd(cmd),
-        Cmd::Identify(a) => cli_identify::identify(a),
-        Cmd::Kes(a) => cli_lab::kes(a),
-        Cmd::FitKes(a) => cli_lab::fit_kes(a),
-        Cmd::Drapemeter(a) => cli_lab::drapemeter(a),
-        Cmd::Cantilever(a) => cli_lab::cantilever(a),
-        Cmd::Trial(a) => cli_trial::trial(a),
-        Cmd::Bench(a) => cli_bench::bench(a),
-        Cmd::Reconstruct(a) => cli_recon::reconstruct(a),
-        Cmd::Compare(a) => cli_recon::compare(a),
+        Cmd::Drape(a) => cli::drape::drape(a),
+        Cmd::Bag { cmd } => cli::bag::bag_cmd(cmd),
+        Cmd::Identify(a) => cli::identify::identify(a),
+        Cmd::Kes(a) => cli::lab::kes(a),
+        Cmd::FitKes(a) => cli::lab::fit_kes(a),
+        Cmd::Drapemeter(a) => cli::lab::drapemeter(a),
+        Cmd::Cantilever(a) => cli::lab::cantilever(a),
+        Cmd::Trial(a) => cli::trial::trial(a),
+        Cmd::Bench(a) => cli::bench::bench(a),
+        Cmd::Reconstruct(a) => cli::recon::reconstruct(a),
+        Cmd::Compare(a) => cli::recon::compare(a),
     }
 }

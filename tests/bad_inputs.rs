@@ -499,7 +499,7 @@ fn a_failed_step_names_the_spring_and_the_strain() {
 /// writes nothing, still returns the failure as an error.
 #[test]
 fn a_drape_whose_step_fails_writes_the_steps_before_it() {
-    use garment_sim::run;
+    use garment_sim::scene::run;
     use garment_sim::scene::{Overrides, Scene};
     let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
     let ov = Overrides {

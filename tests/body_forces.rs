@@ -8,10 +8,10 @@
 #![allow(clippy::needless_range_loop)]
 
 mod support;
-use garment_sim::body_forces::{self, BodyPressure, Wrench};
 use garment_sim::cloth::{Cloth, GridSpec};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::solver::{Params, Simulation};
+use garment_sim::trial::body_forces::{self, BodyPressure, Wrench};
 use nalgebra::{Isometry3, Translation3, Vector3};
 use std::path::Path;
 

@@ -2,8 +2,13 @@
 //! T-shirt's left sleeve over the body's left arm, and the progress measure.
 
 mod support;
-use garment_sim::dressing::{self, project_on_polyline};
-use garment_sim::trial::{Trial, TrialOverrides};
+use garment_sim::garment::Garment;
+use garment_sim::scene::run::Control;
+use garment_sim::solver::Simulation;
+use garment_sim::trial::dressing::{
+    self, project_on_polyline, Dressing, DressingReport, DressingRow,
+};
+use garment_sim::trial::{Phase, Trial, TrialOverrides};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -174,14 +179,40 @@ fn the_ray_parity_test_sees_the_inside_of_a_box() {
     }
 }
 
+/// A dressing trial's outcome, as the tests read it.
+struct Dressed {
+    report: DressingReport,
+    rows: Vec<DressingRow>,
+    dressing: Dressing,
+    sim: Simulation,
+    garment: Garment,
+}
+
+/// Runs a dressing trial through the library's run interface;
+/// `on_step` after every dressing step. A failed step fails the test.
+fn dress(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn FnMut(&Simulation)) -> Dressed {
+    let out = garment_sim::trial::run_trial(t, ov, &mut |s| {
+        if s.phase == Phase::Dressing {
+            on_step(s.sim);
+        }
+        Control::Continue
+    })
+    .unwrap();
+    assert_eq!(out.fit.run.failure, None);
+    let d = out.dressing.expect("the dressing's record");
+    Dressed {
+        report: out.fit.dressing.expect("the dressing's report"),
+        rows: d.rows,
+        dressing: d.dressing,
+        sim: out.sim,
+        garment: out.garment,
+    }
+}
+
 /// Runs a dressing trial and asserts that no cloth vertex is inside the
 /// body (the test's own ray-parity check) after any step; `on_step` after
 /// every step.
-fn run_with_no_vertex_inside(
-    t: &Trial,
-    ov: &TrialOverrides,
-    on_step: &mut dyn FnMut(),
-) -> dressing::DressingRun {
+fn run_with_no_vertex_inside(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn FnMut()) -> Dressed {
     let (bv, bt) = t.body.local_triangles();
     let v: Vec<Vector3<f64>> = bv
         .iter()
@@ -189,21 +220,14 @@ fn run_with_no_vertex_inside(
         .collect();
     let mesh = Mesh::new(v, bt.iter().map(|t| t.map(|k| k as usize)).collect());
     let mut worst: Option<(f64, usize, [f64; 3])> = None;
-    let run = dressing::run_trial(
-        t,
-        ov,
-        &mut |_, _, _, _| {},
-        &mut |sim, _, row| {
-            on_step();
-            for (i, p) in sim.cloth.x.iter().enumerate() {
-                if mesh.inside(p) && worst.is_none() {
-                    worst = Some((row.time_s, i, [p.x, p.y, p.z]));
-                }
+    let run = dress(t, ov, &mut |sim| {
+        on_step();
+        for (i, p) in sim.cloth.x.iter().enumerate() {
+            if mesh.inside(p) && worst.is_none() {
+                worst = Some((sim.time, i, [p.x, p.y, p.z]));
             }
-        },
-        &|| false,
-    )
-    .unwrap();
+        }
+    });
     assert_eq!(
         worst, None,
         "a cloth vertex inside the body (time, vertex, where)"
@@ -428,8 +452,7 @@ fn the_gripper_stops_when_the_garment_pulls_on_it_past_its_force_limit() {
         threads: Some(1),
         ..Default::default()
     };
-    let run =
-        dressing::run_trial(&t, &ov, &mut |_, _, _, _| {}, &mut |_, _, _| {}, &|| false).unwrap();
+    let run = dress(&t, &ov, &mut |_| {});
     let (r, rows, dr) = (&run.report, &run.rows, &run.dressing);
     let d = t.file.dressing.as_ref().unwrap();
     assert_eq!(r.force_limit_n, Some(limit));

@@ -65,8 +65,7 @@ fn sew_and_drape(sim: &mut Simulation) -> anyhow::Result<trial::RunStats> {
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut trial::run_on,
     )
 }
 
@@ -78,8 +77,8 @@ fn two_panels() -> (Garment, Fabric) {
     let seam = SeamSpec {
         a: (0, 0),
         b: (1, 2),
-        stiffness: garment_sim::pattern::DEFAULT_SEAM_STIFFNESS,
-        damping: garment_sim::pattern::DEFAULT_SEAM_DAMPING,
+        stiffness: garment_sim::trial::pattern::DEFAULT_SEAM_STIFFNESS,
+        damping: garment_sim::trial::pattern::DEFAULT_SEAM_DAMPING,
     };
     let f = fabric("wool_tropical");
     let g = Garment::build(&[a, b], &[seam], 0.02, f.areal_mass).unwrap();
@@ -111,7 +110,7 @@ fn two_panels_sewn_along_one_edge_close_under_a_millimetre() {
 }
 
 /// A trial whose step fails during sewing ends with what was done before it
-/// (`trial::run_to_failure`, which `trial` uses to write its outputs all the
+/// (`trial::sew_and_drape`, which `trial` uses to write its outputs all the
 /// same): the failed step is named, the steps before it are counted, the
 /// sewing's own settings (no gravity, stiffer seams) are undone and no drape
 /// follows; `trial::run` still returns the failure as an error.
@@ -134,14 +133,13 @@ fn a_trial_whose_step_fails_ends_with_the_steps_before_it() {
             .map(|s| (s.k, s.d))
             .collect::<Vec<_>>(),
     );
-    let st = trial::run_to_failure(
+    let st = trial::sew_and_drape(
         &mut sim,
         None,
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut trial::run_on,
     )
     .unwrap();
     let failure = st.failure.as_deref().expect("the trial failed");
@@ -1148,7 +1146,7 @@ fn the_garmentcode_importer_agrees_with_pygarment() {
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        let pat = garment_sim::pattern::garmentcode::load(&spec).unwrap();
+        let pat = garment_sim::trial::pattern::garmentcode::load(&spec).unwrap();
         for p in &pat.panels {
             let poly: Vec<[f64; 2]> = p
                 .edges

@@ -8,6 +8,7 @@ use garment_sim::cloth::{Cloth, GridSpec, Stitch};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::deforming::{Keyframes, Motion};
 use garment_sim::fabric::Fabric;
+use garment_sim::scene::run::Control;
 use garment_sim::solver::{Params, Simulation};
 use nalgebra::{Isometry3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -594,7 +595,7 @@ fn arm_gltf(name: &str, r: f64, seg: usize, keys: &[(f32, f64)], interp: &str) -
 fn linear_blend_skinning_matches_the_closed_form() {
     let angle = PI / 2.0;
     let path = arm_gltf("lbs.gltf", 0.04, 8, &[(0.0, 0.0), (1.0, angle)], "LINEAR");
-    let (tris, sk) = garment_sim::motion::load_gltf(&path, Some("bend"), 1.0).unwrap();
+    let (tris, sk) = garment_sim::scene::motion::load_gltf(&path, Some("bend"), 1.0).unwrap();
     assert_eq!(sk.vertex_count(), 25 * 8 + 2);
     assert!(
         garment_sim::collision::is_closed(&tris),
@@ -637,7 +638,7 @@ fn linear_blend_skinning_matches_the_closed_form() {
     }
     // STEP: the first key's pose until the second key
     let step = arm_gltf("step.gltf", 0.04, 8, &[(0.0, 0.0), (1.0, angle)], "STEP");
-    let (_, st) = garment_sim::motion::load_gltf(&step, None, 1.0).unwrap();
+    let (_, st) = garment_sim::scene::motion::load_gltf(&step, None, 1.0).unwrap();
     let tip = 24 * seg;
     assert!((st.positions_y_up(0.99)[tip] - V::new(0.6, 0.04, 0.0)).norm() < 1e-6);
     let up = elbow + Rotation3::from_axis_angle(&V::z_axis(), angle) * V::new(0.3, 0.04, 0.0);
@@ -671,7 +672,7 @@ fn a_bending_arm_does_not_go_through_the_sheet() {
         &[(0.0, 0.0), (bend as f32, PI / 2.0)],
         "LINEAR",
     );
-    let (tris, sk) = garment_sim::motion::load_gltf(&path, None, 1.0).unwrap();
+    let (tris, sk) = garment_sim::scene::motion::load_gltf(&path, None, 1.0).unwrap();
     let f = fixture();
     let dt = 1.0 / 120.0;
     let mut sim = sheet(
@@ -944,8 +945,7 @@ fn run_quietly(
         &t.file.sewing,
         &t.file.settle,
         None,
-        &mut |_, _, _, _| {},
-        &|| false,
+        &mut garment_sim::trial::run_on,
     )
     .unwrap()
 }
@@ -981,13 +981,13 @@ fn mesh_sequences_are_read_in_order_and_bad_frames_refused() {
             "",
         );
     }
-    let files = garment_sim::motion::expand_pattern(&dir.join("f_*.obj")).unwrap();
+    let files = garment_sim::scene::motion::expand_pattern(&dir.join("f_*.obj")).unwrap();
     let names: Vec<String> = files
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().to_string())
         .collect();
     assert_eq!(names, ["f_1.obj", "f_2.obj", "f_10.obj"]);
-    let m = garment_sim::motion::load_frames(&files, 10.0, 2.0).unwrap();
+    let m = garment_sim::scene::motion::load_frames(&files, 10.0, 2.0).unwrap();
     assert_eq!(m.triangles.len(), 4);
     assert!((m.motion.duration() - 0.2).abs() < 1e-12);
     let mut out = vec![V::zeros(); 4];
@@ -1003,8 +1003,9 @@ fn mesh_sequences_are_read_in_order_and_bad_frames_refused() {
     std::fs::create_dir_all(&bad).unwrap();
     tetra_obj(&bad.join("a.obj"), V::zeros(), "");
     tetra_obj(&bad.join("b.obj"), V::zeros(), "v 1 1 1\n");
-    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("b.obj")], 30.0, 1.0)
-        .unwrap_err();
+    let err =
+        garment_sim::scene::motion::load_frames(&[bad.join("a.obj"), bad.join("b.obj")], 30.0, 1.0)
+            .unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("b.obj") && msg.contains("5 vertices"), "{msg}");
     std::fs::write(
@@ -1014,8 +1015,9 @@ fn mesh_sequences_are_read_in_order_and_bad_frames_refused() {
             .replace("f 2 3 4", "f 2 4 3"),
     )
     .unwrap();
-    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("c.obj")], 30.0, 1.0)
-        .unwrap_err();
+    let err =
+        garment_sim::scene::motion::load_frames(&[bad.join("a.obj"), bad.join("c.obj")], 30.0, 1.0)
+            .unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("c.obj") && msg.contains("topology"), "{msg}");
     std::fs::write(
@@ -1025,8 +1027,9 @@ fn mesh_sequences_are_read_in_order_and_bad_frames_refused() {
             .replace("v 0.1 0 0", "v nan 0 0"),
     )
     .unwrap();
-    let err = garment_sim::motion::load_frames(&[bad.join("a.obj"), bad.join("d.obj")], 30.0, 1.0)
-        .unwrap_err();
+    let err =
+        garment_sim::scene::motion::load_frames(&[bad.join("a.obj"), bad.join("d.obj")], 30.0, 1.0)
+            .unwrap_err();
     let msg = format!("{err:#}");
     assert!(msg.contains("d.obj") && msg.contains("finite"), "{msg}");
 }
@@ -1164,9 +1167,12 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
 /// tools/blender_eval_motion.py, positions rounded to 0.1 mm).
 #[test]
 fn the_shipped_motion_skins_as_blender_skins_it() {
-    let (tris, skinned) =
-        garment_sim::motion::load_gltf(Path::new("assets/bodies/anny/arms_raise.glb"), None, 1.0)
-            .unwrap();
+    let (tris, skinned) = garment_sim::scene::motion::load_gltf(
+        Path::new("assets/bodies/anny/arms_raise.glb"),
+        None,
+        1.0,
+    )
+    .unwrap();
     let body = std::fs::read_to_string("assets/bodies/anny/body.obj").unwrap();
     let obj_v = body.lines().filter(|l| l.starts_with("v ")).count();
     let obj_f = body.lines().filter(|l| l.starts_with("f ")).count();
@@ -1329,7 +1335,7 @@ impl Unwrap {
 #[test]
 fn the_shipped_turn_turns_at_a_steady_rate() {
     let (tris, turn) =
-        garment_sim::motion::load_gltf(Path::new("assets/bodies/anny/turn.glb"), None, 1.0)
+        garment_sim::scene::motion::load_gltf(Path::new("assets/bodies/anny/turn.glb"), None, 1.0)
             .unwrap();
     let body = std::fs::read_to_string("assets/bodies/anny/body.obj").unwrap();
     let obj: Vec<V> = body
@@ -1437,46 +1443,41 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
     let mut skirt: Option<(Unwrap, Unwrap, Vec<f64>)> = None;
     let mut bins: Vec<(f64, f64, f64)> = Vec::new();
     let mut bin: Option<(Unwrap, Unwrap, f64)> = None;
-    let st = trial::run(
-        &mut sim,
-        &t.file.sewing,
-        &t.file.settle,
-        None,
-        &mut |s, phase, at, _| {
-            if phase != "motion" {
-                return;
+    let st = trial::run(&mut sim, &t.file.sewing, &t.file.settle, None, &mut |st| {
+        let (s, at) = (st.sim, st.done);
+        if st.phase != trial::Phase::Motion {
+            return Control::Continue;
+        }
+        let b = s.obstacles()[0].deforming().unwrap().positions();
+        let x = &s.cloth.x;
+        let counting = at > window.0 + 1e-9 && at < window.1 + 1e-9;
+        match &mut skirt {
+            Some((c, u, _)) => {
+                c.update(x, counting);
+                u.update(b, counting);
             }
-            let b = s.obstacles()[0].deforming().unwrap().positions();
-            let x = &s.cloth.x;
-            let counting = at > window.0 + 1e-9 && at < window.1 + 1e-9;
-            match &mut skirt {
-                Some((c, u, _)) => {
-                    c.update(x, counting);
-                    u.update(b, counting);
-                }
-                None => {
-                    let w = b
-                        .iter()
-                        .map(|p| if p.xy().norm() > 0.05 { 1.0 } else { 0.0 })
-                        .collect();
-                    skirt = Some((Unwrap::new(x), Unwrap::new(b), w));
+            None => {
+                let w = b
+                    .iter()
+                    .map(|p| if p.xy().norm() > 0.05 { 1.0 } else { 0.0 })
+                    .collect();
+                skirt = Some((Unwrap::new(x), Unwrap::new(b), w));
+            }
+        }
+        let w = &skirt.as_ref().unwrap().2;
+        match &mut bin {
+            Some((c, u, t0)) => {
+                c.update(x, true);
+                u.update(b, true);
+                if at - *t0 > 0.5 - 1e-9 {
+                    bins.push((*t0, c.mean(&mass) / (at - *t0), u.mean(w) / (at - *t0)));
+                    bin = Some((Unwrap::new(x), Unwrap::new(b), at));
                 }
             }
-            let w = &skirt.as_ref().unwrap().2;
-            match &mut bin {
-                Some((c, u, t0)) => {
-                    c.update(x, true);
-                    u.update(b, true);
-                    if at - *t0 > 0.5 - 1e-9 {
-                        bins.push((*t0, c.mean(&mass) / (at - *t0), u.mean(w) / (at - *t0)));
-                        bin = Some((Unwrap::new(x), Unwrap::new(b), at));
-                    }
-                }
-                None => bin = Some((Unwrap::new(x), Unwrap::new(b), at)),
-            }
-        },
-        &|| false,
-    )
+            None => bin = Some((Unwrap::new(x), Unwrap::new(b), at)),
+        }
+        Control::Continue
+    })
     .unwrap();
     assert!(
         (st.motion_s.unwrap() - 4.0).abs() < 0.01,

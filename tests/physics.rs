@@ -4,10 +4,10 @@
 
 use garment_sim::cloth::{Cloth, GridSpec};
 use garment_sim::fabric::Fabric;
-use garment_sim::pattern::HingesFile;
-use garment_sim::run;
+use garment_sim::scene::run;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation, SolvedBy};
+use garment_sim::trial::pattern::HingesFile;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::path::Path;
 

@@ -6,7 +6,7 @@
 //! published parameters), and the obstacles must be grey where they are.
 
 mod support;
-use garment_sim::render::{Picture, Projection, Rect, Surface, View, Views};
+use garment_sim::pictures::render::{Picture, Projection, Rect, Surface, View, Views};
 use std::path::Path;
 
 /// A 40 cm square of cloth falling onto a ball, and a block beside it.

@@ -11,7 +11,7 @@ use garment_sim::lab::reconstruct::{
     example_rig, obstacle_corners, reconstruct, synthetic_views, KnownPoint, LoopSettings,
     MarkKind, Problem, Rbf, SyntheticSettings, ViewsFile,
 };
-use garment_sim::run;
+use garment_sim::scene::run;
 use garment_sim::scene::{Overrides, Scene};
 use nalgebra::{Rotation3, Vector3};
 use std::path::Path;
@@ -776,7 +776,7 @@ fn reconstruct_runs_on_the_shipped_example_and_draws_over_a_photo() {
     );
     assert!(text.contains("photo01.png"));
     std::fs::write(dir.join("views.yaml"), text).unwrap();
-    garment_sim::plot::Image::new(2400, 1600, [90, 60, 30])
+    garment_sim::pictures::plot::Image::new(2400, 1600, [90, 60, 30])
         .save_png(&dir.join("photo01.png"))
         .unwrap();
     let out = dir.join("out");

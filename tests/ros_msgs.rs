@@ -99,7 +99,7 @@ fn messages_match_rosbags_byte_for_byte() {
     write(&dir, "diagnostics", &diag);
     write(&dir, "clock", &Clock { clock: h.stamp });
     let wrench = publish::body_wrench(
-        &garment_sim::body_forces::Wrench {
+        &garment_sim::trial::body_forces::Wrench {
             force: [0.01, -0.02, -1.325],
             torque: [0.0005, 0.0019, -0.0002],
             normal_force: 4.3,

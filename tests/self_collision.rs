@@ -384,8 +384,8 @@ fn tube(on: bool, dt: f64) -> Simulation {
     let seam = |e: usize| SeamSpec {
         a: (0, e),
         b: (1, e),
-        stiffness: garment_sim::pattern::DEFAULT_SEAM_STIFFNESS,
-        damping: garment_sim::pattern::DEFAULT_SEAM_DAMPING,
+        stiffness: garment_sim::trial::pattern::DEFAULT_SEAM_STIFFNESS,
+        damping: garment_sim::trial::pattern::DEFAULT_SEAM_DAMPING,
     };
     let g = Garment::build(
         &[rect("under", 0.1), rect("over", 0.13)],
@@ -743,16 +743,16 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
             &t.file.sewing,
             &t.file.settle,
             Some(3.0),
-            &mut |s, phase, _, _| {
-                let c = std::time::Instant::now();
-                let k = usize::from(phase != "sewing");
+            &mut |st| {
+                let (s, c) = (st.sim, std::time::Instant::now());
+                let k = usize::from(st.phase != trial::Phase::Sewing);
                 worst[k] = worst[k].max(intersections(&s.cloth.x, &tris, &sewn));
                 frames[k] += 1;
                 contacts[k] += s.last.self_contacts;
                 collisions[k] += s.last.self_collisions;
                 check_s += c.elapsed().as_secs_f64();
+                garment_sim::scene::run::Control::Continue
             },
-            &|| false,
         )
         .unwrap();
         eprintln!(
@@ -842,7 +842,7 @@ fn the_drape_summary_and_the_node_diagnostics_report_it() {
     for on in [false, true] {
         let mut sim = stacked(on, 1.0 / 60.0);
         let (_, summary) =
-            garment_sim::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
+            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
         let diag = publish::diagnostics(
             &sim,
             publish::header(&sim, "world"),
@@ -962,7 +962,7 @@ fn sheet_on_thin_rod(edges: bool, seconds: f64) -> (Simulation, usize, f64) {
             .count();
         worst = worst.max(crossing);
         if k > steps - last {
-            let w = garment_sim::body_forces::wrench(&sim, rod).unwrap();
+            let w = garment_sim::trial::body_forces::wrench(&sim, rod).unwrap();
             lift -= w.force[2];
         }
     }
@@ -1060,27 +1060,27 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
     for (k, edges) in [false, true].into_iter().enumerate() {
         let mut t = Trial::load(&path).unwrap();
         t.file.dressing.as_mut().unwrap().edge_contacts = edges;
-        let (bx, btris) = garment_sim::body_forces::world_mesh(&t.body).unwrap();
+        let (bx, btris) = garment_sim::trial::body_forces::world_mesh(&t.body).unwrap();
         let mut step = 0;
-        let run = garment_sim::dressing::run_trial(
-            &t,
-            &ov,
-            &mut |_, _, _, _| {},
-            &mut |sim, _, _| {
+        let run = garment_sim::trial::run_trial(&t, &ov, &mut |s| {
+            if s.phase == garment_sim::trial::Phase::Dressing {
                 step += 1;
                 if step % 5 == 0 {
-                    let c = cloth_body_crossings(&sim.cloth.x, &sim.cloth.triangles, &bx, &btris);
+                    let c =
+                        cloth_body_crossings(&s.sim.cloth.x, &s.sim.cloth.triangles, &bx, &btris);
                     worst[k] = worst[k].max(c);
                 }
-            },
-            &|| false,
-        )
+            }
+            garment_sim::scene::run::Control::Continue
+        })
         .unwrap();
-        progress[k] = run.report.final_progress;
+        assert_eq!(run.fit.run.failure, None);
+        let report = run.fit.dressing.as_ref().unwrap();
+        progress[k] = report.final_progress;
         eprintln!(
             "edges {edges}: at most {} cloth–body triangle intersections in a checked step; \
              final progress {:.3}, peak force on the hand {:.0} N",
-            worst[k], progress[k], run.report.peak_hand_force_n
+            worst[k], progress[k], report.peak_hand_force_n
         );
     }
     assert!(

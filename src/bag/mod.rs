@@ -39,7 +39,7 @@ pub use tools::{
 pub use writer::{BagOptions, BagSummary, Compression, Writer};
 
 use crate::msgs::publish::{DiagnosticFigures, FrameClock};
-use crate::run::{self, Control, Progress};
+use crate::scene::run::{self, Control, Progress};
 use crate::scene::{Overrides, Scene};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};

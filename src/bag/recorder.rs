@@ -54,8 +54,8 @@ pub struct SimRecorder {
     offset_ns: u64,
     last_ns: Option<u64>,
     /// Until the bag is finished (or dropped), a second SIGINT lets it be
-    /// finished ([`crate::run::stop_flag`]).
-    _open: crate::run::Recording,
+    /// finished ([`crate::scene::run::stop_flag`]).
+    _open: crate::scene::run::Recording,
 }
 
 /// The messages of one recorded frame.
@@ -78,7 +78,7 @@ impl SimRecorder {
         topics: &TopicNames,
         scene_description: &str,
     ) -> Result<SimRecorder> {
-        let open = crate::run::Recording::start();
+        let open = crate::scene::run::Recording::start();
         let mut writer = Writer::create(dir, opts)?;
         // the QoS the node offers on each (node.rs), as `ros2 bag record` would record them
         let (reliable, clock, latched) = (Qos::default_publisher(), Qos::clock(), Qos::latched());

@@ -7,7 +7,7 @@ use super::recorder::SceneDescription;
 use super::writer::{BagOptions, BagSummary, Compression, Writer};
 use crate::msgs::publish;
 use crate::msgs::{from_cdr, Marker, MarkerArray, PointCloud2, PointField, RosType, StringMsg};
-use crate::render::{Picture, Surface};
+use crate::pictures::render::{Picture, Surface};
 use anyhow::{bail, Context, Result};
 use std::collections::HashMap;
 use std::io::Write;
@@ -202,7 +202,7 @@ pub enum ExportTime {
     Last,
 }
 
-/// Shape file formats (PNG: a picture of the frame, see [`crate::render`]).
+/// Shape file formats (PNG: a picture of the frame, see [`crate::pictures::render`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ShapeFormat {
     Ply,

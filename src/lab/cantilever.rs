@@ -71,7 +71,7 @@ use crate::cloth::{Cloth, HingeLayout};
 use crate::fabric::kes::{GF_CM2_PER_CM, PER_CM};
 use crate::fabric::Fabric;
 use crate::lab::kes_lab::{self, Direction, KesTest};
-use crate::plot::{LinePlot, Style};
+use crate::pictures::plot::{LinePlot, Style};
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::Vector3;

@@ -11,7 +11,7 @@
 //! - **nearest**: otherwise (or when asked): the nearest point of the other
 //!   shape's surface (of its vertices when it has no faces).
 
-use crate::render::{full_scale, FieldPicture, Surface};
+use crate::pictures::render::{full_scale, FieldPicture, Surface};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Point3, Vector3};
 use parry3d_f64::query::PointQuery;

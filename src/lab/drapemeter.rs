@@ -40,7 +40,7 @@
 use crate::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec};
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
-use crate::plot::{Image, Rgb, BLACK, WHITE};
+use crate::pictures::plot::{Image, Rgb, BLACK, WHITE};
 use crate::solver::{Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Vector3};

@@ -1007,7 +1007,7 @@ pub fn identify_file(
 /// `beta_tension.png` (Fig. 5.12–5.15: per-frame value over the window, with
 /// the mean and ± one standard deviation). Returns the files written.
 pub fn write_plots(rep: &Identification, out: &std::path::Path) -> Result<Vec<std::path::PathBuf>> {
-    use crate::plot::{LinePlot, Style};
+    use crate::pictures::plot::{LinePlot, Style};
     let mut files = Vec::new();
     let t = |k: usize| k as f64 / rep.rate_hz;
     let mut p = LinePlot::new(

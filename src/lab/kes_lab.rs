@@ -56,7 +56,7 @@
 use crate::cloth::{Cloth, GridSpec, HingeLayout, PanelSpec};
 use crate::fabric::kes::*;
 use crate::fabric::Fabric;
-use crate::plot::{LinePlot, Style};
+use crate::pictures::plot::{LinePlot, Style};
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};

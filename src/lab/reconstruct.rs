@@ -840,7 +840,7 @@ pub fn example_rig() -> (Intrinsics, [usize; 2], Vec<Pose>) {
 /// The corners of an obstacle (its triangulation's vertices: a box's eight
 /// corners) as known points named `{id}_{k}`, k from 1.
 pub fn obstacle_corners(o: &crate::collision::Obstacle) -> Vec<KnownPoint> {
-    crate::render::Surface::from_obstacle(o)
+    crate::pictures::render::Surface::from_obstacle(o)
         .vertices
         .iter()
         .enumerate()
@@ -962,7 +962,7 @@ pub fn synthetic_views(
 // Pictures
 
 /// Reads a PNG photo (any colour type and bit depth) as an RGB image.
-pub fn read_png(path: &Path) -> Result<crate::plot::Image> {
+pub fn read_png(path: &Path) -> Result<crate::pictures::plot::Image> {
     let f = std::fs::File::open(path)
         .with_context(|| format!("cannot open photo {}", path.display()))?;
     let mut dec = png::Decoder::new(std::io::BufReader::new(f));
@@ -984,7 +984,7 @@ pub fn read_png(path: &Path) -> Result<crate::plot::Image> {
             bail!("photo {}: indexed colours after expansion", path.display())
         }
     };
-    let mut img = crate::plot::Image::new(w, h, crate::plot::WHITE);
+    let mut img = crate::pictures::plot::Image::new(w, h, crate::pictures::plot::WHITE);
     for y in 0..h {
         for x in 0..w {
             let o = y * info.line_size + x * ch;
@@ -1006,8 +1006,12 @@ pub const MAX_PICTURE_SIDE: usize = 1600;
 /// (white disc, black ring) and where the reconstruction puts it (blue
 /// cross; red when the error exceeds 2 px), labelled with the view's RMS
 /// error.
-pub fn view_picture(p: &Problem, r: &Reconstruction, view: usize) -> Result<crate::plot::Image> {
-    use crate::plot::{Image, BLACK, WHITE};
+pub fn view_picture(
+    p: &Problem,
+    r: &Reconstruction,
+    view: usize,
+) -> Result<crate::pictures::plot::Image> {
+    use crate::pictures::plot::{Image, BLACK, WHITE};
     let v = &p.views[view];
     let pose = &r.poses[view];
     let photo = match &v.photo {

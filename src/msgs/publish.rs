@@ -91,9 +91,9 @@ pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) ->
 /// The garment's wrench on the body as `body/wrench` carries it: force N and
 /// torque N m about the origin of the header's frame (the simulation's world,
 /// as a WrenchStamped means it), moved there from the body frame's origin
-/// `origin` (world coordinates) where [`crate::body_forces::Wrench`] takes it.
+/// `origin` (world coordinates) where [`crate::trial::body_forces::Wrench`] takes it.
 pub fn body_wrench(
-    w: &crate::body_forces::Wrench,
+    w: &crate::trial::body_forces::Wrench,
     origin: &nalgebra::Vector3<f64>,
     header: Header,
 ) -> WrenchStamped {
@@ -119,7 +119,7 @@ pub const BODY_CLOUD_FIELDS: [&str; 4] = ["x", "y", "z", "pressure"];
 
 /// The body's vertices with the garment's pressure on each, Pa, as
 /// `body/points` carries them.
-pub fn body_cloud(p: &crate::body_forces::BodyPressure, header: Header) -> PointCloud2 {
+pub fn body_cloud(p: &crate::trial::body_forces::BodyPressure, header: Header) -> PointCloud2 {
     let n = p.vertices.len();
     let step = 4 * BODY_CLOUD_FIELDS.len();
     let mut data = Vec::with_capacity(n * step);

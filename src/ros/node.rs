@@ -234,13 +234,13 @@ fn body_forces(
 ) -> Option<(msgs::WrenchStamped, Option<msgs::PointCloud2>)> {
     let body = crate::trial::body_handle(sim)?;
     let origin = sim.obstacles().get(body)?.pose.translation.vector;
-    match crate::body_forces::body_pressure(sim, body) {
+    match crate::trial::body_forces::body_pressure(sim, body) {
         Some(p) => Some((
             publish::body_wrench(&p.wrench, &origin, h.clone()),
             Some(publish::body_cloud(&p, h)),
         )),
         None => {
-            let w = crate::body_forces::wrench(sim, body)?;
+            let w = crate::trial::body_forces::wrench(sim, body)?;
             Some((publish::body_wrench(&w, &origin, h), None))
         }
     }
@@ -592,7 +592,7 @@ impl Node {
             .spawn(move || {
                 let _ = futures::executor::block_on(spinner.spin());
             })?;
-        let stop = crate::run::stop_flag()?;
+        let stop = crate::scene::run::stop_flag()?;
         let log = Log::new(Some(ros.logging_handle()));
         let topic_logs = [&names.obstacles, &names.pins, &names.body, &names.body_mesh]
             .map(|t| TopicLog::new(t))
@@ -1196,7 +1196,7 @@ impl Node {
                     b.message_count,
                     b.duration_s(),
                     b.bytes as f64 / (1024.0 * 1024.0),
-                    if crate::run::interrupted_again() {
+                    if crate::scene::run::interrupted_again() {
                         " (interrupted again while it was being closed: it was finished first)"
                     } else {
                         ""

@@ -25,12 +25,12 @@ pub struct BenchArgs {
     pub steps: u64,
     /// Repetitions of the same steps (each from the scene built and warmed up
     /// again); the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = crate::cli_lab::at_least_one)]
+    #[arg(long, default_value_t = 3, value_parser = crate::cli::lab::at_least_one)]
     pub repeat: usize,
     /// Simulated time before measuring (the cloth is mid-drape; at most
     /// 3 × steps are run), s.
     #[arg(long, default_value_t = 0.2, allow_negative_numbers = true,
-              value_parser = crate::cli_lab::seconds)]
+              value_parser = crate::cli::lab::seconds)]
     pub warmup: f64,
     /// Threads of the assembly, the PCG and the contacts (default: one per core
     /// from 500 vertices; 1 for one core).

@@ -2,14 +2,18 @@
 //! pose), obstacles, pins, gravity, time step, duration and output rate.
 //! Errors name the file, the field and what is wrong.
 
+pub mod motion;
+pub mod run;
+pub mod system_file;
+
 use crate::cloth::{Cloth, GridSpec, PanelSpec};
 use crate::collision::{
     Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS,
 };
 use crate::fabric::Fabric;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
-use crate::pattern::HingesFile;
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
+use crate::trial::pattern::HingesFile;
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -237,25 +241,28 @@ pub enum FrameFiles {
 
 impl MotionFile {
     /// Reads the motion (paths relative to `base`).
-    pub fn load(&self, base: &Path) -> Result<crate::motion::LoadedMotion> {
+    pub fn load(&self, base: &Path) -> Result<crate::scene::motion::LoadedMotion> {
         match (&self.frames, &self.gltf) {
             (Some(f), None) => {
                 let Some(fps) = self.fps else {
                     bail!("motion.frames needs motion.fps (frames per second)");
                 };
                 let files = match f {
-                    FrameFiles::Pattern(p) => crate::motion::expand_pattern(&base.join(p))?,
+                    FrameFiles::Pattern(p) => crate::scene::motion::expand_pattern(&base.join(p))?,
                     FrameFiles::List(l) => l.iter().map(|p| base.join(p)).collect(),
                 };
-                crate::motion::load_frames(&files, fps, self.scale)
+                crate::scene::motion::load_frames(&files, fps, self.scale)
             }
             (None, Some(g)) => {
                 if self.fps.is_some() {
                     bail!("motion.fps is for frames; a glTF animation has its own times");
                 }
-                let (triangles, skinned) =
-                    crate::motion::load_gltf(&base.join(g), self.animation.as_deref(), self.scale)?;
-                Ok(crate::motion::LoadedMotion {
+                let (triangles, skinned) = crate::scene::motion::load_gltf(
+                    &base.join(g),
+                    self.animation.as_deref(),
+                    self.scale,
+                )?;
+                Ok(crate::scene::motion::LoadedMotion {
                     triangles,
                     motion: std::sync::Arc::new(skinned),
                 })

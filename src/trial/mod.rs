@@ -1,5 +1,5 @@
 //! Virtual garment trials (`garment_sim trial TRIAL.yaml`): a garment
-//! ([`crate::pattern`]) is placed around a body mesh, sewn, draped until it
+//! ([`crate::trial::pattern`]) is placed around a body mesh, sewn, draped until it
 //! settles, and its fit reported. See `docs/garments.md`.
 //!
 //! Phases:
@@ -15,20 +15,29 @@
 //!    in its first pose until now, plays its motion (from `motion.start` s
 //!    on); the run ends with it.
 
-use crate::body_forces::{self, BodyPressure, Wrench};
+pub mod body_forces;
+pub mod dressing;
+pub mod pattern;
+pub mod run;
+mod summary;
+
+pub use run::{
+    run, run_built, run_on, run_trial, sew_and_drape, Observe, Phase, Step, TrialOutcome,
+};
+
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
 use crate::garment::Garment;
-use crate::pattern::GarmentDef;
 use crate::scene::PoseSpec;
 use crate::set::Handle;
 use crate::solver::{LinearSolverKind, Params, Simulation};
+use crate::trial::pattern::GarmentDef;
 use anyhow::{bail, Context, Result};
+use body_forces::{BodyPressure, Wrench};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 fn d_spacing() -> f64 {
     0.01
@@ -207,9 +216,9 @@ pub struct TrialFile {
     #[serde(default)]
     pub cell_shear: bool,
     /// A gripper pulls a sleeve over an arm after sewing, in place of the
-    /// drape (docs/bodies.md, [`crate::dressing`]).
+    /// drape (docs/bodies.md, [`crate::trial::dressing`]).
     #[serde(default)]
-    pub dressing: Option<crate::dressing::DressingFile>,
+    pub dressing: Option<crate::trial::dressing::DressingFile>,
 }
 
 /// A trial as read, with its files resolved.
@@ -484,29 +493,6 @@ impl Trial {
     }
 }
 
-/// Sets the stitches' stiffness for the next sewing step: `factor` times
-/// their own (`own`: stiffness and damping), scaled down together so that
-/// their pull at the current gaps, `Σ k |g|`, is at most `bound` (N). The
-/// pull keeps the linear law's shape (a wider gap pulls harder) and its
-/// sum is bounded however wide the gaps.
-fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f64) {
-    let pull: f64 = (sim.cloth.seams.iter().zip(own))
-        .map(|(s, &(k, _))| factor * k * s.gap(&sim.cloth.x).norm())
-        .sum();
-    let scale = factor * if pull > bound { bound / pull } else { 1.0 };
-    for (s, &(k, d)) in sim.cloth.seams.iter_mut().zip(own) {
-        s.k = k * scale;
-        s.d = d * scale;
-    }
-}
-
-/// The widest gap of any stitch, m.
-fn largest_gap(sim: &Simulation) -> f64 {
-    (sim.cloth.seams.iter())
-        .map(|s| s.gap(&sim.cloth.x).norm())
-        .fold(0.0, f64::max)
-}
-
 /// The garment's weight in the sewing's bound is its mass times standard
 /// gravity, m/s² (whatever the scene's gravity).
 pub const STANDARD_GRAVITY: f64 = 9.80665;
@@ -562,6 +548,24 @@ impl Trial {
         Ok(serde_yaml::to_string(&d)?)
     }
 
+    /// One line on what is about to run: the garment, its grid and fabric,
+    /// the body, the step.
+    pub fn headline(&self, sim: &Simulation, g: &Garment) -> String {
+        format!(
+            "garment {}: {} panels, {} seams ({} stitches), {} vertices, {:.0} g of {}; body {} \
+             triangles; dt = {} s",
+            self.garment.name,
+            g.panels.len(),
+            g.seams.len(),
+            g.cloth.seams.len(),
+            g.cloth.len(),
+            1e3 * g.cloth.total_mass(),
+            sim.fabric.name,
+            self.body.mesh.as_ref().map_or(0, |m| m.1.len()),
+            sim.params().dt
+        )
+    }
+
     /// Builds the trial and runs its sewing phase: the garment on the body,
     /// sewn, gravity on, ready to drape (the node's scene).
     pub fn sewn(&self, ov: &TrialOverrides) -> Result<(Simulation, Garment)> {
@@ -571,48 +575,9 @@ impl Trial {
             &self.file.sewing,
             &self.file.settle,
             Some(0.0),
-            &mut |_, _, _, _| {},
-            &|| false,
+            &mut run_on,
         )?;
         Ok((sim, g))
-    }
-}
-
-/// Time and solver work summed over steps (seconds, iterations).
-#[derive(Debug, Clone, Copy, Default)]
-struct Spent {
-    split: crate::run::TimeSplit,
-    iterations: usize,
-    wrench_s: f64,
-}
-
-impl Spent {
-    fn since(&self, before: &Spent) -> Spent {
-        Spent {
-            split: crate::run::TimeSplit {
-                assemble: self.split.assemble - before.split.assemble,
-                solve: self.split.solve - before.split.solve,
-                collide: self.split.collide - before.split.collide,
-            },
-            iterations: self.iterations - before.iterations,
-            wrench_s: self.wrench_s - before.wrench_s,
-        }
-    }
-
-    fn per_step(&self, steps: u64, wall_s: f64) -> PhaseCost {
-        let n = steps.max(1) as f64;
-        PhaseCost {
-            steps,
-            wall_s,
-            ms_per_step: 1e3 * wall_s / n,
-            time_split_ms_per_step: crate::run::TimeSplit {
-                assemble: 1e3 * self.split.assemble / n,
-                solve: 1e3 * self.split.solve / n,
-                collide: 1e3 * self.split.collide / n,
-            },
-            mean_solver_iterations: self.iterations as f64 / n,
-            body_wrench_ms_per_step: 1e3 * self.wrench_s / n,
-        }
     }
 }
 
@@ -626,7 +591,7 @@ pub struct PhaseCost {
     /// Of which: assembly, linear solve, and contacts with the obstacles
     /// (for a moving body: its tree's refit, the contacts' detection and
     /// the swept check after the step; self-collision not included), ms.
-    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
     pub mean_solver_iterations: f64,
     /// The garment's wrench on the body after each step, ms.
     pub body_wrench_ms_per_step: f64,
@@ -651,7 +616,7 @@ pub struct RunStats {
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
-    pub time_split_ms_per_step: crate::run::TimeSplit,
+    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
     /// Time spent on the wrench on the body after each step (outside the
@@ -674,281 +639,18 @@ pub struct RunStats {
     /// Absent when it ran its course or was stopped.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
+    /// The observer stopped the run before its end.
+    #[serde(skip)]
+    pub stopped: bool,
 }
 
 impl RunStats {
     /// The statistics of a trial that ran its course (or was stopped), or
     /// the error of the step that failed.
     pub fn into_result(self) -> Result<RunStats> {
-        crate::run::failed(self.failure.clone())?;
+        crate::scene::run::failed(self.failure.clone())?;
         Ok(self)
     }
-}
-
-/// Sews and drapes (the phases of the module's documentation);
-/// `progress(sim, phase, t, of)` after each step (the state as it is
-/// then), `stop()` ends the run early; a step that fails is an error.
-pub fn run(
-    sim: &mut Simulation,
-    sew: &SewingFile,
-    st: &SettleFile,
-    max_time: Option<f64>,
-    progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
-    stop: &dyn Fn() -> bool,
-) -> Result<RunStats> {
-    run_to_failure(sim, None, sew, st, max_time, progress, stop)?.into_result()
-}
-
-/// [`run`], recording the garment's wrench on obstacle `body` after every
-/// step ([`RunStats::wrench`]); a step that fails ends the trial with what
-/// was done before it: the sewing's own settings (no gravity, stiffer seams)
-/// are undone, no later phase runs, and [`RunStats::failure`] says which step
-/// failed and why (for a caller that writes the trial's outputs all the
-/// same; [`RunStats::into_result`] makes it an error). A bad setting is an
-/// error at once.
-pub fn run_to_failure(
-    sim: &mut Simulation,
-    body: Option<Handle<Obstacle>>,
-    sew: &SewingFile,
-    st: &SettleFile,
-    max_time: Option<f64>,
-    progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
-    stop: &dyn Fn() -> bool,
-) -> Result<RunStats> {
-    crate::limits::check_range(
-        "sewing.duration",
-        sew.duration,
-        0.0,
-        60.0,
-        "s",
-        "a sewing phase of at most a minute",
-    )?;
-    crate::limits::check_range(
-        "sewing.drag",
-        sew.drag,
-        0.0,
-        1e3,
-        "1/s",
-        "mass-proportional damping",
-    )?;
-    crate::limits::check_range(
-        "sewing.stiffness_factor",
-        sew.stiffness_factor,
-        1e-3,
-        1e3,
-        "",
-        "a factor on the seams' stiffness",
-    )?;
-    for (what, v, lo, hi, unit, why) in [
-        (
-            "sewing.friction",
-            sew.friction,
-            0.0,
-            2.0,
-            "",
-            "a Coulomb coefficient",
-        ),
-        (
-            "sewing.closed",
-            sew.closed,
-            0.0,
-            0.1,
-            "m",
-            "a seam gap at which the sewing ends",
-        ),
-        (
-            "sewing.max_force",
-            sew.max_force,
-            0.1,
-            1e3,
-            "garment weights",
-            "the stitches' pull in all while sewing",
-        ),
-    ] {
-        if let Some(v) = v {
-            crate::limits::check_range(what, v, lo, hi, unit, why)?;
-        }
-    }
-    let max_time = max_time.unwrap_or(st.max_time);
-    crate::limits::check_range(
-        "settle.max_time",
-        max_time,
-        0.0,
-        600.0,
-        "s",
-        "at most 10 minutes simulated",
-    )?;
-    crate::limits::check_range("settle.speed", st.speed, 1e-6, 1.0, "m/s", "an rms speed")?;
-    crate::limits::check_range("settle.hold", st.hold, 0.0, 10.0, "s", "a hold time")?;
-    let start = Instant::now();
-    let mut acc = Spent::default();
-    let mut steps = 0u64;
-    let mut trace: Vec<[f64; 4]> = Vec::new();
-    let mut wrench: Vec<(f64, Wrench)> = Vec::new();
-    let every = ((0.05 / sim.params().dt).round() as u64).max(1);
-    let gravity = sim.params().gravity;
-    let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
-    let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
-    // 1. sewing
-    if !sew.gravity {
-        sim.set_params(Params {
-            gravity: Vector3::zeros(),
-            ..sim.params().clone()
-        })?;
-    }
-    for f in sim.fabrics_mut() {
-        f.damping.alpha = f.damping.alpha.min(-sew.drag);
-    }
-    for s in sim.cloth.seams.iter_mut() {
-        s.k *= sew.stiffness_factor;
-        s.d *= sew.stiffness_factor;
-    }
-    let bound = sew
-        .max_force
-        .map(|w| w * sim.cloth.total_mass() * STANDARD_GRAVITY);
-    // the panels close over the skin with the sewing's friction, then the
-    // garment rests on it with the body's own
-    let frictions: Vec<(Handle<Obstacle>, f64)> = sim
-        .obstacles()
-        .with_handles()
-        .map(|(h, o)| (h, o.friction))
-        .collect();
-    for &(h, _) in &frictions {
-        if let (Some(o), Some(f)) = (sim.obstacle_mut(h), sew.friction) {
-            o.friction = f;
-        }
-    }
-    let sew_steps = (sew.duration / sim.params().dt).round() as u64;
-    let mut failure = None;
-    // a failed step's error, as `RunStats::failure` gives it
-    let mut step = |sim: &mut Simulation, steps: &mut u64, acc: &mut Spent| -> Result<(), String> {
-        let s = sim
-            .step()
-            .map_err(|e| format!("step {} (t = {:.4} s): {e:#}", *steps + 1, sim.time))?;
-        acc.split.assemble += s.assemble_s;
-        acc.split.solve += s.solve_s;
-        acc.split.collide += s.collide_s;
-        acc.iterations += s.iterations;
-        *steps += 1;
-        let t_w = Instant::now();
-        if let Some(w) = body.and_then(|b| body_forces::wrench(sim, b)) {
-            wrench.push((sim.time, w));
-        }
-        acc.wrench_s += t_w.elapsed().as_secs_f64();
-        if (*steps).is_multiple_of(every) {
-            trace.push([
-                sim.time,
-                sim.rms_speed(),
-                s.contacts as f64,
-                s.iterations as f64,
-            ]);
-        }
-        Ok(())
-    };
-    for _ in 0..sew_steps {
-        if stop() {
-            break;
-        }
-        if let Some(bound) = bound {
-            bound_sewing(sim, &own, sew.stiffness_factor, bound);
-        }
-        if let Err(e) = step(sim, &mut steps, &mut acc) {
-            failure = Some(e);
-            break;
-        }
-        progress(sim, "sewing", sim.time, sew.duration);
-        if sew.closed.is_some_and(|c| largest_gap(sim) <= c) {
-            break;
-        }
-    }
-    let sewing_s = sim.time;
-    for &(h, f) in &frictions {
-        if let Some(o) = sim.obstacle_mut(h) {
-            o.friction = f;
-        }
-    }
-    // 2. drape
-    sim.set_params(Params {
-        gravity,
-        ..sim.params().clone()
-    })?;
-    for (f, a) in sim.fabrics_mut().zip(alphas) {
-        f.damping.alpha = a;
-    }
-    for (s, (k, d)) in sim.cloth.seams.iter_mut().zip(own) {
-        s.k = k;
-        s.d = d;
-    }
-    let mut calm_since: Option<f64> = None;
-    let mut settle = None;
-    while failure.is_none() && sim.time - sewing_s < max_time - 1e-12 && !stop() {
-        if let Err(e) = step(sim, &mut steps, &mut acc) {
-            failure = Some(e);
-            break;
-        }
-        if sim.rms_speed() < st.speed {
-            let since = *calm_since.get_or_insert(sim.time);
-            if sim.time - since >= st.hold - 1e-12 {
-                settle = Some(since - sewing_s);
-                break;
-            }
-        } else {
-            calm_since = None;
-        }
-        progress(sim, "drape", sim.time - sewing_s, max_time);
-    }
-    // 3. motion: a body held in its first pose while the garment was sewn
-    //    and draped moves; the run lasts until its motion ends
-    let held: Vec<_> = sim
-        .obstacles()
-        .with_handles()
-        .filter(|(_, o)| o.deforming().is_some_and(|b| b.held))
-        .map(|(h, _)| h)
-        .collect();
-    let mut motion_s = None;
-    let mut motion = None;
-    if failure.is_none() && !held.is_empty() && !stop() {
-        let mut play: f64 = 0.0;
-        for h in held {
-            if let Some(b) = sim.obstacle_mut(h).and_then(|o| o.deforming_mut()) {
-                b.release();
-                play = play.max(b.remaining());
-            }
-        }
-        let t0 = sim.time;
-        let (wall0, steps0, acc0) = (Instant::now(), steps, acc);
-        while sim.time - t0 < play - 1e-12 && !stop() {
-            if let Err(e) = step(sim, &mut steps, &mut acc) {
-                failure = Some(e);
-                break;
-            }
-            progress(sim, "motion", sim.time - t0, play);
-        }
-        motion_s = Some(sim.time - t0);
-        let n = steps - steps0;
-        let wall = wall0.elapsed().as_secs_f64();
-        motion = Some(acc.since(&acc0).per_step(n, wall));
-    }
-    let wall = start.elapsed().as_secs_f64();
-    let all = acc.per_step(steps, wall);
-    Ok(RunStats {
-        sewing_s,
-        settle_time_s: settle,
-        simulated_s: sim.time,
-        motion_s,
-        dressing_s: None,
-        steps,
-        wall_s: wall,
-        ms_per_step: all.ms_per_step,
-        time_split_ms_per_step: all.time_split_ms_per_step,
-        final_rms_speed_m_s: sim.rms_speed(),
-        mean_solver_iterations: all.mean_solver_iterations,
-        body_wrench_ms_per_step: all.body_wrench_ms_per_step,
-        motion,
-        trace,
-        wrench,
-        failure,
-    })
 }
 
 /// Largest, mean strain of one kind on one panel, %.
@@ -1024,7 +726,7 @@ pub struct Fit {
     pub body_pressure: Option<BodyPressureFit>,
     /// A dressing trial's progress and forces (`dressing.csv` over time).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub dressing: Option<crate::dressing::DressingReport>,
+    pub dressing: Option<crate::trial::dressing::DressingReport>,
     /// What a designer should not miss: a panel stretched beyond
     /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
     /// garment that did not settle.

@@ -29,17 +29,16 @@
 //!
 //! The arm comes from the body mesh alone ([`Arm::of`]).
 
-use crate::body_forces;
 use crate::collision::Obstacle;
 use crate::garment::Garment;
 use crate::set::Handle;
 use crate::solver::{Pin, PinPath, Simulation};
+use crate::trial::body_forces;
 use anyhow::{bail, Context, Result};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BinaryHeap;
 use std::path::Path;
-use std::time::Instant;
 
 type V3 = Vector3<f64>;
 
@@ -143,7 +142,7 @@ impl DressingFile {
         0.01
     }
 
-    fn check(&self) -> Result<()> {
+    pub fn check(&self) -> Result<()> {
         use crate::limits::check_range;
         check_range(
             "dressing.speed",
@@ -602,6 +601,10 @@ pub struct DressingReport {
     /// The run was stopped before its end (a signal: Ctrl-C, SIGTERM); the
     /// rows and the final state are those of the steps taken.
     pub stopped_early: bool,
+    /// The dressing was cut short at this long after sewing (`trial
+    /// --max-time`), s.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_limit_s: Option<f64>,
 }
 
 /// The garment's cuff on the chosen arm, in order around it: the vertices
@@ -1662,6 +1665,7 @@ impl Dressing {
             peak_gripper_force_n: peak(|r| r.gripper_force_n).1,
             first_arm_contact_s: rows.iter().find(|r| r.arm_contacts > 0).map(|r| r.time_s),
             stopped_early: false,
+            time_limit_s: None,
         }
     }
 
@@ -1669,65 +1673,6 @@ impl Dressing {
     pub fn cuff_centroid(&self, sim: &Simulation) -> V3 {
         centroid(&sim.cloth.x, &self.cuff)
     }
-}
-
-/// A whole dressing trial: sewn on the body, placed, dressed. `on_step`
-/// after every dressing step.
-pub struct DressingRun {
-    pub sim: Simulation,
-    pub garment: Garment,
-    pub dressing: Dressing,
-    pub sewing: crate::trial::RunStats,
-    pub rows: Vec<DressingRow>,
-    pub report: DressingReport,
-}
-
-/// Runs a trial with a `dressing` section.
-pub fn run_trial(
-    trial: &crate::trial::Trial,
-    ov: &crate::trial::TrialOverrides,
-    sewing_progress: &mut dyn FnMut(&Simulation, &str, f64, f64),
-    on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
-    stop: &dyn Fn() -> bool,
-) -> Result<DressingRun> {
-    let d = trial
-        .file
-        .dressing
-        .as_ref()
-        .context("the trial has no dressing section")?;
-    d.check()?;
-    let (mut sim, g) = trial.build(ov)?;
-    let body = crate::trial::body_handle(&sim).context("the trial has no body")?;
-    let sewing = crate::trial::run_to_failure(
-        &mut sim,
-        Some(body),
-        &trial.file.sewing,
-        &trial.file.settle,
-        Some(0.0),
-        sewing_progress,
-        stop,
-    )?
-    .into_result()?;
-    let dressing = Dressing::set_up(&mut sim, &g, body, d)?;
-    if d.edge_contacts {
-        let mut p = sim.params().clone();
-        p.obstacle_edges = true;
-        sim.set_params(p)?;
-    }
-    let wall = Instant::now();
-    let rows = dressing.run(&mut sim, d, on_step, stop)?;
-    let mut report = dressing.report(d, &rows, wall.elapsed().as_secs_f64());
-    report.final_distance_to_shoulder_m =
-        (dressing.cuff_centroid(&sim) - dressing.arm.shoulder()).norm();
-    report.stopped_early = stop();
-    Ok(DressingRun {
-        sim,
-        garment: g,
-        dressing,
-        sewing,
-        rows,
-        report,
-    })
 }
 
 /// Writes `dressing.csv`: one row per step.
@@ -1780,7 +1725,7 @@ pub fn write_csv(rows: &[DressingRow], path: &Path) -> Result<()> {
 /// Writes `dressing.png`: the progress (top) and the forces (bottom)
 /// against time.
 pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
-    use crate::plot::LinePlot;
+    use crate::pictures::plot::LinePlot;
     let t: Vec<f64> = rows.iter().map(|r| r.time_s).collect();
     let col = |f: fn(&DressingRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
     let prog = col(|r| r.progress);
@@ -1831,7 +1776,7 @@ pub fn write_png(rows: &[DressingRow], title: &str, path: &Path) -> Result<()> {
     );
     bottom.size = (900, 400);
     let panels = [top.render(), middle.render(), bottom.render()];
-    let mut img = crate::plot::Image::new(900, 1200, crate::plot::WHITE);
+    let mut img = crate::pictures::plot::Image::new(900, 1200, crate::pictures::plot::WHITE);
     for (k, p) in panels.iter().enumerate() {
         for y in 0..400 {
             for x in 0..900 {

@@ -3,11 +3,11 @@
 
 use crate::progress_printer;
 use anyhow::Result;
-use garment_sim::pattern::HingesFile;
-use garment_sim::run;
+use garment_sim::scene::run;
+use garment_sim::scene::system_file::SystemWriter;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
-use garment_sim::system_file::SystemWriter;
+use garment_sim::trial::pattern::HingesFile;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -151,7 +151,7 @@ fn start_live_view(
             Some(w) => eprintln!("waiting up to {w} s for a viewer to subscribe (Ctrl-C to stop)"),
             None => eprintln!("waiting for a viewer to subscribe (Ctrl-C to stop)"),
         }
-        let stop = garment_sim::run::stop_flag()?;
+        let stop = garment_sim::scene::run::stop_flag()?;
         let timeout = args.foxglove_wait.map(Duration::from_secs_f64);
         if view.wait_for_subscriber(timeout, Duration::from_millis(500), &stop) {
             eprintln!("viewer subscribed: running");
@@ -203,7 +203,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         .map(|a| start_live_view(a, &live))
         .transpose()?;
     let stop = match bag.bag.is_some() || view.is_some() {
-        true => Some(garment_sim::run::stop_flag()?),
+        true => Some(garment_sim::scene::run::stop_flag()?),
         false => None,
     };
     let no_stop = std::sync::atomic::AtomicBool::new(false);
@@ -340,7 +340,7 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
             eprintln!(
                 "stopped by a signal at t = {:.4} s; the bag is complete{}",
                 s.simulated_s,
-                if garment_sim::run::interrupted_again() {
+                if garment_sim::scene::run::interrupted_again() {
                     " (interrupted again while it was being closed: it was finished first)"
                 } else {
                     ""

@@ -17,7 +17,7 @@ pub enum BagCmd {
         bag: PathBuf,
         /// Simulated time, s: the last frame at or before it.
         #[arg(long, conflicts_with = "last", required_unless_present = "last",
-              allow_negative_numbers = true, value_parser = crate::cli_lab::seconds)]
+              allow_negative_numbers = true, value_parser = crate::cli::lab::seconds)]
         time: Option<f64>,
         /// The last frame.
         #[arg(long)]

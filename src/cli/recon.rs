@@ -54,7 +54,7 @@ fn default_model(scene: &Path) -> Result<Shape> {
     };
     let mut sim = sc.build(&ov)?;
     let mut pr = crate::progress_printer(format!("model: drape {} at 1 cm", scene.display()));
-    garment_sim::run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut pr)?;
+    garment_sim::scene::run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut pr)?;
     Ok(Shape::from_cloth(&sim.cloth))
 }
 

@@ -15,7 +15,7 @@
 //! right, z up); the top view looks down −z (x to the right, y up).
 
 use crate::collision::Obstacle;
-use crate::plot::{self, Image, Rgb};
+use crate::pictures::plot::{self, Image, Rgb};
 use anyhow::Result;
 use nalgebra::{Point3, Vector3};
 use std::collections::HashMap;

@@ -7,7 +7,7 @@
 //! depends on the fonts installed on the machine.
 //!
 //! ```no_run
-//! use garment_sim::plot::{LinePlot, Style};
+//! use garment_sim::pictures::plot::{LinePlot, Style};
 //! let mut p = LinePlot::new("Tensile, warp", "strain (%)", "force (gf/cm)");
 //! p.add("input curve", vec![(0.0, 0.0), (5.0, 500.0)], Style::Line);
 //! p.add("simulated", vec![(0.0, 0.0), (5.1, 500.0)], Style::Dashed);

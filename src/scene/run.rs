@@ -374,7 +374,8 @@ pub fn drape_with(
             .unwrap_or_default(),
         n => n.to_string(),
     };
-    crate::render::Picture::from_simulation(&sim, &name).save_png(&out.join("final.png"))?;
+    crate::pictures::render::Picture::from_simulation(&sim, &name)
+        .save_png(&out.join("final.png"))?;
     write_energy_csv(&rows, &out.join("energy.csv"))?;
     let js = serde_json::to_string_pretty(&summary)?;
     crate::io::write_atomic(&out.join("summary.json"), |w| w.write_all(js.as_bytes()))?;

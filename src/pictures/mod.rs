@@ -1,0 +1,5 @@
+//! Pictures: drapes and fields on the cloth as PNG ([`render`]), curves as
+//! PNG ([`plot`]).
+
+pub mod plot;
+pub mod render;

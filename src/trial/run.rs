@@ -1,0 +1,832 @@
+//! A trial's run, from its file to its outputs: [`run_trial`] builds the
+//! garment on the body, runs its phases ([`Phase`]) with one observer that
+//! sees every step and can stop the run, measures the fit and gives a
+//! [`TrialOutcome`] that writes itself to a folder ([`TrialOutcome::write`]).
+//! The command line, the Python package and the tests run trials through it.
+
+use super::body_forces::{self, BodyPressure, Wrench};
+use super::dressing::{self, Dressing, DressingReport, DressingRow};
+use super::{
+    body_handle, body_now, fit, write_body_ply, write_obj, write_ply, write_trace, write_wrench,
+    Fit, PhaseCost, RunStats, SettleFile, SewingFile, Trial, TrialOverrides, VertexFit,
+    STANDARD_GRAVITY,
+};
+use crate::collision::Obstacle;
+use crate::garment::Garment;
+use crate::pictures::render::{full_scale, FieldPicture, Picture, Surface};
+use crate::scene::run::Control;
+use crate::set::Handle;
+use crate::solver::{Params, Simulation};
+use anyhow::{Context, Result};
+use nalgebra::Vector3;
+use std::cell::Cell;
+use std::path::Path;
+use std::time::Instant;
+
+/// The phases of a trial, in the order they run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Gravity off, the seams pull the panels together on the body.
+    Sewing,
+    /// Gravity on until the garment settles (or `settle.max_time`).
+    Drape,
+    /// A body with a `motion` plays it.
+    Motion,
+    /// A gripper pulls a sleeve over the arm (a trial with `dressing`).
+    Dressing,
+}
+
+impl Phase {
+    /// The phase's name as the progress lines and `fit.json` say it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Sewing => "sewing",
+            Phase::Drape => "drape",
+            Phase::Motion => "motion",
+            Phase::Dressing => "dressing",
+        }
+    }
+}
+
+/// What an observer sees after each step: the state as it is then, the
+/// phase, and how far the phase has gone (`done` of `of`, simulated
+/// seconds; `of` is the phase's longest duration).
+pub struct Step<'a> {
+    pub sim: &'a Simulation,
+    pub phase: Phase,
+    pub done: f64,
+    pub of: f64,
+}
+
+/// Called after every step of every phase; [`Control::Stop`] ends the run
+/// before the next step (its outcome covers the steps taken).
+pub type Observe<'a> = &'a mut dyn FnMut(&Step) -> Control;
+
+/// An observer that lets the run go to its end.
+pub fn run_on(_: &Step) -> Control {
+    Control::Continue
+}
+
+/// Sews and drapes (and plays the body's motion), the phases of the
+/// module's documentation; a step that fails is an error.
+pub fn run(
+    sim: &mut Simulation,
+    sew: &SewingFile,
+    st: &SettleFile,
+    max_time: Option<f64>,
+    observe: Observe,
+) -> Result<RunStats> {
+    sew_and_drape(sim, None, sew, st, max_time, observe)?.into_result()
+}
+
+/// [`run`], recording the garment's wrench on obstacle `body` after every
+/// step ([`RunStats::wrench`]); a step that fails ends the trial with what
+/// was done before it: the sewing's own settings (no gravity, stiffer seams)
+/// are undone, no later phase runs, and [`RunStats::failure`] says which step
+/// failed and why (for a caller that writes the trial's outputs all the
+/// same; [`RunStats::into_result`] makes it an error). A bad setting is an
+/// error at once.
+pub fn sew_and_drape(
+    sim: &mut Simulation,
+    body: Option<Handle<Obstacle>>,
+    sew: &SewingFile,
+    st: &SettleFile,
+    max_time: Option<f64>,
+    observe: Observe,
+) -> Result<RunStats> {
+    let max_time = max_time.unwrap_or(st.max_time);
+    check_phases(sew, st, max_time)?;
+    let mut r = Recorder::new(sim, body);
+    let mut stopped = false;
+    let sewing_s = sewing(sim, sew, &mut r, observe, &mut stopped)?;
+    let mut settle = None;
+    if r.failure.is_none() && !stopped {
+        settle = drape(sim, st, sewing_s, max_time, &mut r, observe, &mut stopped);
+    }
+    let (mut motion_s, mut motion) = (None, None);
+    if r.failure.is_none() && !stopped {
+        if let Some((s, cost)) = play_motion(sim, &mut r, observe) {
+            motion_s = Some(s);
+            motion = Some(cost);
+        }
+    }
+    let wall = r.start.elapsed().as_secs_f64();
+    let all = r.acc.per_step(r.steps, wall);
+    Ok(RunStats {
+        sewing_s,
+        settle_time_s: settle,
+        simulated_s: sim.time,
+        motion_s,
+        dressing_s: None,
+        steps: r.steps,
+        wall_s: wall,
+        ms_per_step: all.ms_per_step,
+        time_split_ms_per_step: all.time_split_ms_per_step,
+        final_rms_speed_m_s: sim.rms_speed(),
+        mean_solver_iterations: all.mean_solver_iterations,
+        body_wrench_ms_per_step: all.body_wrench_ms_per_step,
+        motion,
+        trace: r.trace,
+        wrench: r.wrench,
+        failure: r.failure,
+        stopped,
+    })
+}
+
+/// The phases' settings, each within its bounds.
+fn check_phases(sew: &SewingFile, st: &SettleFile, max_time: f64) -> Result<()> {
+    use crate::limits::check_range;
+    check_range(
+        "sewing.duration",
+        sew.duration,
+        0.0,
+        60.0,
+        "s",
+        "a sewing phase of at most a minute",
+    )?;
+    check_range(
+        "sewing.drag",
+        sew.drag,
+        0.0,
+        1e3,
+        "1/s",
+        "mass-proportional damping",
+    )?;
+    check_range(
+        "sewing.stiffness_factor",
+        sew.stiffness_factor,
+        1e-3,
+        1e3,
+        "",
+        "a factor on the seams' stiffness",
+    )?;
+    for (what, v, lo, hi, unit, why) in [
+        (
+            "sewing.friction",
+            sew.friction,
+            0.0,
+            2.0,
+            "",
+            "a Coulomb coefficient",
+        ),
+        (
+            "sewing.closed",
+            sew.closed,
+            0.0,
+            0.1,
+            "m",
+            "a seam gap at which the sewing ends",
+        ),
+        (
+            "sewing.max_force",
+            sew.max_force,
+            0.1,
+            1e3,
+            "garment weights",
+            "the stitches' pull in all while sewing",
+        ),
+    ] {
+        if let Some(v) = v {
+            check_range(what, v, lo, hi, unit, why)?;
+        }
+    }
+    check_range(
+        "settle.max_time",
+        max_time,
+        0.0,
+        600.0,
+        "s",
+        "at most 10 minutes simulated",
+    )?;
+    check_range("settle.speed", st.speed, 1e-6, 1.0, "m/s", "an rms speed")?;
+    check_range("settle.hold", st.hold, 0.0, 10.0, "s", "a hold time")
+}
+
+/// Steps the simulation and keeps the run's figures: time and solver work,
+/// the trace every 0.05 s, the wrench on the body, the first failure.
+struct Recorder {
+    start: Instant,
+    acc: Spent,
+    steps: u64,
+    every: u64,
+    body: Option<Handle<Obstacle>>,
+    trace: Vec<[f64; 4]>,
+    wrench: Vec<(f64, Wrench)>,
+    failure: Option<String>,
+}
+
+impl Recorder {
+    fn new(sim: &Simulation, body: Option<Handle<Obstacle>>) -> Recorder {
+        Recorder {
+            start: Instant::now(),
+            acc: Spent::default(),
+            steps: 0,
+            every: ((0.05 / sim.params().dt).round() as u64).max(1),
+            body,
+            trace: Vec::new(),
+            wrench: Vec::new(),
+            failure: None,
+        }
+    }
+
+    /// One step; false (and the failure kept) if it failed.
+    fn step(&mut self, sim: &mut Simulation) -> bool {
+        let s = match sim.step() {
+            Ok(s) => s,
+            Err(e) => {
+                self.failure = Some(format!(
+                    "step {} (t = {:.4} s): {e:#}",
+                    self.steps + 1,
+                    sim.time
+                ));
+                return false;
+            }
+        };
+        self.acc.split.assemble += s.assemble_s;
+        self.acc.split.solve += s.solve_s;
+        self.acc.split.collide += s.collide_s;
+        self.acc.iterations += s.iterations;
+        self.steps += 1;
+        let t_w = Instant::now();
+        if let Some(w) = self.body.and_then(|b| body_forces::wrench(sim, b)) {
+            self.wrench.push((sim.time, w));
+        }
+        self.acc.wrench_s += t_w.elapsed().as_secs_f64();
+        if self.steps.is_multiple_of(self.every) {
+            self.trace.push([
+                sim.time,
+                sim.rms_speed(),
+                s.contacts as f64,
+                s.iterations as f64,
+            ]);
+        }
+        true
+    }
+}
+
+/// Phase 1: gravity off, the fabric's damping replaced by the sewing's
+/// drag, the stitches stiffer (bounded by `max_force`), the skin's friction
+/// the sewing's; all undone at its end. Returns its simulated length.
+fn sewing(
+    sim: &mut Simulation,
+    sew: &SewingFile,
+    r: &mut Recorder,
+    observe: Observe,
+    stopped: &mut bool,
+) -> Result<f64> {
+    let gravity = sim.params().gravity;
+    let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
+    let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
+    if !sew.gravity {
+        sim.set_params(Params {
+            gravity: Vector3::zeros(),
+            ..sim.params().clone()
+        })?;
+    }
+    for f in sim.fabrics_mut() {
+        f.damping.alpha = f.damping.alpha.min(-sew.drag);
+    }
+    for s in sim.cloth.seams.iter_mut() {
+        s.k *= sew.stiffness_factor;
+        s.d *= sew.stiffness_factor;
+    }
+    let bound = sew
+        .max_force
+        .map(|w| w * sim.cloth.total_mass() * STANDARD_GRAVITY);
+    // the panels close over the skin with the sewing's friction, then the
+    // garment rests on it with the body's own
+    let frictions: Vec<(Handle<Obstacle>, f64)> = sim
+        .obstacles()
+        .with_handles()
+        .map(|(h, o)| (h, o.friction))
+        .collect();
+    for &(h, _) in &frictions {
+        if let (Some(o), Some(f)) = (sim.obstacle_mut(h), sew.friction) {
+            o.friction = f;
+        }
+    }
+    let sew_steps = (sew.duration / sim.params().dt).round() as u64;
+    for _ in 0..sew_steps {
+        if let Some(bound) = bound {
+            bound_sewing(sim, &own, sew.stiffness_factor, bound);
+        }
+        if !r.step(sim) {
+            break;
+        }
+        let step = Step {
+            sim,
+            phase: Phase::Sewing,
+            done: sim.time,
+            of: sew.duration,
+        };
+        if observe(&step) == Control::Stop {
+            *stopped = true;
+            break;
+        }
+        if sew.closed.is_some_and(|c| largest_gap(sim) <= c) {
+            break;
+        }
+    }
+    let sewing_s = sim.time;
+    for &(h, f) in &frictions {
+        if let Some(o) = sim.obstacle_mut(h) {
+            o.friction = f;
+        }
+    }
+    sim.set_params(Params {
+        gravity,
+        ..sim.params().clone()
+    })?;
+    for (f, a) in sim.fabrics_mut().zip(alphas) {
+        f.damping.alpha = a;
+    }
+    for (s, (k, d)) in sim.cloth.seams.iter_mut().zip(own) {
+        s.k = k;
+        s.d = d;
+    }
+    Ok(sewing_s)
+}
+
+/// Phase 2: the drape until the rms speed stays under `settle.speed` for
+/// `settle.hold`; returns when it settled (s after sewing), if it did.
+fn drape(
+    sim: &mut Simulation,
+    st: &SettleFile,
+    sewing_s: f64,
+    max_time: f64,
+    r: &mut Recorder,
+    observe: Observe,
+    stopped: &mut bool,
+) -> Option<f64> {
+    let mut calm_since: Option<f64> = None;
+    while sim.time - sewing_s < max_time - 1e-12 {
+        if !r.step(sim) {
+            return None;
+        }
+        let step = Step {
+            sim,
+            phase: Phase::Drape,
+            done: sim.time - sewing_s,
+            of: max_time,
+        };
+        let go_on = observe(&step) == Control::Continue;
+        if sim.rms_speed() < st.speed {
+            let since = *calm_since.get_or_insert(sim.time);
+            if sim.time - since >= st.hold - 1e-12 {
+                return Some(since - sewing_s);
+            }
+        } else {
+            calm_since = None;
+        }
+        if !go_on {
+            *stopped = true;
+            return None;
+        }
+    }
+    None
+}
+
+/// Phase 3: a body held in its first pose while the garment was sewn and
+/// draped moves; the run lasts until its motion ends. Its length and cost,
+/// if the body moves.
+fn play_motion(
+    sim: &mut Simulation,
+    r: &mut Recorder,
+    observe: Observe,
+) -> Option<(f64, PhaseCost)> {
+    let held: Vec<_> = sim
+        .obstacles()
+        .with_handles()
+        .filter(|(_, o)| o.deforming().is_some_and(|b| b.held))
+        .map(|(h, _)| h)
+        .collect();
+    if held.is_empty() {
+        return None;
+    }
+    let mut play: f64 = 0.0;
+    for h in held {
+        if let Some(b) = sim.obstacle_mut(h).and_then(|o| o.deforming_mut()) {
+            b.release();
+            play = play.max(b.remaining());
+        }
+    }
+    let t0 = sim.time;
+    let (wall0, steps0, acc0) = (Instant::now(), r.steps, r.acc);
+    while sim.time - t0 < play - 1e-12 {
+        if !r.step(sim) {
+            break;
+        }
+        let step = Step {
+            sim,
+            phase: Phase::Motion,
+            done: sim.time - t0,
+            of: play,
+        };
+        if observe(&step) == Control::Stop {
+            break;
+        }
+    }
+    let cost = r
+        .acc
+        .since(&acc0)
+        .per_step(r.steps - steps0, wall0.elapsed().as_secs_f64());
+    Some((sim.time - t0, cost))
+}
+
+/// Sets the stitches' stiffness for the next sewing step: `factor` times
+/// their own (`own`: stiffness and damping), scaled down together so that
+/// their pull at the current gaps, `Σ k |g|`, is at most `bound` (N). The
+/// pull keeps the linear law's shape (a wider gap pulls harder) and its
+/// sum is bounded however wide the gaps.
+fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f64) {
+    let pull: f64 = (sim.cloth.seams.iter().zip(own))
+        .map(|(s, &(k, _))| factor * k * s.gap(&sim.cloth.x).norm())
+        .sum();
+    let scale = factor * if pull > bound { bound / pull } else { 1.0 };
+    for (s, &(k, d)) in sim.cloth.seams.iter_mut().zip(own) {
+        s.k = k * scale;
+        s.d = d * scale;
+    }
+}
+
+/// The widest gap of any stitch, m.
+fn largest_gap(sim: &Simulation) -> f64 {
+    (sim.cloth.seams.iter())
+        .map(|s| s.gap(&sim.cloth.x).norm())
+        .fold(0.0, f64::max)
+}
+
+/// Time and solver work summed over steps (seconds, iterations).
+#[derive(Debug, Clone, Copy, Default)]
+struct Spent {
+    split: crate::scene::run::TimeSplit,
+    iterations: usize,
+    wrench_s: f64,
+}
+
+impl Spent {
+    fn since(&self, before: &Spent) -> Spent {
+        Spent {
+            split: crate::scene::run::TimeSplit {
+                assemble: self.split.assemble - before.split.assemble,
+                solve: self.split.solve - before.split.solve,
+                collide: self.split.collide - before.split.collide,
+            },
+            iterations: self.iterations - before.iterations,
+            wrench_s: self.wrench_s - before.wrench_s,
+        }
+    }
+
+    fn per_step(&self, steps: u64, wall_s: f64) -> PhaseCost {
+        let n = steps.max(1) as f64;
+        PhaseCost {
+            steps,
+            wall_s,
+            ms_per_step: 1e3 * wall_s / n,
+            time_split_ms_per_step: crate::scene::run::TimeSplit {
+                assemble: 1e3 * self.split.assemble / n,
+                solve: 1e3 * self.split.solve / n,
+                collide: 1e3 * self.split.collide / n,
+            },
+            mean_solver_iterations: self.iterations as f64 / n,
+            body_wrench_ms_per_step: 1e3 * self.wrench_s / n,
+        }
+    }
+}
+
+/// The garment as it moved: at most this many frames, evenly spaced in
+/// simulated time (for `trial.glb`).
+pub const MAX_FRAMES: usize = 60;
+
+/// Keeps the garment's positions every `interval` simulated seconds,
+/// doubling the interval (and dropping every other frame) whenever more
+/// than [`MAX_FRAMES`] would be kept.
+#[derive(Debug, Clone)]
+pub struct Frames {
+    interval: f64,
+    next: f64,
+    /// (time, positions), in time order.
+    pub frames: Vec<(f64, Vec<[f32; 3]>)>,
+}
+
+impl Frames {
+    fn new() -> Frames {
+        Frames {
+            interval: 0.05,
+            next: 0.0,
+            frames: Vec::new(),
+        }
+    }
+
+    fn shot(sim: &Simulation) -> (f64, Vec<[f32; 3]>) {
+        let x = sim.cloth.x.iter();
+        (
+            sim.time,
+            x.map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect(),
+        )
+    }
+
+    fn observe(&mut self, sim: &Simulation) {
+        if sim.time + 1e-9 < self.next {
+            return;
+        }
+        self.frames.push(Frames::shot(sim));
+        if self.frames.len() > MAX_FRAMES {
+            let kept = std::mem::take(&mut self.frames);
+            self.frames = kept.into_iter().step_by(2).collect();
+            self.interval *= 2.0;
+        }
+        self.next = self.frames.last().map_or(0.0, |f| f.0) + self.interval;
+    }
+
+    /// The last state, if it is not the last frame already.
+    fn finish(&mut self, sim: &Simulation) {
+        if self.frames.last().is_none_or(|f| f.0 < sim.time) {
+            if self.frames.len() == MAX_FRAMES {
+                self.frames.pop();
+            }
+            self.frames.push(Frames::shot(sim));
+        }
+    }
+}
+
+/// What a trial with a `dressing` adds to its outcome.
+pub struct DressingOutcome {
+    pub dressing: Dressing,
+    pub rows: Vec<DressingRow>,
+    /// Pictures at the first step and as the gripper passes each quarter of
+    /// its path (`dressing_0.png` … `dressing_4.png`).
+    pub pictures: Vec<Picture>,
+}
+
+/// A trial's run and fit: the simulation as it ended, the fit report, what
+/// each vertex measured, the pressure on the body, the dressing's record.
+pub struct TrialOutcome {
+    pub fit: Fit,
+    pub sim: Simulation,
+    pub garment: Garment,
+    pub vertex_fit: VertexFit,
+    pub body_pressure: Option<BodyPressure>,
+    pub dressing: Option<DressingOutcome>,
+    /// The garment's positions over the run.
+    pub frames: Frames,
+}
+
+/// Builds a trial, runs it and measures its fit. A step that fails ends the
+/// run with what was done before it ([`TrialOutcome::error`]); a bad file or
+/// setting is an error at once.
+pub fn run_trial(t: &Trial, ov: &TrialOverrides, observe: Observe) -> Result<TrialOutcome> {
+    let (sim, g) = t.build(ov)?;
+    run_built(t, ov, sim, g, observe)
+}
+
+/// [`run_trial`] on a trial already built (`Trial::build`), for a caller that
+/// sets the simulation up further (e.g. the steps whose linear system it
+/// captures).
+pub fn run_built(
+    t: &Trial,
+    ov: &TrialOverrides,
+    mut sim: Simulation,
+    g: Garment,
+    observe: Observe,
+) -> Result<TrialOutcome> {
+    let body = body_handle(&sim);
+    let mut frames = Frames::new();
+    let mut seen = |s: &Step| {
+        frames.observe(s.sim);
+        observe(s)
+    };
+    let dressed = match &t.file.dressing {
+        Some(d) => {
+            let body = body.context("the trial has no body")?;
+            d.check()?;
+            let (stats, outcome) = dress(t, ov, &mut sim, &g, body, d, &mut seen)?;
+            Some((stats, outcome))
+        }
+        None => None,
+    };
+    let (stats, dressing) = match dressed {
+        Some((stats, d)) => (stats, Some(d)),
+        None => {
+            let sew = &t.file.sewing;
+            let st = &t.file.settle;
+            let stats = sew_and_drape(&mut sim, body, sew, st, ov.max_time, &mut seen)?;
+            (stats, None)
+        }
+    };
+    frames.finish(&sim);
+    let (mut fit, vertex_fit, body_pressure) = fit(&sim, &g, t, stats);
+    fit.dressing = dressing.as_ref().map(|d| d.report.clone());
+    Ok(TrialOutcome {
+        fit,
+        sim,
+        garment: g,
+        vertex_fit,
+        body_pressure,
+        dressing: dressing.map(|d| d.outcome),
+        frames,
+    })
+}
+
+struct Dressed {
+    report: DressingReport,
+    outcome: DressingOutcome,
+}
+
+/// Sews the garment on the body, then the gripper pulls the sleeve over the
+/// arm for at most `max_time` after sewing (`ov.max_time`, else the whole
+/// path). The run's figures, the dressing's report and record.
+fn dress(
+    t: &Trial,
+    ov: &TrialOverrides,
+    sim: &mut Simulation,
+    g: &Garment,
+    body: Handle<Obstacle>,
+    d: &dressing::DressingFile,
+    observe: Observe,
+) -> Result<(RunStats, Dressed)> {
+    let wall = Instant::now();
+    let (sew, st) = (&t.file.sewing, &t.file.settle);
+    let mut stats = sew_and_drape(sim, Some(body), sew, st, Some(0.0), observe)?.into_result()?;
+    let dressing = Dressing::set_up(sim, g, body, d)?;
+    if d.edge_contacts {
+        let mut p = sim.params().clone();
+        p.obstacle_edges = true;
+        sim.set_params(p)?;
+    }
+    let t0 = sim.time;
+    let limit = ov.max_time.map(|m| stats.sewing_s + m);
+    let (stopped, timed_out) = (Cell::new(stats.stopped), Cell::new(false));
+    let mut pictures = Vec::new();
+    let mut so_far: Vec<DressingRow> = Vec::new();
+    let walk = Instant::now();
+    let ran = dressing.run(
+        sim,
+        d,
+        &mut |sim, dr, row| {
+            so_far.push(*row);
+            // pictures at the first step and as the gripper passes each
+            // quarter of its path
+            let shot = pictures.len();
+            let due = if shot == 0 {
+                t0
+            } else {
+                dr.t_move + (dr.t_arrive - dr.t_move) * (shot as f64 / 4.0)
+            };
+            if shot <= 4 && sim.time >= due - 1e-9 {
+                let title = format!(
+                    "{}: t = {:.2} s, progress {:.0} %, force on the arm {:.1} N",
+                    t.garment.name,
+                    sim.time,
+                    100.0 * row.progress,
+                    row.arm_force_n
+                );
+                pictures.push(Picture::from_simulation(sim, &title));
+            }
+            let step = Step {
+                sim,
+                phase: Phase::Dressing,
+                done: sim.time - t0,
+                of: dr.t_end - t0,
+            };
+            if observe(&step) == Control::Stop {
+                stopped.set(true);
+            }
+            if limit.is_some_and(|l| sim.time >= l - 1e-9) {
+                timed_out.set(true);
+            }
+        },
+        &|| stopped.get() || timed_out.get(),
+    );
+    // a failed step ends the dressing with the rows recorded before it
+    let rows = match ran {
+        Ok(rows) => rows,
+        Err(e) if !so_far.is_empty() => {
+            stats.failure = Some(format!("{e:#}"));
+            so_far
+        }
+        Err(e) => return Err(e),
+    };
+    let mut report = dressing.report(d, &rows, walk.elapsed().as_secs_f64());
+    report.final_distance_to_shoulder_m =
+        (dressing.cuff_centroid(sim) - dressing.arm.shoulder()).norm();
+    report.stopped_early = stopped.get();
+    report.time_limit_s = ov.max_time.filter(|_| timed_out.get());
+    let wall_s = wall.elapsed().as_secs_f64();
+    let n = stats.steps + rows.len() as u64;
+    stats.dressing_s = Some(sim.time - stats.sewing_s);
+    stats.simulated_s = sim.time;
+    stats.steps = n;
+    stats.wall_s = wall_s;
+    stats.ms_per_step = 1e3 * wall_s / n.max(1) as f64;
+    stats.final_rms_speed_m_s = sim.rms_speed();
+    stats.stopped = stopped.get();
+    let outcome = DressingOutcome {
+        dressing,
+        rows,
+        pictures,
+    };
+    Ok((stats, Dressed { report, outcome }))
+}
+
+impl TrialOutcome {
+    /// The garment's vertices as the run ended, m.
+    pub fn positions(&self) -> Vec<[f64; 3]> {
+        self.sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect()
+    }
+
+    /// The garment's triangles (indices into [`TrialOutcome::positions`]).
+    pub fn triangles(&self) -> Vec<[usize; 3]> {
+        self.sim.cloth.triangles.clone()
+    }
+
+    /// Writes the outputs into `dir` (made if need be): `garment.obj`,
+    /// `garment.ply` (per-vertex stretch and pressure), `fit.json`,
+    /// `body_pressure.ply`; a trial that drapes `trial.csv`,
+    /// `body_wrench.csv`, `fit_strain.png` and `fit_pressure.png`; a dressing
+    /// `dressing.csv`, `dressing.png` and `dressing_0.png` … `dressing_4.png`.
+    pub fn write(&self, t: &Trial, dir: &Path) -> Result<()> {
+        std::fs::create_dir_all(dir).with_context(|| format!("making {}", dir.display()))?;
+        let (sim, g, fit) = (&self.sim, &self.garment, &self.fit);
+        match &self.dressing {
+            None => {
+                write_trace(&fit.run, &dir.join("trial.csv"))?;
+                write_wrench(&fit.run, &dir.join("body_wrench.csv"))?;
+            }
+            Some(d) => {
+                dressing::write_csv(&d.rows, &dir.join("dressing.csv"))?;
+                dressing::write_png(&d.rows, &t.garment.name, &dir.join("dressing.png"))?;
+            }
+        }
+        if let Some(p) = &self.body_pressure {
+            write_body_ply(p, &dir.join("body_pressure.ply"))?;
+        }
+        write_obj(sim, g, &dir.join("garment.obj"))?;
+        write_ply(sim, &self.vertex_fit, &dir.join("garment.ply"))?;
+        let json = serde_json::to_string_pretty(fit)?;
+        crate::io::write_atomic(&dir.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
+        match &self.dressing {
+            None => self.write_pictures(t, dir),
+            Some(d) => {
+                for (k, p) in d.pictures.iter().enumerate() {
+                    p.save_png(&dir.join(format!("dressing_{k}.png")))
+                        .context("writing the dressing's pictures")?;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// `fit_strain.png` and `fit_pressure.png`: the garment on the body,
+    /// coloured by its stretch and by its pressure on the body.
+    fn write_pictures(&self, t: &Trial, dir: &Path) -> Result<()> {
+        let (sim, vf) = (&self.sim, &self.vertex_fit);
+        let cloth = Surface {
+            vertices: sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            triangles: sim.cloth.triangles.clone(),
+        };
+        let body = vec![Surface::from_obstacle(body_now(sim, t))];
+        let info = vec![
+            format!("fabric {}", sim.fabric.name),
+            format!(
+                "{} vertices at {:.1} cm",
+                sim.cloth.len(),
+                100.0 * sim.cloth.lc
+            ),
+            format!("t = {:.2} s", sim.time),
+        ];
+        let strain_pic = FieldPicture {
+            title: format!("{}: stretch", t.garment.name),
+            info: info.clone(),
+            cloth: cloth.clone(),
+            full: full_scale(&vf.stretch, 0.001),
+            field: vf.stretch.clone(),
+            label: ("stretch (warp, weft, bias)".into(), "%".into()),
+            label_scale: 100.0,
+            obstacles: body.clone(),
+            size: (1500, 800),
+        };
+        strain_pic.save_png(&dir.join("fit_strain.png"))?;
+        let pressure_pic = FieldPicture {
+            title: format!("{}: pressure on the body", t.garment.name),
+            info,
+            cloth,
+            full: full_scale(&vf.pressure, 1.0),
+            field: vf.pressure.clone(),
+            label: ("pressure".into(), "Pa".into()),
+            label_scale: 1.0,
+            obstacles: body,
+            size: (1500, 800),
+        };
+        pressure_pic.save_png(&dir.join("fit_pressure.png"))
+    }
+
+    /// The error of the step that ended the run early, if one failed.
+    pub fn error(&self) -> Option<anyhow::Error> {
+        self.fit
+            .run
+            .failure
+            .as_ref()
+            .map(|f| anyhow::anyhow!("{f}"))
+    }
+}
