@@ -127,7 +127,7 @@ def run_trial(trial: Union[PathLike, Mapping[str, Any]], out: Optional[PathLike]
     if stop is not None:
         raise stop
     if result.error is not None:
-        e = TrialError(result.error)
+        e = TrialError(native.error(None if out is None else os.fspath(out)))
         e.result = result  # type: ignore[attr-defined]
         raise e
     return result

@@ -6,15 +6,13 @@
 //! GIL is taken again only to call the progress callback and check for
 //! signals, at most [`CADENCE_S`] apart (and at each new phase).
 
-use garment_sim::run::Control;
+use garment_sim::scene::run::Control;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
-mod shim;
-use garment_sim::trial::{Trial, TrialOverrides};
+use garment_sim::trial::{Step, Trial, TrialOutcome, TrialOverrides};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use shim::{Step, TrialOutcome};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -192,10 +190,21 @@ impl NativeTrial {
         .map_err(trial_error)
     }
 
-    /// The failed step's error, as the command line prints it; None if the
-    /// trial ran its course or was stopped.
-    fn error(&self) -> Option<String> {
-        self.outcome.error().map(|e| message(&e))
+    /// The failed step's error, as the command line prints it (with where
+    /// the outputs of the steps before it went, `out`); None if the trial
+    /// ran its course or was stopped.
+    #[pyo3(signature = (out=None))]
+    fn error(&self, out: Option<PathBuf>) -> Option<String> {
+        let r = &self.outcome.fit.run;
+        self.outcome.error().map(|e| match (&r.failure, out) {
+            (Some(f), Some(out)) => message(&garment_sim::scene::run::written_before_failure(
+                f,
+                r.simulated_s,
+                r.steps,
+                &out,
+            )),
+            _ => message(&e),
+        })
     }
 
     /// The exception that stopped the run (KeyboardInterrupt, or the
@@ -247,7 +256,7 @@ fn run_trial(
             let rep = rep.into_inner();
             caught(|| {
                 let t = load_trial(&path, text.as_deref())?;
-                let outcome = shim::run_trial(&t, &ov, &mut |s: &Step| {
+                let outcome = garment_sim::trial::run_trial(&t, &ov, &mut |s: &Step| {
                     rep.observe(s.phase.name(), s.done, s.of)
                 })?;
                 Ok(SameThread((t, outcome)))
@@ -374,7 +383,7 @@ fn run_scene(
                 let sim = scene.build(&ov)?;
                 let duration = scene.duration(&ov);
                 let t0 = sim.time;
-                let (sim, summary) = garment_sim::run::drape_with(
+                let (sim, summary) = garment_sim::scene::run::drape_with(
                     &scene,
                     &ov,
                     sim,
