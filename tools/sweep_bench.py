@@ -70,9 +70,12 @@ def main():
               f"{1e3 * wall / args.instant:.1f} ms a trial, cluster start included")
     from dask.distributed import Client, LocalCluster, as_completed
     for w in (1, 2):
+        t0 = time.monotonic()
         with LocalCluster(n_workers=w, threads_per_worker=1, processes=True,
                           dashboard_address=None, host="127.0.0.1") as c, Client(c) as cl:
             cl.submit(int, 0).result()
+            print(f"{w} worker(s): the local cluster up and a first task back in "
+                  f"{time.monotonic() - t0:.1f} s")
             n = 1000
             t0 = time.monotonic()
             fs = [cl.submit(int, i, key=f"noop-{i}") for i in range(n)]

@@ -173,6 +173,9 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
             else:
                 _set(doc, k, v)
 
+        # one worker process a core: one thread a trial, unless an axis says
+        ov.setdefault("threads", 1)
+
         def progress(phase, done, of):
             if time.monotonic() - t0 > limit:
                 raise _TimeLimit(f"time limit: {limit:g} s of wall time")
