@@ -5,12 +5,14 @@ is built and installed by tests/run.sh).
 GARMENT_SIM_BIN is the command line's binary, GARMENT_SIM_TMP a scratch folder.
 """
 
+import gc
 import itertools
 import json
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -100,6 +102,26 @@ def test_trial_equals_the_command_line_bit_for_bit():
     doc = yaml.safe_load(SKIRT.read_text())
     res2 = garment_sim.run_trial(doc, base_dir=SKIRT.parent, **SMALL)
     assert np.array_equal(res2.positions, res.positions)
+
+
+def test_a_result_moves_between_threads():
+    # a run on a thread (as on a Dask worker), its result used and dropped on another
+    seen = []
+    hook, sys.unraisablehook = sys.unraisablehook, seen.append
+    try:
+        box = []
+        t = threading.Thread(target=lambda: box.append(garment_sim.run_trial(
+            str(SKIRT), spacing=0.05, max_time=0.0, threads=1)))
+        t.start()
+        t.join()
+        r = box.pop()
+        r.write(TMP / "thread")
+        assert len(ply_vertices(TMP / "thread/garment.ply")) == len(r.positions)
+        del r
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    assert not seen, [str(u.exc_value) for u in seen]
 
 
 def test_errors_are_the_command_line_s():

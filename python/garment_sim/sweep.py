@@ -188,7 +188,11 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
             row["self_intersections"] = int(self_intersections(r.positions, r.faces))
         row["fit"] = r.fit
     except garment_sim.TrialError as e:
-        row.update(outcome_of(getattr(getattr(e, "result", None), "fit", None), str(e)))
+        r = getattr(e, "result", None)
+        row.update(outcome_of(getattr(r, "fit", None), str(e)))
+        if r is not None and sweep.get("self_intersections", True):
+            from .intersect import self_intersections
+            row["self_intersections"] = int(self_intersections(r.positions, r.faces))
     except _TimeLimit as e:
         row.update({"outcome": "failed", "reason": str(e)})
     except Exception as e:  # a bad sweep value, a file that cannot be read

@@ -36,19 +36,6 @@ fn trial_error(e: anyhow::Error) -> PyErr {
     TrialError::new_err(message(&e))
 }
 
-/// Moves a value into and out of `Python::detach`, whose closure must be
-/// `Send`: the closure runs on this same thread, only without the GIL.
-struct SameThread<T>(T);
-// SAFETY: `Python::detach` runs its closure on the calling thread; nothing
-// wrapped here is moved to or shared with another thread.
-unsafe impl<T> Send for SameThread<T> {}
-
-impl<T> SameThread<T> {
-    fn into_inner(self) -> T {
-        self.0
-    }
-}
-
 /// Calls `progress(phase, done, of)` with the GIL and checks for signals,
 /// at most every [`CADENCE_S`] seconds or when the phase changes; a Python
 /// error (a KeyboardInterrupt, the callback's own) is kept and stops the
@@ -141,7 +128,7 @@ fn caught<T>(f: impl FnOnce() -> anyhow::Result<T>) -> anyhow::Result<T> {
 
 /// A finished trial: its outcome, and the signal or callback error that
 /// stopped it, if any.
-#[pyclass(module = "garment_sim._native", unsendable)]
+#[pyclass(module = "garment_sim._native")]
 struct NativeTrial {
     trial: Trial,
     outcome: TrialOutcome,
@@ -182,12 +169,8 @@ impl NativeTrial {
 
     /// Writes every output file of the command line into `dir`.
     fn write(&self, py: Python<'_>, dir: PathBuf) -> PyResult<()> {
-        let me = SameThread(self);
-        py.detach(move || {
-            let me = me.into_inner();
-            me.outcome.write(&me.trial, &dir)
-        })
-        .map_err(trial_error)
+        py.detach(|| self.outcome.write(&self.trial, &dir))
+            .map_err(trial_error)
     }
 
     /// The failed step's error, as the command line prints it (with where
@@ -251,22 +234,21 @@ fn run_trial(
     };
     let mut rep = Reporter::new(progress);
     let ran = {
-        let rep = SameThread(&mut rep);
+        let rep = &mut rep;
         py.detach(move || {
-            let rep = rep.into_inner();
             caught(|| {
                 let t = load_trial(&path, text.as_deref())?;
                 let outcome = garment_sim::trial::run_trial(&t, &ov, &mut |s: &Step| {
                     rep.observe(s.phase.name(), s.done, s.of)
                 })?;
-                Ok(SameThread((t, outcome)))
+                Ok((t, outcome))
             })
         })
     };
     let interrupt = rep.pending.take();
     match ran {
         Ok(r) => {
-            let (trial, outcome) = r.into_inner();
+            let (trial, outcome) = r;
             Ok(NativeTrial {
                 trial,
                 outcome,
@@ -279,7 +261,7 @@ fn run_trial(
 }
 
 /// A finished drape of a scene, its outputs written.
-#[pyclass(module = "garment_sim._native", unsendable)]
+#[pyclass(module = "garment_sim._native")]
 struct NativeScene {
     summary: String,
     positions: Vec<[f64; 3]>,
@@ -364,11 +346,10 @@ fn run_scene(
     };
     let mut rep = Reporter::new(progress);
     let ran = {
-        let rep = SameThread(&mut rep);
+        let rep = &mut rep;
         py.detach(move || {
             caught(|| {
                 use anyhow::Context;
-                let rep = rep.into_inner();
                 ov.check()?;
                 let scene = match &text {
                     None => Scene::load(&path)?,
