@@ -56,9 +56,10 @@ def main():
         import pandas as pd
         t = pd.read_parquet(out / "results.parquet")
         busy = t["trial_wall_s"].sum()
+        cpu = t["trial_cpu_s"].sum()
         print(f"{w} worker(s): {args.trials} trials in {wall:.1f} s wall "
               f"({60 * args.trials / wall:.1f} trials/min, cluster start included); "
-              f"a trial {busy / len(t):.2f} s in its task; outcomes "
+              f"a trial {busy / len(t):.2f} s wall, {cpu / len(t):.2f} s CPU in its task; outcomes "
               f"{t['outcome'].value_counts().to_dict()}")
     x = sweep_file(args.out, args.instant, garment=str(args.out / "missing.garment.yaml"))
     for w in (1, 2):
@@ -68,6 +69,8 @@ def main():
         wall = time.monotonic() - t0
         print(f"{w} worker(s): {args.instant} instant (failing) trials in {wall:.1f} s wall: "
               f"{1e3 * wall / args.instant:.1f} ms a trial, cluster start included")
+    import os
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end")
     from dask.distributed import Client, LocalCluster, as_completed
     for w in (1, 2):
         t0 = time.monotonic()

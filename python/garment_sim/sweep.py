@@ -160,7 +160,7 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
     values = {k: str(Path(sweep["base"]) / v) if k in PATH_KEYS else v
               for k, v in spec["axes"].items()}
     base = values.get("trial", sweep["trial"])
-    t0 = time.monotonic()
+    t0, c0 = time.monotonic(), time.process_time()
     limit = sweep["time_limit_s"]
     try:
         doc = yaml.safe_load(Path(base).read_text())
@@ -200,6 +200,8 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
                     "reason": f"{type(e).__name__}: {e}",
                     "traceback": traceback.format_exc(limit=5)})
     row["trial_wall_s"] = time.monotonic() - t0
+    # the worker process's CPU time over the trial (its only task then)
+    row["trial_cpu_s"] = time.process_time() - c0
     row["attempts"] = len(list(d.glob(".start-*")))
     _write_once(done, json.dumps(row, indent=1, default=str))
     return json.loads(done.read_text())

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any, Dict, Iterable, List
 
 #: The columns every table has, first.
-FIRST = ["id", "outcome", "reason", "self_intersections", "attempts", "trial_wall_s", "dir"]
+FIRST = ["id", "outcome", "reason", "self_intersections", "attempts", "trial_wall_s",
+         "trial_cpu_s", "dir"]
 
 
 def flatten(fit: Dict[str, Any]) -> Dict[str, Any]:
