@@ -6,18 +6,17 @@
 //! crate, re-exported here as [`fabric`] (KES data → laws), [`cloth`] (the
 //! warp/weft grid), [`collision`] (obstacles) and [`solver`] (forces,
 //! Jacobians, implicit step); it reads no files. Above it: [`io`] reads
-//! fabric files, KES curves and OBJ meshes, [`motion`] body motions (mesh
-//! sequences, glTF skinned animations), [`scene`] builds a simulation
-//! from YAML; [`run`] writes shapes, curves and summaries, [`system_file`] a
-//! step's linear system for solvers outside it; [`capture`] reads
-//! and writes motion captures (C3D, CSV), [`lab`] runs the thesis
-//! experiments, [`plot`] draws their curves as PNG and [`render`] pictures
-//! of a drape; [`msgs`] are the ROS 2 messages (types, schemas, built from a
-//! simulation) that [`bag`] records as rosbag2 bags, [`ros`] (the ROS 2
-//! node) publishes and [`live`] serves to Foxglove over its WebSocket
-//! protocol. [`pattern`] reads garments (GarmentCode patterns and garment
-//! files) that [`garment`] cuts and sews, and [`trial`] drapes on a body;
-//! [`body_forces`] are the garment's force and pressure on that body.
+//! fabric files, KES curves and OBJ meshes; [`scene`] builds a simulation
+//! from YAML, runs it headless and writes its outputs (with body motions
+//! and a step's linear system); [`trial`] runs a garment trial (patterns,
+//! sewing, drape, dressing, the fit and the forces on the body) through one
+//! run interface ([`trial::run_trial`]); [`lab`] runs the thesis'
+//! experiments and [`capture`] reads and writes motion captures;
+//! [`pictures`] draws drapes, fields and curves (PNG) and trials as glTF;
+//! [`msgs`] are the ROS 2 messages that [`bag`] records as rosbag2 bags,
+//! [`ros`] (the ROS 2 node) publishes and [`live`] serves to Foxglove over
+//! its WebSocket protocol. The command line (`src/cli/`) parses, calls
+//! these and prints.
 
 pub use garment_core::{
     cloth, collision, deforming, fabric, garment, limits, self_contact, set, solver,

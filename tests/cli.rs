@@ -184,9 +184,9 @@ fn the_scene_file_sets_the_pcg_tolerance() {
 #[test]
 fn a_trial_takes_the_solver_and_tolerance_overrides() {
     use garment_sim::solver::LinearSolverKind;
-    use garment_sim::trial::{Trial, TrialOverrides};
+    use garment_sim::trial::{Overrides, Trial};
     let t = Trial::load(std::path::Path::new("config/trials/skirt_on_anny.yaml")).unwrap();
-    let coarse = TrialOverrides {
+    let coarse = Overrides {
         spacing: Some(0.02),
         ..Default::default()
     };
@@ -197,7 +197,7 @@ fn a_trial_takes_the_solver_and_tolerance_overrides() {
     );
     assert_eq!(sim.params().cg_tolerance, 1e-6);
     let (sim, _) = t
-        .build(&TrialOverrides {
+        .build(&Overrides {
             solver: Some(LinearSolverKind::Amg),
             cg_tolerance: Some(1e-3),
             ..coarse
@@ -205,6 +205,65 @@ fn a_trial_takes_the_solver_and_tolerance_overrides() {
         .unwrap();
     assert_eq!(sim.params().linear_solver, LinearSolverKind::Amg);
     assert_eq!(sim.params().cg_tolerance, 1e-3);
+}
+
+/// `drape` and `trial` take the same overrides (one type flattened into
+/// both); the ones a command cannot honour are refused, naming the flag and
+/// what to use instead, before anything runs; `--no-hysteresis` reaches a
+/// trial's step as it does a drape's.
+#[test]
+fn a_flag_a_command_cannot_honour_is_refused_naming_it() {
+    for (args, flag, instead) in [
+        (
+            &[
+                "trial",
+                "config/trials/skirt_on_anny.yaml",
+                "--duration",
+                "1",
+            ][..],
+            "--duration",
+            "--max-time",
+        ),
+        (
+            &[
+                "trial",
+                "config/trials/skirt_on_anny.yaml",
+                "--hinges",
+                "skewed",
+            ][..],
+            "--hinges",
+            "garment file",
+        ),
+        (
+            &["drape", "config/scenes/table_drape.yaml", "--max-time", "1"][..],
+            "--max-time",
+            "--duration",
+        ),
+    ] {
+        let o = support::garment_sim()
+            .args(args)
+            .args(["--out", "/nonexistent/never-written"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("{flag}: not for a")) && err.contains(instead),
+            "{args:?}: {err}"
+        );
+    }
+    use garment_sim::trial::{Overrides, Trial};
+    let t = Trial::load(std::path::Path::new("config/trials/skirt_on_anny.yaml")).unwrap();
+    let ov = Overrides {
+        spacing: Some(0.03),
+        ..Default::default()
+    };
+    assert!(t.build(&ov).unwrap().0.params().hysteresis);
+    let no = Overrides {
+        hysteresis: Some(false),
+        ..ov
+    };
+    assert!(!t.build(&no).unwrap().0.params().hysteresis);
 }
 
 #[test]

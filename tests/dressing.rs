@@ -8,7 +8,7 @@ use garment_sim::solver::Simulation;
 use garment_sim::trial::dressing::{
     self, project_on_polyline, Dressing, DressingReport, DressingRow,
 };
-use garment_sim::trial::{Phase, Trial, TrialOverrides};
+use garment_sim::trial::{Overrides, Phase, Trial};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -190,7 +190,7 @@ struct Dressed {
 
 /// Runs a dressing trial through the library's run interface;
 /// `on_step` after every dressing step. A failed step fails the test.
-fn dress(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn FnMut(&Simulation)) -> Dressed {
+fn dress(t: &Trial, ov: &Overrides, on_step: &mut dyn FnMut(&Simulation)) -> Dressed {
     let out = garment_sim::trial::run_trial(t, ov, &mut |s| {
         if s.phase == Phase::Dressing {
             on_step(s.sim);
@@ -212,7 +212,7 @@ fn dress(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn FnMut(&Simulation)) -
 /// Runs a dressing trial and asserts that no cloth vertex is inside the
 /// body (the test's own ray-parity check) after any step; `on_step` after
 /// every step.
-fn run_with_no_vertex_inside(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn FnMut()) -> Dressed {
+fn run_with_no_vertex_inside(t: &Trial, ov: &Overrides, on_step: &mut dyn FnMut()) -> Dressed {
     let (bv, bt) = t.body.local_triangles();
     let v: Vec<Vector3<f64>> = bv
         .iter()
@@ -243,7 +243,7 @@ fn run_with_no_vertex_inside(t: &Trial, ov: &TrialOverrides, on_step: &mut dyn F
 fn holding_the_cuff_runs_to_the_end_with_no_vertex_inside_the_body() {
     let path = root().join("config/trials/tshirt_dressing_cuff.yaml");
     let t = Trial::load(&path).unwrap();
-    let ov = TrialOverrides {
+    let ov = Overrides {
         threads: Some(1),
         ..Default::default()
     };
@@ -447,7 +447,7 @@ fn the_gripper_stops_when_the_garment_pulls_on_it_past_its_force_limit() {
     let mut t = Trial::load(&path).unwrap();
     let limit = 50.0;
     t.file.dressing.as_mut().unwrap().force_limit = Some(limit);
-    let ov = TrialOverrides {
+    let ov = Overrides {
         spacing: Some(0.02),
         threads: Some(1),
         ..Default::default()
@@ -510,7 +510,7 @@ fn the_shipped_dressing_holds_the_armhole_and_puts_the_sleeve_on_the_right_way_r
     let d = t.file.dressing.as_ref().unwrap();
     assert_eq!(d.grip, dressing::Grip::Armhole);
     assert_eq!(d.hand, dressing::Hand::Hull);
-    let ov = TrialOverrides {
+    let ov = Overrides {
         threads: Some(1),
         ..Default::default()
     };
@@ -603,8 +603,8 @@ fn the_shipped_dressing_holds_the_armhole_and_puts_the_sleeve_on_the_right_way_r
     the_command_writes_the_force_curve(&path, run.sim.params().dt);
 }
 
-/// Interrupted (SIGINT, as Ctrl-C) once the gripper has passed the first
-/// quarter of its path, the command still writes every output of the steps
+/// Interrupted (SIGINT, as Ctrl-C) 40 % of the way through the dressing
+/// (its progress line), past the first quarter of the gripper's path, the command still writes every output of the steps
 /// it took and says so: one CSV row per step, `fit.json`'s
 /// `stopped_early`, no picture of the stages not reached.
 #[test]
@@ -624,13 +624,25 @@ fn an_interrupted_dressing_writes_the_steps_it_took() {
         .spawn()
         .unwrap();
     let start = Instant::now();
-    while !out.join("dressing_1.png").exists() {
+    // the progress lines (stderr, not a terminal) say how far the dressing is
+    let reached = |pct: u32| {
+        let err = std::fs::read_to_string(out.join("stderr.txt")).unwrap_or_default();
+        err.lines().any(|l| {
+            l.starts_with("dressing: t = ")
+                && l.rsplit('(')
+                    .next()
+                    .and_then(|p| p.strip_suffix(" %)"))
+                    .and_then(|p| p.parse::<u32>().ok())
+                    .is_some_and(|p| p >= pct)
+        })
+    };
+    while !reached(40) {
         if let Some(status) = child.try_wait().unwrap() {
             panic!("the trial ended ({status}) before it could be interrupted");
         }
         assert!(
             start.elapsed() < Duration::from_secs(300),
-            "no dressing_1.png"
+            "the dressing did not reach 40 %"
         );
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -656,10 +668,44 @@ fn an_interrupted_dressing_writes_the_steps_it_took() {
     for f in [
         "dressing.png",
         "dressing_0.png",
+        "dressing_1.png",
         "garment.obj",
         "body_pressure.ply",
     ] {
         assert!(out.join(f).exists(), "{f}");
     }
     assert!(!out.join("dressing_4.png").exists());
+}
+
+/// `trial --max-time` on a dressing trial: the dressing ends that long after
+/// sewing (one row per step of it: 0.5 s at 5 ms is 100), the report says
+/// it was cut short and by what, stderr says so, and the outputs are
+/// written.
+#[test]
+fn max_time_cuts_a_dressing_short_after_sewing() {
+    let path = root().join("config/trials/tshirt_dressing.yaml");
+    let out = support::Scratch::new("dressing_max_time");
+    let run = support::garment_sim()
+        .arg("trial")
+        .arg(&path)
+        .arg("--out")
+        .arg(&*out)
+        .args(["--spacing", "0.03", "--threads", "1", "--max-time", "0.5"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    assert!(err.contains("cut short 0.5 s after sewing"), "{err}");
+    let fit: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("fit.json")).unwrap()).unwrap();
+    assert_eq!(fit["dressing"]["time_limit_s"].as_f64(), Some(0.5));
+    let dt = fit["dt_s"].as_f64().unwrap();
+    let dressed = fit["run"]["dressing_s"].as_f64().unwrap();
+    assert!((dressed - 0.5).abs() < 0.5 * dt, "dressed for {dressed} s");
+    let csv = std::fs::read_to_string(out.join("dressing.csv")).unwrap();
+    assert_eq!(csv.lines().count() - 1, (0.5 / dt).round() as usize);
+    assert_eq!(
+        fit["dressing"]["stopped_early"],
+        serde_json::Value::Bool(false)
+    );
 }

@@ -1098,7 +1098,7 @@ fn a_scene_obstacle_follows_its_frames() {
 /// where it is now (nor in the fit report, which measures against it).
 #[test]
 fn a_trial_body_with_a_motion_carries_the_garment() {
-    use garment_sim::trial::{self, Trial, TrialOverrides};
+    use garment_sim::trial::{self, Overrides, Trial};
     let dir = scratch("trial");
     std::fs::create_dir_all(dir.join("frames")).unwrap();
     let root = std::fs::canonicalize(".").unwrap();
@@ -1128,7 +1128,7 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
         let p = dir.join(name);
         std::fs::write(&p, format!("{head}{body}")).unwrap();
         let t = Trial::load(&p).unwrap();
-        let (mut sim, g) = t.build(&TrialOverrides::default()).unwrap();
+        let (mut sim, g) = t.build(&Overrides::default()).unwrap();
         let st = run_quietly(&mut sim, &t);
         let deepest = sim.obstacles()[0].deepest_inside(&sim.cloth.x);
         let z = sim.cloth.x.iter().map(|p| p.z).sum::<f64>() / sim.cloth.len() as f64;
@@ -1226,10 +1226,10 @@ fn the_shipped_motion_skins_as_blender_skins_it() {
 /// inside the body.
 #[test]
 fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
-    use garment_sim::trial::{self, Trial, TrialOverrides};
+    use garment_sim::trial::{self, Overrides, Trial};
     let run = |t: &Trial| {
         let (mut sim, g) = t
-            .build(&TrialOverrides {
+            .build(&Overrides {
                 spacing: Some(0.02),
                 threads: Some(1),
                 ..Default::default()
@@ -1424,7 +1424,7 @@ type TurnRun = (f64, f64, Vec<(f64, f64, f64)>, Option<(usize, f64)>);
 /// skirt vertex inside the body at the end. `alpha`: the fabric's
 /// mass-proportional damping, 1/s (negative), in place of its own.
 fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
-    use garment_sim::trial::{self, Trial, TrialOverrides};
+    use garment_sim::trial::{self, Overrides, Trial};
     let mut t = Trial::load(Path::new("config/trials/skirt_turn.yaml")).unwrap();
     t.file.settle.max_time = 1.0;
     if let Some(a) = alpha {
@@ -1433,7 +1433,7 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
         }
     }
     let (mut sim, _g) = t
-        .build(&TrialOverrides {
+        .build(&Overrides {
             spacing: Some(0.03),
             threads: Some(1),
             ..Default::default()

@@ -2,7 +2,8 @@
 # The whole test suite, on a fresh machine as on CI (.ci/run calls this): it
 # installs what the tests check against (the Python packages of
 # tests/requirements.txt and GarmentCode's pygarment, the Python package of
-# python/ built as a wheel, Foxglove's own decoders from npm, ROS 2 Jazzy's
+# python/ built as a wheel, Foxglove's own decoders and the Khronos glTF
+# validator from npm, ROS 2 Jazzy's
 # rclpy on Fast DDS from PyPI in a venv with garment_sim_msgs built for it),
 # builds the physics core on its own (the garment_core crate must build
 # without ROS, bags, the command line and PNG), then runs every test of the
@@ -18,6 +19,7 @@ CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$PWD/target}" python3 -m maturin build --r
     --manifest-path python/Cargo.toml --out target/wheels
 python3 -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/garment_sim-*.whl
 npm ci --prefix tests/foxglove --no-audit --no-fund --loglevel=error
+npm ci --prefix tests/gltf --no-audit --no-fund --loglevel=error
 bash tests/ros2_venv.sh
 cargo build --release -p garment_core
 forbidden=$(cargo tree -p garment_core -e normal --prefix none \

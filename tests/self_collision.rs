@@ -709,7 +709,7 @@ fn runs_are_bit_reproducible_with_two_threads() {
 
 #[test]
 fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
-    use garment_sim::trial::{self, Trial, TrialOverrides};
+    use garment_sim::trial::{self, Overrides, Trial};
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     for name in ["skirt_on_anny", "tshirt_on_anny"] {
         let t = Trial::load(&root.join(format!("config/trials/{name}.yaml"))).unwrap();
@@ -717,7 +717,7 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
         // says so; the T-shirt's not yet, docs/self_collision.md)
         assert_eq!(t.file.self_collision, name == "skirt_on_anny", "{name}");
         let (mut sim, _) = t
-            .build(&TrialOverrides {
+            .build(&Overrides {
                 spacing: Some(0.02),
                 self_collision: Some(true),
                 ..Default::default()
@@ -1047,10 +1047,10 @@ fn cloth_body_crossings(x: &[V], tris: &[[usize; 3]], bx: &[V], btris: &[[u32; 3
 /// without them the hand's fingers pass through the cloth.
 #[test]
 fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
-    use garment_sim::trial::{Trial, TrialOverrides};
+    use garment_sim::trial::{Overrides, Trial};
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let path = root.join("config/trials/tshirt_dressing_cuff.yaml");
-    let ov = TrialOverrides {
+    let ov = Overrides {
         spacing: Some(0.02),
         threads: Some(1),
         ..Default::default()

@@ -26,11 +26,11 @@ __all__ = ["run_trial", "run_scene", "TrialResult", "SceneResult", "TrialError",
 
 #: The keyword arguments of ``run_trial``: the command line's ``trial`` options.
 TRIAL_OVERRIDES = ("spacing", "dt", "max_time", "threads", "self_collision",
-                   "obstacle_edges", "cell_shear", "cg_tolerance", "solver")
+                   "obstacle_edges", "cell_shear", "cg_tolerance", "solver", "hysteresis")
 #: The keyword arguments of ``run_scene``: the command line's ``drape`` options.
 SCENE_OVERRIDES = ("spacing", "dt", "duration", "threads", "self_collision",
                    "obstacle_edges", "cell_shear", "cg_tolerance", "solver",
-                   "hysteresis")
+                   "hysteresis", "hinges")
 
 Progress = Callable[[str, float, float], Any]
 PathLike = Union[str, "os.PathLike[str]"]
@@ -108,7 +108,8 @@ def run_trial(trial: Union[PathLike, Mapping[str, Any]], out: Optional[PathLike]
     ``overrides``: the command line's options, ``spacing`` (m), ``dt`` (s),
     ``max_time`` (s), ``threads``, ``self_collision``, ``obstacle_edges``,
     ``cell_shear``, ``cg_tolerance``, ``solver`` (``"auto"``, ``"pcg"``,
-    ``"sgs"``, ``"amg"``, ``"cholesky"``).
+    ``"sgs"``, ``"amg"``, ``"cholesky"``), ``hysteresis`` (False: the laws'
+    hysteretic parts off, as ``--no-hysteresis``).
 
     The GIL is released while the simulation steps. Ctrl-C stops the run
     cleanly: the outputs of the steps taken are written to ``out`` and
@@ -170,7 +171,8 @@ def run_scene(scene: Union[PathLike, Mapping[str, Any]], out: Optional[PathLike]
     ``progress(phase, done, of)`` with phase ``"drape"`` and simulated time
     ``done`` of ``of`` s; ``overrides``: ``spacing``, ``dt``, ``duration``,
     ``threads``, ``self_collision``, ``obstacle_edges``, ``cell_shear``,
-    ``cg_tolerance``, ``solver``, ``hysteresis``. Errors and Ctrl-C as for
+    ``cg_tolerance``, ``solver``, ``hysteresis``, ``hinges`` (``"skewed"`` or
+    ``"mirror_symmetric"``). Errors and Ctrl-C as for
     ``run_trial``.
     """
     ov = _check("run_scene", overrides, SCENE_OVERRIDES)

@@ -60,6 +60,7 @@ def run_trial(
     cell_shear: Optional[bool] = None,
     cg_tolerance: Optional[float] = None,
     solver: Optional[str] = None,
+    hysteresis: Optional[bool] = None,
 ) -> TrialResult:
     """Sews a garment onto a body and drapes it, as ``garment_sim trial``."""
 
@@ -79,5 +80,6 @@ def run_scene(
     cg_tolerance: Optional[float] = None,
     solver: Optional[str] = None,
     hysteresis: Optional[bool] = None,
+    hinges: Optional[str] = None,
 ) -> SceneResult:
     """Drapes a scene, as ``garment_sim drape``."""

@@ -9,7 +9,8 @@
 use garment_sim::scene::run::Control;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
-use garment_sim::trial::{Step, Trial, TrialOutcome, TrialOverrides};
+use garment_sim::trial::pattern::HingesFile;
+use garment_sim::trial::{Step, Trial, TrialOutcome};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
@@ -204,7 +205,7 @@ impl NativeTrial {
 #[pyfunction]
 #[pyo3(signature = (path, text=None, progress=None, spacing=None, dt=None, max_time=None,
     threads=None, self_collision=None, obstacle_edges=None, cell_shear=None,
-    cg_tolerance=None, solver=None))]
+    cg_tolerance=None, solver=None, hysteresis=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_trial(
     py: Python<'_>,
@@ -220,8 +221,9 @@ fn run_trial(
     cell_shear: Option<bool>,
     cg_tolerance: Option<f64>,
     solver: Option<String>,
+    hysteresis: Option<bool>,
 ) -> PyResult<NativeTrial> {
-    let ov = TrialOverrides {
+    let ov = Overrides {
         spacing,
         dt,
         max_time,
@@ -231,6 +233,9 @@ fn run_trial(
         cell_shear,
         cg_tolerance,
         solver: solver_kind(solver.as_deref())?,
+        hysteresis,
+        duration: None,
+        hinges: None,
     };
     let mut rep = Reporter::new(progress);
     let ran = {
@@ -312,7 +317,7 @@ impl NativeScene {
 #[pyfunction]
 #[pyo3(signature = (path, out, text=None, progress=None, spacing=None, dt=None, duration=None,
     threads=None, self_collision=None, obstacle_edges=None, cell_shear=None,
-    cg_tolerance=None, solver=None, hysteresis=None))]
+    cg_tolerance=None, solver=None, hysteresis=None, hinges=None))]
 #[allow(clippy::too_many_arguments)]
 fn run_scene(
     py: Python<'_>,
@@ -330,7 +335,15 @@ fn run_scene(
     cg_tolerance: Option<f64>,
     solver: Option<String>,
     hysteresis: Option<bool>,
+    hinges: Option<String>,
 ) -> PyResult<NativeScene> {
+    let hinges = hinges
+        .map(|h| {
+            serde_yaml::from_str::<HingesFile>(&h).map_err(|_| {
+                TrialError::new_err(format!("hinges: {h:?}: skewed or mirror_symmetric"))
+            })
+        })
+        .transpose()?;
     let ov = Overrides {
         spacing,
         dt,
@@ -342,7 +355,8 @@ fn run_scene(
         self_collision,
         obstacle_edges,
         cell_shear,
-        hinges: None,
+        hinges,
+        max_time: None,
     };
     let mut rep = Reporter::new(progress);
     let ran = {

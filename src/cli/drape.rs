@@ -6,8 +6,6 @@ use anyhow::Result;
 use garment_sim::scene::run;
 use garment_sim::scene::system_file::SystemWriter;
 use garment_sim::scene::{Overrides, Scene};
-use garment_sim::solver::LinearSolverKind;
-use garment_sim::trial::pattern::HingesFile;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -17,51 +15,8 @@ pub struct DrapeArgs {
     /// Output directory.
     #[arg(long, default_value = "out")]
     pub out: PathBuf,
-    /// Grid spacing (both directions), m.
-    #[arg(long, allow_negative_numbers = true)]
-    pub spacing: Option<f64>,
-    /// Fixed time step, s.
-    #[arg(long, allow_negative_numbers = true)]
-    pub dt: Option<f64>,
-    /// Simulated duration, s.
-    #[arg(long, allow_negative_numbers = true)]
-    pub duration: Option<f64>,
-    /// Linear solver: auto (default: the block-Jacobi PCG while it converges in fewer
-    /// iterations than the break-even count, else a single-precision Cholesky factor as
-    /// the PCG's preconditioner), pcg (block-Jacobi), sgs (PCG with symmetric block
-    /// Gauss–Seidel), amg (PCG with smoothed-aggregation multigrid) or cholesky (exact,
-    /// double precision).
-    #[arg(long)]
-    pub solver: Option<LinearSolverKind>,
-    /// Turn the hysteretic parts of the laws off.
-    #[arg(long)]
-    pub no_hysteresis: bool,
-    /// Relative tolerance of the PCG, in (0, 1).
-    #[arg(long, allow_negative_numbers = true)]
-    pub cg_tolerance: Option<f64>,
-    /// Threads of the assembly, the PCG and the contacts (default: one per core
-    /// from 500 vertices; 1 for one core).
-    #[arg(long)]
-    pub threads: Option<usize>,
-    /// Keep the cloth from passing through itself, on or off (default: the
-    /// scene file's `self_collision`, off when absent).
-    #[arg(long)]
-    pub self_collision: Option<bool>,
-    /// The triangle-mesh obstacles' vertices and edges meet the cloth's
-    /// triangles and edges too, true or false (default: the scene file's
-    /// `obstacle_edges`, off when absent; docs/self_collision.md).
-    #[arg(long)]
-    pub obstacle_edges: Option<bool>,
-    /// Each cell's shear from both its diagonals, with the egg-crate guards,
-    /// true or false (default: the scene file's `cell_shear`, off when
-    /// absent; docs/lab.md).
-    #[arg(long)]
-    pub cell_shear: Option<bool>,
-    /// The bending hinges: skewed (one per grid edge) or mirror_symmetric
-    /// (pairs that bend alike in every direction) (default: the scene
-    /// file's `cloth.hinges`, skewed when absent; docs/drape.md).
-    #[arg(long)]
-    pub hinges: Option<HingesFile>,
+    #[command(flatten)]
+    pub ov: Overrides,
     /// Write the linear system of these steps (indices from 0, comma-separated) into
     /// OUT/system-STEP/: the matrix and right-hand side in Matrix Market, the constraint
     /// filter, the solve's first guess and answer per vertex in CSV (docs/benchmarks.md).
@@ -169,35 +124,12 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
     let DrapeArgs {
         scene,
         out,
-        spacing,
-        dt,
-        duration,
-        solver,
-        no_hysteresis,
-        cg_tolerance,
-        threads,
-        self_collision,
-        obstacle_edges,
-        cell_shear,
-        hinges,
+        ov,
         write_system,
         bag,
         live,
     } = a;
     let sc = Scene::load(&scene)?;
-    let ov = Overrides {
-        spacing,
-        dt,
-        duration,
-        solver,
-        hysteresis: if no_hysteresis { Some(false) } else { None },
-        cg_tolerance,
-        threads,
-        self_collision,
-        obstacle_edges,
-        cell_shear,
-        hinges,
-    };
     let view = live
         .foxglove
         .map(|a| start_live_view(a, &live))

@@ -804,7 +804,7 @@ fn scene_size(pts: &[V3]) -> f64 {
 }
 
 /// The colour of `t` ∈ [0, 1] on the strain map (clamped).
-fn colour_map(t: f64) -> Rgb {
+pub fn colour_map(t: f64) -> Rgb {
     let t = if t.is_finite() {
         t.clamp(0.0, 1.0)
     } else {

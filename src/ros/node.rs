@@ -160,17 +160,7 @@ fn load(s: &Settings) -> Result<Loaded> {
         // a garment trial: sewn onto its body before the first step
         let t = crate::trial::Trial::load(&path)?;
         let ov = s.overrides()?;
-        let (sim, g) = t.sewn(&crate::trial::TrialOverrides {
-            spacing: ov.spacing,
-            dt: ov.dt,
-            threads: ov.threads,
-            max_time: None,
-            self_collision: ov.self_collision,
-            obstacle_edges: ov.obstacle_edges,
-            cell_shear: ov.cell_shear,
-            cg_tolerance: ov.cg_tolerance,
-            solver: ov.solver,
-        })?;
+        let (sim, g) = t.sewn(&ov)?;
         let registry = ObstacleRegistry::from_sim(&sim);
         let description = t.description(&g, &sim)?;
         return Ok(Loaded {

@@ -3,8 +3,11 @@
 //! Errors name the file, the field and what is wrong.
 
 pub mod motion;
+mod overrides;
 pub mod run;
 pub mod system_file;
+
+pub use overrides::Overrides;
 
 use crate::cloth::{Cloth, GridSpec, PanelSpec};
 use crate::collision::{
@@ -389,52 +392,6 @@ pub struct Scene {
     pub fabric: Fabric,
 }
 
-/// Command-line overrides (SI: m, s).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct Overrides {
-    pub spacing: Option<f64>,
-    pub dt: Option<f64>,
-    pub duration: Option<f64>,
-    pub solver: Option<LinearSolverKind>,
-    pub hysteresis: Option<bool>,
-    pub cg_tolerance: Option<f64>,
-    /// Threads of the assembly and the PCG (0 or none: one per core for
-    /// large cloths).
-    pub threads: Option<usize>,
-    /// Self-collision on or off, whatever the scene file says.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub self_collision: Option<bool>,
-    /// The obstacles' edge contacts on or off, whatever the scene file says.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub obstacle_edges: Option<bool>,
-    /// The cells' shear measure on or off, whatever the scene file says.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cell_shear: Option<bool>,
-    /// The hinge layout, whatever the scene file says.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hinges: Option<HingesFile>,
-}
-
-impl Overrides {
-    /// Each value checked as the scene file's field it replaces (the
-    /// command line's `--spacing`, `--dt`, `--duration`, `--cg-tolerance`).
-    pub fn check(&self) -> Result<()> {
-        if let Some(s) = self.spacing {
-            limits::check_positive("--spacing", s, "m")?;
-        }
-        if let Some(dt) = self.dt {
-            limits::check_dt("--dt", dt)?;
-        }
-        if let Some(d) = self.duration {
-            limits::check_duration("--duration", d)?;
-        }
-        if let Some(t) = self.cg_tolerance {
-            limits::check_cg_tolerance("--cg-tolerance", t)?;
-        }
-        Ok(())
-    }
-}
-
 impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path)
@@ -548,6 +505,7 @@ impl Scene {
     /// Builds the simulation (applying command-line overrides).
     pub fn build(&self, ov: &Overrides) -> Result<Simulation> {
         ov.check()?;
+        ov.check_for_scene()?;
         let f = &self.file;
         let base = self
             .path
@@ -652,25 +610,19 @@ impl Scene {
                 .with_context(|| format!("obstacles[{k}]"))
                 .with_context(ctx)?;
         }
-        let params = Params {
-            dt: ov.dt.unwrap_or(f.dt),
+        let params = ov.apply(Params {
+            dt: f.dt,
             gravity: Vector3::from(f.gravity),
-            linear_solver: ov.solver.or(f.solver).unwrap_or_default(),
+            linear_solver: f.solver.unwrap_or_default(),
             cloth_thickness: f.cloth.thickness,
-            hysteresis: ov.hysteresis.unwrap_or(f.cloth.hysteresis),
-            self_collision: ov.self_collision.unwrap_or(f.self_collision),
-            obstacle_edges: ov.obstacle_edges.unwrap_or(f.obstacle_edges),
-            cell_shear: ov.cell_shear.unwrap_or(f.cell_shear),
+            hysteresis: f.cloth.hysteresis,
+            self_collision: f.self_collision,
+            obstacle_edges: f.obstacle_edges,
+            cell_shear: f.cell_shear,
+            cg_tolerance: f.cg_tolerance.unwrap_or(Params::default().cg_tolerance),
+            threads: 0,
             ..Params::default()
-        };
-        let params = Params {
-            cg_tolerance: ov
-                .cg_tolerance
-                .or(f.cg_tolerance)
-                .unwrap_or(params.cg_tolerance),
-            threads: ov.threads.unwrap_or(0),
-            ..params
-        };
+        });
         let mut pins = Vec::new();
         for (k, p) in f.pins.iter().enumerate() {
             let vertex = match (p.grid, p.vertex) {

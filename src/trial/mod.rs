@@ -28,6 +28,7 @@ pub use run::{
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
 use crate::garment::Garment;
+pub use crate::scene::Overrides;
 use crate::scene::PoseSpec;
 use crate::set::Handle;
 use crate::solver::{LinearSolverKind, Params, Simulation};
@@ -234,25 +235,6 @@ pub struct Trial {
     pub body: Obstacle,
 }
 
-/// Command-line overrides.
-#[derive(Debug, Clone, Default)]
-pub struct TrialOverrides {
-    pub spacing: Option<f64>,
-    pub dt: Option<f64>,
-    pub max_time: Option<f64>,
-    pub threads: Option<usize>,
-    /// Keep the cloth from passing through itself (docs/self_collision.md).
-    pub self_collision: Option<bool>,
-    /// The body's vertices and edges meet the garment's triangles and edges.
-    pub obstacle_edges: Option<bool>,
-    /// The cells' shear measure with the egg-crate guards.
-    pub cell_shear: Option<bool>,
-    /// The PCG's relative tolerance.
-    pub cg_tolerance: Option<f64>,
-    /// The linear solver, whatever the trial file's `linear_solver` says.
-    pub solver: Option<LinearSolverKind>,
-}
-
 /// What the body mesh check found and repaired.
 #[derive(Debug, Clone, Default, Serialize)]
 pub struct BodyCheck {
@@ -444,7 +426,8 @@ impl Trial {
     }
 
     /// Cuts and sews the garment and places it with the body.
-    pub fn build(&self, ov: &TrialOverrides) -> Result<(Simulation, Garment)> {
+    pub fn build(&self, ov: &Overrides) -> Result<(Simulation, Garment)> {
+        ov.check_for_trial()?;
         let spacing = ov.spacing.unwrap_or(self.file.spacing);
         crate::limits::check_range(
             "spacing",
@@ -454,13 +437,21 @@ impl Trial {
             "m",
             "a garment grid of 2 mm to 10 cm",
         )?;
-        let dt = ov.dt.unwrap_or(self.file.dt);
-        crate::limits::check_dt("dt", dt)?;
+        let params = ov.apply(Params {
+            dt: self.file.dt,
+            linear_solver: self.file.linear_solver.unwrap_or_default(),
+            threads: self.file.threads.unwrap_or(0),
+            cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
+            friction_bound_now: true,
+            self_collision: self.file.self_collision,
+            obstacle_edges: self.file.obstacle_edges,
+            cell_shear: self.file.cell_shear,
+            cg_tolerance: (self.file.cg_tolerance).unwrap_or(Params::default().cg_tolerance),
+            ..Params::default()
+        });
+        crate::limits::check_dt("dt", params.dt)?;
         // checked before the garment is cut, as dt is (the simulation checks both again)
-        let cg_tolerance = ov.cg_tolerance.or(self.file.cg_tolerance);
-        if let Some(t) = cg_tolerance {
-            crate::limits::check_cg_tolerance("cg_tolerance", t)?;
-        }
+        crate::limits::check_cg_tolerance("cg_tolerance", params.cg_tolerance)?;
         let masses: Vec<f64> = self.fabrics.iter().map(|f| f.areal_mass).collect();
         let g = Garment::build_with_fabrics(
             &self.garment.cuts,
@@ -475,18 +466,6 @@ impl Trial {
         let mut g = g;
         g.bring_out(&self.body)
             .with_context(|| format!("garment {}", self.garment.source.display()))?;
-        let params = Params {
-            dt,
-            linear_solver: ov.solver.or(self.file.linear_solver).unwrap_or_default(),
-            threads: ov.threads.or(self.file.threads).unwrap_or(0),
-            cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
-            friction_bound_now: true,
-            self_collision: ov.self_collision.unwrap_or(self.file.self_collision),
-            obstacle_edges: ov.obstacle_edges.unwrap_or(self.file.obstacle_edges),
-            cell_shear: ov.cell_shear.unwrap_or(self.file.cell_shear),
-            cg_tolerance: cg_tolerance.unwrap_or(Params::default().cg_tolerance),
-            ..Params::default()
-        };
         let mut sim = Simulation::with_fabrics(g.cloth.clone(), self.fabrics.clone(), params)?;
         sim.add_obstacle(self.body.clone());
         Ok((sim, g))
@@ -568,7 +547,7 @@ impl Trial {
 
     /// Builds the trial and runs its sewing phase: the garment on the body,
     /// sewn, gravity on, ready to drape (the node's scene).
-    pub fn sewn(&self, ov: &TrialOverrides) -> Result<(Simulation, Garment)> {
+    pub fn sewn(&self, ov: &Overrides) -> Result<(Simulation, Garment)> {
         let (mut sim, g) = self.build(ov)?;
         run(
             &mut sim,

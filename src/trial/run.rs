@@ -8,11 +8,12 @@ use super::body_forces::{self, BodyPressure, Wrench};
 use super::dressing::{self, Dressing, DressingReport, DressingRow};
 use super::{
     body_handle, body_now, fit, write_body_ply, write_obj, write_ply, write_trace, write_wrench,
-    Fit, PhaseCost, RunStats, SettleFile, SewingFile, Trial, TrialOverrides, VertexFit,
+    Fit, Overrides, PhaseCost, RunStats, SettleFile, SewingFile, Trial, VertexFit,
     STANDARD_GRAVITY,
 };
 use crate::collision::Obstacle;
 use crate::garment::Garment;
+use crate::pictures::glb::{write_glb, GlbScene};
 use crate::pictures::render::{full_scale, FieldPicture, Picture, Surface};
 use crate::scene::run::Control;
 use crate::set::Handle;
@@ -575,7 +576,7 @@ pub struct TrialOutcome {
 /// Builds a trial, runs it and measures its fit. A step that fails ends the
 /// run with what was done before it ([`TrialOutcome::error`]); a bad file or
 /// setting is an error at once.
-pub fn run_trial(t: &Trial, ov: &TrialOverrides, observe: Observe) -> Result<TrialOutcome> {
+pub fn run_trial(t: &Trial, ov: &Overrides, observe: Observe) -> Result<TrialOutcome> {
     let (sim, g) = t.build(ov)?;
     run_built(t, ov, sim, g, observe)
 }
@@ -585,7 +586,7 @@ pub fn run_trial(t: &Trial, ov: &TrialOverrides, observe: Observe) -> Result<Tri
 /// captures).
 pub fn run_built(
     t: &Trial,
-    ov: &TrialOverrides,
+    ov: &Overrides,
     mut sim: Simulation,
     g: Garment,
     observe: Observe,
@@ -638,7 +639,7 @@ struct Dressed {
 /// path). The run's figures, the dressing's report and record.
 fn dress(
     t: &Trial,
-    ov: &TrialOverrides,
+    ov: &Overrides,
     sim: &mut Simulation,
     g: &Garment,
     body: Handle<Obstacle>,
@@ -742,6 +743,7 @@ impl TrialOutcome {
 
     /// Writes the outputs into `dir` (made if need be): `garment.obj`,
     /// `garment.ply` (per-vertex stretch and pressure), `fit.json`,
+    /// `trial.glb` (the run as a glTF scene),
     /// `body_pressure.ply`; a trial that drapes `trial.csv`,
     /// `body_wrench.csv`, `fit_strain.png` and `fit_pressure.png`; a dressing
     /// `dressing.csv`, `dressing.png` and `dressing_0.png` … `dressing_4.png`.
@@ -765,6 +767,7 @@ impl TrialOutcome {
         write_ply(sim, &self.vertex_fit, &dir.join("garment.ply"))?;
         let json = serde_json::to_string_pretty(fit)?;
         crate::io::write_atomic(&dir.join("fit.json"), |w| w.write_all(json.as_bytes()))?;
+        self.write_glb(t, dir)?;
         match &self.dressing {
             None => self.write_pictures(t, dir),
             Some(d) => {
@@ -775,6 +778,26 @@ impl TrialOutcome {
                 Ok(())
             }
         }
+    }
+
+    /// `trial.glb`: the body as it ended and the garment over the run,
+    /// coloured by its stretch on `fit_strain.png`'s scale.
+    fn write_glb(&self, t: &Trial, dir: &Path) -> Result<()> {
+        let body = Surface::from_obstacle(body_now(&self.sim, t));
+        let body_triangles: Vec<[u32; 3]> = (body.triangles.iter())
+            .map(|f| f.map(|k| k as u32))
+            .collect();
+        let stretch = &self.vertex_fit.stretch;
+        let scene = GlbScene {
+            body_vertices: &body.vertices,
+            body_triangles: &body_triangles,
+            garment_triangles: &self.sim.cloth.triangles,
+            frames: &self.frames.frames,
+            stretch,
+            stretch_full: full_scale(stretch, 0.001),
+            name: &t.garment.name,
+        };
+        write_glb(&scene, &dir.join("trial.glb"))
     }
 
     /// `fit_strain.png` and `fit_pressure.png`: the garment on the body,
