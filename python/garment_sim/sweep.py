@@ -10,6 +10,7 @@ A sweep file (YAML)::
     time_limit_s: 600        # wall time of one trial (default 3600)
     memory_limit: 4GiB       # per worker of the local cluster (default: Dask's share)
     retries: 0               # a trial's reruns after an exception (default 0)
+    self_intersections: true # the table's self_intersections column (default true)
 
 Paths in the sweep file (``trial``, and the values of the axes ``trial``,
 ``garment``, ``fabric``, ``body.obj``) are relative to the sweep file; the
