@@ -6,7 +6,7 @@ use garment_sim::cloth::{Border, HingeLayout};
 use garment_sim::fabric::Fabric;
 use garment_sim::garment::{Garment, PanelCut, SeamSpec};
 use garment_sim::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
-use garment_sim::trial::{self, SettleFile, SewingFile};
+use garment_sim::trial::{self, SettleFile, SewingFile, Trial};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use std::path::{Path, PathBuf};
 
@@ -1349,4 +1349,57 @@ fn a_garment_too_small_for_the_body_is_reported_not_silent() {
         "{w:?}"
     );
     assert!(err.contains("warning: "), "{err}");
+}
+
+/// The shipped skirt's pattern shrunk 20 % (every panel's outline scaled by
+/// 0.8 about its own origin, placed as before) on the same body, at 2 cm:
+/// the run goes its course, and the outcome is not "settled" but says the
+/// pattern is too small for the body, at which girth (the garment's section
+/// shorter than the body's) and which panel is stretched past its fabric's
+/// range where, on stderr's outcome line and in `fit.json`; the shipped
+/// pattern itself ends settled with no reason.
+#[test]
+fn a_pattern_shrunk_20_percent_is_named_too_small_not_settled() {
+    use garment_sim::scene::run::Control;
+    use garment_sim::trial::outcome::Status;
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/trials/skirt_on_anny.yaml");
+    let ov = garment_sim::trial::Overrides {
+        spacing: Some(0.02),
+        ..Default::default()
+    };
+    let t = Trial::load(&path).unwrap();
+    let run = |t: &Trial| {
+        let out = trial::run_trial(t, &ov, &mut |_| Control::Continue).unwrap();
+        let o = out.fit.outcome.clone().expect("an outcome");
+        eprintln!("{}", o.line());
+        (o, out.warnings())
+    };
+    let (fits, _) = run(&t);
+    assert_eq!(fits.status, Status::Settled, "{fits:?}");
+    assert!(fits.reasons.is_empty());
+    let mut small = t.clone();
+    for cut in &mut small.garment.cuts {
+        for e in &mut cut.edges {
+            for p in e.iter_mut() {
+                *p = [0.8 * p[0], 0.8 * p[1]];
+            }
+        }
+    }
+    let (o, stderr) = run(&small);
+    assert_eq!(o.status, Status::NotSettled, "{o:?}");
+    // named where: a girth, and a panel with a place on it
+    assert!(
+        (o.reasons.iter()).any(|r| r.starts_with("the pattern is too small for the body at the ")),
+        "{o:?}"
+    );
+    assert!(
+        o.reasons
+            .iter()
+            .any(|r| r.contains("too small for the body there")
+                && r.contains("panel \"skirt_")
+                && r.contains("near (")),
+        "{o:?}"
+    );
+    assert!(stderr.iter().any(|l| l.starts_with("outcome: not_settled")));
 }

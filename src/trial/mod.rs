@@ -17,6 +17,7 @@
 
 pub mod body_forces;
 pub mod dressing;
+pub mod outcome;
 pub mod pattern;
 pub mod run;
 mod summary;
@@ -710,6 +711,10 @@ pub struct Fit {
     /// [`OVERSTRETCH`], a seam open beyond 2 mm, cloth inside the body, a
     /// garment that did not settle.
     pub warnings: Vec<String>,
+    /// How the trial ended (settled, or why not); set by the run
+    /// ([`run_trial`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub outcome: Option<outcome::Outcome>,
     pub run: RunStats,
 }
 
@@ -1134,6 +1139,7 @@ pub fn fit(
         largest_seam_gap_mm: 1e3 * gap,
         largest_seam_gap_at: at.map(|k| trial.garment.seam_names[k].clone()),
         warnings,
+        outcome: None,
         run,
     };
     (fit, vf, on_body)

@@ -618,6 +618,7 @@ pub fn run_built(
     frames.finish(&sim);
     let (mut fit, vertex_fit, body_pressure) = fit(&sim, &g, t, stats);
     fit.dressing = dressing.as_ref().map(|d| d.report.clone());
+    fit.outcome = Some(super::outcome::outcome(t, &sim, &g, &vertex_fit, &fit));
     Ok(TrialOutcome {
         fit,
         sim,

@@ -14,8 +14,8 @@ impl TrialOutcome {
         }
     }
 
-    /// What the run warns of (stderr): the fit's warnings, a run stopped
-    /// before its end.
+    /// What the run warns of (stderr): the fit's warnings, its outcome, a
+    /// run stopped before its end.
     pub fn warnings(&self) -> Vec<String> {
         let mut w: Vec<String> = self
             .fit
@@ -23,6 +23,7 @@ impl TrialOutcome {
             .iter()
             .map(|w| format!("warning: {w}"))
             .collect();
+        w.extend(self.fit.outcome.as_ref().map(|o| o.line()));
         if let (Some(r), Some(d)) = (&self.fit.dressing, &self.dressing) {
             if r.stopped_early {
                 let run = &d.dressing;
