@@ -232,6 +232,8 @@ def test_sweep_table_failures_and_resume():
         else:
             assert row["outcome"] in ("settled", "not_settled"), row["reason"]
             fit = json.loads((Path(row["dir"]) / "outputs/fit.json").read_text())
+            assert row["outcome"] == fit["outcome"]["status"]
+            assert row["reason"] == "; ".join(fit["outcome"]["reasons"])
             assert row["run.steps"] == fit["run"]["steps"] == 240
             assert row["weight_n"] == fit["weight_n"]
             assert row["spacing_m"] == row["overrides.spacing"]

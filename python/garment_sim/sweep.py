@@ -209,12 +209,19 @@ def run_one(sweep: Dict[str, Any], spec: Dict[str, Any], out: str) -> Dict[str, 
 
 
 def outcome_of(fit: Optional[Dict[str, Any]], error: Optional[str]) -> Dict[str, Any]:
-    """The outcome (settled / not_settled / failed) and its reason."""
+    """The outcome and its reason: fit.json's ``outcome`` (settled /
+    not_settled / dressed / failed / stopped, its reasons joined by "; "),
+    or failed with the error."""
     if error is not None:
         row: Dict[str, Any] = {"outcome": "failed", "reason": error}
         if fit is not None:
             row["fit"] = fit
         return row
+    verdict = fit.get("outcome")
+    if isinstance(verdict, dict) and verdict.get("status"):
+        # the library's own verdict (fit.json's outcome) and its reasons
+        reasons = verdict.get("reasons") or []
+        return {"outcome": verdict["status"], "reason": "; ".join(reasons)}
     run = fit["run"]
     if run.get("settle_time_s") is not None:
         return {"outcome": "settled",
