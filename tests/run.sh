@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite, on a fresh machine as on CI (.ci/run calls this): it
 # installs what the tests check against (the Python packages of
-# tests/requirements.txt and GarmentCode's pygarment, Foxglove's own decoders and the Khronos glTF
+# tests/requirements.txt and GarmentCode's pygarment, the Python package of
+# python/ built as a wheel, Foxglove's own decoders and the Khronos glTF
 # validator from npm, ROS 2 Jazzy's
 # rclpy on Fast DDS from PyPI in a venv with garment_sim_msgs built for it),
 # builds the physics core on its own (the garment_core crate must build
@@ -12,6 +13,11 @@ cd "$(dirname "$0")/.."
 python3 -m pip install --quiet --disable-pip-version-check -r tests/requirements.txt
 # GarmentCode's pygarment, without the meshing and GUI stack it pins
 python3 -m pip install --quiet --disable-pip-version-check --no-deps pygarment==2.0.2
+# the Python package (python/, an abi3 wheel built by maturin with the workspace's target dir)
+rm -rf target/wheels
+CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$PWD/target}" python3 -m maturin build --release \
+    --manifest-path python/Cargo.toml --out target/wheels
+python3 -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps target/wheels/garment_sim-*.whl
 npm ci --prefix tests/foxglove --no-audit --no-fund --loglevel=error
 npm ci --prefix tests/gltf --no-audit --no-fund --loglevel=error
 bash tests/ros2_venv.sh
