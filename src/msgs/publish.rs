@@ -7,23 +7,7 @@
 use super::*;
 use crate::solver::Simulation;
 
-/// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
-/// tension springs at the vertex (positive: stretched).
-pub fn vertex_strain(sim: &Simulation) -> Vec<f64> {
-    let x = &sim.cloth.x;
-    let mut s = vec![f64::NEG_INFINITY; x.len()];
-    for sp in &sim.cloth.tension {
-        let e = (x[sp.a] - x[sp.b]).norm() / sp.l0 - 1.0;
-        s[sp.a] = s[sp.a].max(e);
-        s[sp.b] = s[sp.b].max(e);
-    }
-    s.iter_mut().for_each(|v| {
-        if !v.is_finite() {
-            *v = 0.0
-        }
-    });
-    s
-}
+pub use crate::pictures::render::vertex_strain;
 
 /// Fields of `cloth/points`: x, y, z (m), strain (1), speed (m/s), all float32.
 pub const CLOUD_FIELDS: [&str; 5] = ["x", "y", "z", "strain", "speed"];

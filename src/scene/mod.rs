@@ -5,10 +5,12 @@
 pub mod motion;
 mod overrides;
 pub mod run;
+pub mod shape;
 pub mod system_file;
 
 pub use overrides::Overrides;
 
+use crate::cloth::HingeLayout;
 use crate::cloth::{Cloth, GridSpec, PanelSpec};
 use crate::collision::{
     Obstacle, ShapeSpec, DEFAULT_CLOTH_THICKNESS, DEFAULT_FRICTION, DEFAULT_OBSTACLE_THICKNESS,
@@ -16,7 +18,6 @@ use crate::collision::{
 use crate::fabric::Fabric;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
 use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
-use crate::trial::pattern::HingesFile;
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -772,5 +773,49 @@ impl Scene {
     /// The hinge layout of a run with `ov`.
     pub fn hinges(&self, ov: &Overrides) -> HingesFile {
         ov.hinges.unwrap_or(self.file.cloth.hinges)
+    }
+}
+
+/// `hinges:` of a garment or scene file, `--hinges` of `drape`: how each
+/// panel's bending hinges are laid out ([`HingeLayout`]).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum HingesFile {
+    #[default]
+    Skewed,
+    MirrorSymmetric,
+}
+
+impl HingesFile {
+    /// As written in a file: `skewed` or `mirror_symmetric`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HingesFile::Skewed => "skewed",
+            HingesFile::MirrorSymmetric => "mirror_symmetric",
+        }
+    }
+
+    pub fn is_skewed(&self) -> bool {
+        *self == HingesFile::Skewed
+    }
+
+    pub fn layout(self) -> HingeLayout {
+        match self {
+            HingesFile::Skewed => HingeLayout::Skewed,
+            HingesFile::MirrorSymmetric => HingeLayout::MirrorSymmetric,
+        }
+    }
+}
+
+impl std::str::FromStr for HingesFile {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "skewed" => Ok(HingesFile::Skewed),
+            "mirror_symmetric" | "mirror-symmetric" => Ok(HingesFile::MirrorSymmetric),
+            _ => Err(format!(
+                "unknown hinge layout {s:?}: expected skewed or mirror_symmetric"
+            )),
+        }
     }
 }

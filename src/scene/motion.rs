@@ -90,7 +90,7 @@ pub fn load_frames(files: &[PathBuf], fps: f64, scale: f64) -> Result<LoadedMoti
     let mut frames = Vec::with_capacity(files.len());
     let mut tris: Vec<[usize; 3]> = Vec::new();
     for (k, f) in files.iter().enumerate() {
-        let s = crate::lab::compare::Shape::read(f)
+        let s = super::shape::Shape::read(f)
             .with_context(|| format!("frame {k} of the mesh sequence"))?;
         if let Some(i) = s
             .vertices

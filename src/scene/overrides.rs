@@ -3,9 +3,9 @@
 //! or a dict (serde) and built from the node's parameters; applied to the
 //! step's [`Params`] in one place ([`Overrides::apply`]). SI units: m, s.
 
+use super::HingesFile;
 use crate::limits;
 use crate::solver::{LinearSolverKind, Params};
-use crate::trial::pattern::HingesFile;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 

@@ -5,7 +5,6 @@
 
 pub mod garmentcode;
 
-use crate::cloth::HingeLayout;
 use crate::garment::{PanelCut, SeamSpec};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -113,49 +112,7 @@ impl BorderFile {
     }
 }
 
-/// `hinges:` of a garment or scene file, `--hinges` of `drape`: how each
-/// panel's bending hinges are laid out ([`HingeLayout`]).
-#[derive(Debug, Clone, Copy, Deserialize, Serialize, Default, PartialEq, Eq)]
-#[serde(rename_all = "snake_case")]
-pub enum HingesFile {
-    #[default]
-    Skewed,
-    MirrorSymmetric,
-}
-
-impl HingesFile {
-    /// As written in a file: `skewed` or `mirror_symmetric`.
-    pub fn name(self) -> &'static str {
-        match self {
-            HingesFile::Skewed => "skewed",
-            HingesFile::MirrorSymmetric => "mirror_symmetric",
-        }
-    }
-
-    pub fn is_skewed(&self) -> bool {
-        *self == HingesFile::Skewed
-    }
-
-    pub fn layout(self) -> HingeLayout {
-        match self {
-            HingesFile::Skewed => HingeLayout::Skewed,
-            HingesFile::MirrorSymmetric => HingeLayout::MirrorSymmetric,
-        }
-    }
-}
-
-impl std::str::FromStr for HingesFile {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "skewed" => Ok(HingesFile::Skewed),
-            "mirror_symmetric" | "mirror-symmetric" => Ok(HingesFile::MirrorSymmetric),
-            _ => Err(format!(
-                "unknown hinge layout {s:?}: expected skewed or mirror_symmetric"
-            )),
-        }
-    }
-}
+pub use crate::scene::HingesFile;
 
 /// A garment as read: its panels cut in the world, its seams, its fabric.
 #[derive(Debug, Clone)]
