@@ -1115,6 +1115,24 @@ impl Raster {
     }
 }
 
+/// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
+/// tension springs at the vertex (positive: stretched).
+pub fn vertex_strain(sim: &crate::solver::Simulation) -> Vec<f64> {
+    let x = &sim.cloth.x;
+    let mut s = vec![f64::NEG_INFINITY; x.len()];
+    for sp in &sim.cloth.tension {
+        let e = (x[sp.a] - x[sp.b]).norm() / sp.l0 - 1.0;
+        s[sp.a] = s[sp.a].max(e);
+        s[sp.b] = s[sp.b].max(e);
+    }
+    s.iter_mut().for_each(|v| {
+        if !v.is_finite() {
+            *v = 0.0
+        }
+    });
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1362,22 +1380,4 @@ mod tests {
         assert_eq!(s.vertices.len(), 4);
         assert_eq!(s.triangles, vec![[0, 1, 2], [1, 3, 2]]);
     }
-}
-
-/// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
-/// tension springs at the vertex (positive: stretched).
-pub fn vertex_strain(sim: &crate::solver::Simulation) -> Vec<f64> {
-    let x = &sim.cloth.x;
-    let mut s = vec![f64::NEG_INFINITY; x.len()];
-    for sp in &sim.cloth.tension {
-        let e = (x[sp.a] - x[sp.b]).norm() / sp.l0 - 1.0;
-        s[sp.a] = s[sp.a].max(e);
-        s[sp.b] = s[sp.b].max(e);
-    }
-    s.iter_mut().for_each(|v| {
-        if !v.is_finite() {
-            *v = 0.0
-        }
-    });
-    s
 }
