@@ -124,6 +124,33 @@ def test_a_result_moves_between_threads():
     assert not seen, [str(u.exc_value) for u in seen]
 
 
+def test_the_gil_is_released_while_the_simulation_steps():
+    # another Python thread notes the 10 ms slots it runs in; with no progress
+    # callback the run never takes the GIL back, so were the GIL held while the
+    # simulation steps, that thread could run in none of the slots strictly
+    # inside the call
+    slots, stop = set(), threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            slots.add(int(time.monotonic() * 100))
+
+    t = threading.Thread(target=spin)
+    t.start()
+    try:
+        start = time.monotonic()
+        res = garment_sim.run_trial(str(SKIRT), **SMALL)
+        end = time.monotonic()
+    finally:
+        stop.set()
+        t.join()
+    assert res.fit["run"]["steps"] > 0
+    inside = range(int(start * 100) + 2, int(end * 100) - 1)
+    assert len(inside) >= 20, f"the run took {end - start:.2f} s"
+    ran = sum(1 for s in inside if s in slots)
+    assert ran >= len(inside) // 4, f"the other thread ran in {ran} of {len(inside)} slots"
+
+
 def test_errors_are_the_command_line_s():
     d = TMP / "e"
     d.mkdir(parents=True)

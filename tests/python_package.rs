@@ -22,6 +22,6 @@ fn the_python_package_runs_trials_and_sweeps() {
             ("GARMENT_SIM_BIN", &bin),
             ("GARMENT_SIM_TMP", dir.as_os_str()),
         ],
-        "8 passed",
+        "9 passed",
     );
 }

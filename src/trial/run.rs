@@ -528,7 +528,9 @@ impl Frames {
     }
 
     fn observe(&mut self, sim: &Simulation) {
-        if sim.time + 1e-9 < self.next {
+        // a state with a non-finite position (the step after it fails) is
+        // no frame of the garment's motion
+        if sim.time + 1e-9 < self.next || !finite(sim) {
             return;
         }
         self.frames.push(Frames::shot(sim));
@@ -542,13 +544,18 @@ impl Frames {
 
     /// The last state, if it is not the last frame already.
     fn finish(&mut self, sim: &Simulation) {
-        if self.frames.last().is_none_or(|f| f.0 < sim.time) {
+        if finite(sim) && self.frames.last().is_none_or(|f| f.0 < sim.time) {
             if self.frames.len() == MAX_FRAMES {
                 self.frames.pop();
             }
             self.frames.push(Frames::shot(sim));
         }
     }
+}
+
+/// Every position of the garment is finite.
+fn finite(sim: &Simulation) -> bool {
+    sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite()))
 }
 
 /// What a trial with a `dressing` adds to its outcome.
@@ -593,6 +600,8 @@ pub fn run_built(
 ) -> Result<TrialOutcome> {
     let body = body_handle(&sim);
     let mut frames = Frames::new();
+    // the garment placed, before the first step
+    frames.observe(&sim);
     let mut seen = |s: &Step| {
         frames.observe(s.sim);
         observe(s)
@@ -788,7 +797,12 @@ impl TrialOutcome {
         let body_triangles: Vec<[u32; 3]> = (body.triangles.iter())
             .map(|f| f.map(|k| k as u32))
             .collect();
-        let stretch = &self.vertex_fit.stretch;
+        // a vertex whose stretch is not finite (a failed run) is coloured
+        // as unstretched
+        let stretch: Vec<f64> = (self.vertex_fit.stretch.iter())
+            .map(|&e| if e.is_finite() { e } else { 0.0 })
+            .collect();
+        let stretch = &stretch;
         let scene = GlbScene {
             body_vertices: &body.vertices,
             body_triangles: &body_triangles,
