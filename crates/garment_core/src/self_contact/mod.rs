@@ -799,10 +799,14 @@ impl SelfContact {
         };
         let rel = xs[0] * c[0] + xs[1] * c[1] + xs[2] * c[2] + xs[3] * c[3];
         let d = rel.norm();
+        // two primitives at one point give no direction: the fallback's
+        // (the triangle's normal, the edges' cross product); a degenerate
+        // triangle or parallel edges give none either, and the pair then
+        // pushes nothing (a zero normal), never a non-finite one
         let n = if d > 1e-12 {
             rel / d
         } else {
-            let f = fallback.normalize();
+            let f = fallback.try_normalize(1e-300).unwrap_or_else(V::zeros);
             if rel.dot(&f) < 0.0 {
                 -f
             } else {
@@ -842,7 +846,8 @@ impl SelfContact {
             }
         };
         let rel = xs[0] * c[0] + xs[1] * c[1] + xs[2] * c[2] + xs[3] * c[3];
-        let n = axis.normalize();
+        // a degenerate triangle has no normal to face along
+        let n = axis.try_normalize(1e-300)?;
         let side = rel.dot(&n);
         let n = if side < 0.0 { -n } else { n };
         Some(Closest {
@@ -1417,6 +1422,36 @@ impl SelfContact {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A vertex on a degenerate triangle (its three corners on one line)
+    /// has no direction to be pushed along: the pair's normal is zero, not
+    /// NaN (a NaN here made a garment's first sewing step leave non-finite
+    /// positions), and the proximity pass does not take it as facing.
+    #[test]
+    fn a_vertex_on_a_degenerate_triangle_has_a_finite_normal() {
+        let pts = [
+            V::new(0.5, 0.0, 0.0),
+            V::new(0.0, 0.0, 0.0),
+            V::new(1.0, 0.0, 0.0),
+            V::new(2.0, 0.0, 0.0),
+        ];
+        let x = |k: usize| pts[k];
+        let c = SelfContact::closest(Pair::Vf(0, 0), [0, 1, 2, 3], &x);
+        assert!(c.n.iter().all(|v| v.is_finite()), "{:?}", c.n);
+        assert_eq!(c.n, V::zeros());
+        assert!(c.d.is_finite() && c.d < 1e-12);
+        assert!(SelfContact::facing(Pair::Vf(0, 0), [0, 1, 2, 3], &x).is_none());
+        // a proper triangle under the vertex still gives its unit normal
+        let tri = [
+            pts[0],
+            V::new(0.0, -1.0, 0.0),
+            V::new(1.0, -1.0, 0.0),
+            V::new(0.0, 1.0, 0.0),
+        ];
+        let y = |k: usize| tri[k];
+        let c = SelfContact::closest(Pair::Vf(0, 0), [0, 1, 2, 3], &y);
+        assert!((c.n.norm() - 1.0).abs() < 1e-12, "{:?}", c.n);
+    }
 
     /// A square grid of `n` × `n` vertices `s` apart at height `z`, turned
     /// by `turn` about the vertical through its centre, and its triangles
