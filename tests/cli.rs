@@ -213,6 +213,7 @@ fn a_trial_takes_the_solver_and_tolerance_overrides() {
 /// trial's step as it does a drape's.
 #[test]
 fn a_flag_a_command_cannot_honour_is_refused_naming_it() {
+    let out = tmp("refused");
     for (args, flag, instead) in [
         (
             &[
@@ -242,7 +243,8 @@ fn a_flag_a_command_cannot_honour_is_refused_naming_it() {
     ] {
         let o = support::garment_sim()
             .args(args)
-            .args(["--out", "/nonexistent/never-written"])
+            .arg("--out")
+            .arg(&*out)
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
@@ -252,6 +254,21 @@ fn a_flag_a_command_cannot_honour_is_refused_naming_it() {
             "{args:?}: {err}"
         );
     }
+    // a dressing's --max-time is checked before anything runs
+    let o = support::garment_sim()
+        .args([
+            "trial",
+            "config/trials/tshirt_dressing.yaml",
+            "--max-time",
+            "-1",
+        ])
+        .args(["--spacing", "0.03", "--out"])
+        .arg(&*out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--max-time") && err.contains("-1"), "{err}");
     use garment_sim::trial::{Overrides, Trial};
     let t = Trial::load(std::path::Path::new("config/trials/skirt_on_anny.yaml")).unwrap();
     let ov = Overrides {

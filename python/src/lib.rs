@@ -9,7 +9,7 @@
 use garment_sim::scene::run::Control;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
-use garment_sim::trial::pattern::HingesFile;
+use garment_sim::scene::HingesFile;
 use garment_sim::trial::{Step, Trial, TrialOutcome};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -97,6 +97,20 @@ fn solver_kind(s: Option<&str>) -> PyResult<Option<LinearSolverKind>> {
 
 /// The trial at `path`, or the trial file's text `text` (YAML or JSON)
 /// whose relative paths resolve against `path`'s folder.
+/// Vertices as float64 little-endian bytes, 3 a vertex (NumPy reads them).
+fn position_bytes<'py>(py: Python<'py>, x: &[[f64; 3]]) -> Bound<'py, PyBytes> {
+    let v: Vec<u8> = x.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+    PyBytes::new(py, &v)
+}
+
+/// Triangles as int64 little-endian bytes, 3 a triangle.
+fn face_bytes<'py>(py: Python<'py>, t: &[[usize; 3]]) -> Bound<'py, PyBytes> {
+    let v: Vec<u8> = (t.iter().flatten())
+        .flat_map(|&i| (i as i64).to_le_bytes())
+        .collect();
+    PyBytes::new(py, &v)
+}
+
 fn load_trial(path: &Path, text: Option<&str>) -> anyhow::Result<Trial> {
     match text {
         None => Trial::load(path),
@@ -146,26 +160,12 @@ impl NativeTrial {
 
     /// The garment's vertices, float64 little-endian, 3 a vertex, m.
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let v: Vec<u8> = self
-            .outcome
-            .positions()
-            .iter()
-            .flatten()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
-        PyBytes::new(py, &v)
+        position_bytes(py, &self.outcome.positions())
     }
 
     /// The garment's triangles, int64 little-endian, 3 a triangle.
     fn faces<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let v: Vec<u8> = self
-            .outcome
-            .triangles()
-            .iter()
-            .flatten()
-            .flat_map(|&i| (i as i64).to_le_bytes())
-            .collect();
-        PyBytes::new(py, &v)
+        face_bytes(py, &self.outcome.triangles())
     }
 
     /// Writes every output file of the command line into `dir`.
@@ -282,24 +282,14 @@ impl NativeScene {
         self.summary.clone()
     }
 
+    /// The cloth's vertices, float64 little-endian, 3 a vertex, m.
     fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let v: Vec<u8> = self
-            .positions
-            .iter()
-            .flatten()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
-        PyBytes::new(py, &v)
+        position_bytes(py, &self.positions)
     }
 
+    /// The cloth's triangles, int64 little-endian, 3 a triangle.
     fn faces<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        let v: Vec<u8> = self
-            .faces
-            .iter()
-            .flatten()
-            .flat_map(|&i| (i as i64).to_le_bytes())
-            .collect();
-        PyBytes::new(py, &v)
+        face_bytes(py, &self.faces)
     }
 
     fn error(&self) -> Option<String> {

@@ -74,8 +74,8 @@ pub struct Overrides {
 
 impl Overrides {
     /// Each value checked as the file's field it replaces (the command
-    /// line's `--spacing`, `--dt`, `--duration`, `--cg-tolerance`,
-    /// `--max-time`).
+    /// line's `--spacing`, `--dt`, `--duration`, `--cg-tolerance`; a
+    /// trial's `--max-time` is checked as its `settle.max_time`).
     pub fn check(&self) -> Result<()> {
         if let Some(s) = self.spacing {
             limits::check_positive("--spacing", s, "m")?;
@@ -88,9 +88,6 @@ impl Overrides {
         }
         if let Some(t) = self.cg_tolerance {
             limits::check_cg_tolerance("--cg-tolerance", t)?;
-        }
-        if let Some(t) = self.max_time {
-            limits::check_range("--max-time", t, 0.0, 600.0, "s", "at most 10 minutes")?;
         }
         Ok(())
     }

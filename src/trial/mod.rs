@@ -1158,7 +1158,7 @@ pub fn fit(
     for m in &g.moved {
         warnings.push(m.note(g));
     }
-    if gap > 2e-3 {
+    if gap > outcome::SEAM_CLOSED {
         warnings.push(format!(
             "seam {} is open by {:.1} mm",
             at.map(|k| trial.garment.seam_names[k].as_str())

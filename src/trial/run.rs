@@ -606,20 +606,15 @@ pub fn run_built(
         frames.observe(s.sim);
         observe(s)
     };
-    let dressed = match &t.file.dressing {
+    let (stats, dressing) = match &t.file.dressing {
         Some(d) => {
             let body = body.context("the trial has no body")?;
             d.check()?;
-            let (stats, outcome) = dress(t, ov, &mut sim, &g, body, d, &mut seen)?;
-            Some((stats, outcome))
+            let (stats, dressed) = dress(t, ov, &mut sim, &g, body, d, &mut seen)?;
+            (stats, Some(dressed))
         }
-        None => None,
-    };
-    let (stats, dressing) = match dressed {
-        Some((stats, d)) => (stats, Some(d)),
         None => {
-            let sew = &t.file.sewing;
-            let st = &t.file.settle;
+            let (sew, st) = (&t.file.sewing, &t.file.settle);
             let stats = sew_and_drape(&mut sim, body, sew, st, ov.max_time, &mut seen)?;
             (stats, None)
         }
@@ -656,6 +651,10 @@ fn dress(
     d: &dressing::DressingFile,
     observe: Observe,
 ) -> Result<(RunStats, Dressed)> {
+    if let Some(m) = ov.max_time {
+        let why = "a dressing of at most 10 minutes";
+        crate::limits::check_range("--max-time", m, 0.0, 600.0, "s", why)?;
+    }
     let wall = Instant::now();
     let (sew, st) = (&t.file.sewing, &t.file.settle);
     let mut stats = sew_and_drape(sim, Some(body), sew, st, Some(0.0), observe)?.into_result()?;

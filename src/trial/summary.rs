@@ -25,23 +25,20 @@ impl TrialOutcome {
             .collect();
         w.extend(self.fit.outcome.as_ref().map(|o| o.line()));
         if let (Some(r), Some(d)) = (&self.fit.dressing, &self.dressing) {
+            let run = &d.dressing;
+            let way = 100.0 * (self.sim.time - run.t_move).max(0.0) / (run.t_end - run.t_move);
+            let steps = d.rows.len();
             if r.stopped_early {
-                let run = &d.dressing;
                 w.push(format!(
-                    "stopped by a signal at t = {:.4} s, {:.0} % of the way through the dressing: \
-                     the outputs hold the {} steps taken",
-                    self.sim.time,
-                    100.0 * (self.sim.time - run.t_move).max(0.0) / (run.t_end - run.t_move),
-                    d.rows.len()
+                    "stopped by a signal at t = {:.4} s, {way:.0} % of the way through the \
+                     dressing: the outputs hold the {steps} steps taken",
+                    self.sim.time
                 ));
             }
             if let Some(l) = r.time_limit_s {
                 w.push(format!(
-                    "the dressing was cut short {l} s after sewing (--max-time), {:.0} % of the \
-                     way: the outputs hold the {} steps taken",
-                    100.0 * (self.sim.time - d.dressing.t_move).max(0.0)
-                        / (d.dressing.t_end - d.dressing.t_move),
-                    d.rows.len()
+                    "the dressing was cut short {l} s after sewing (--max-time), {way:.0} % of \
+                     the way: the outputs hold the {steps} steps taken"
                 ));
             }
         }
