@@ -22,14 +22,16 @@ pub fn load_fabric(path: &Path) -> Result<Fabric> {
 /// Builds a fabric from a parsed fabric file whose `curve:` fields are paths
 /// relative to `base`.
 pub fn fabric_from_file(file: FabricFile, base: &Path) -> Result<Fabric> {
-    Fabric::from_file(file, &|name| read_kes_curve(&base.join(name)))
+    Ok(Fabric::from_file(file, &|name| {
+        read_kes_curve(&base.join(name))
+    })?)
 }
 
 /// Reads a raw KES curve from a CSV file (see [`parse_curve_csv`]).
 pub fn read_kes_curve(path: &Path) -> Result<KesCurve> {
     let text = std::fs::read_to_string(path)
         .with_context(|| format!("cannot read KES curve file {}", path.display()))?;
-    parse_curve_csv(&text, &path.display().to_string())
+    Ok(parse_curve_csv(&text, &path.display().to_string())?)
 }
 
 /// Reads the vertices and faces of a Wavefront OBJ file (faces fan-triangulated).

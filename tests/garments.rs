@@ -1103,7 +1103,9 @@ fn bring_out_moves_a_panel_out_of_the_body_or_names_it() {
         ..rect(name, 0.2, 0.2, [0.0, 0.0, 0.0], 90.0)
     };
     let mut g = Garment::build(&[square("deep", 0.0)], &[], 0.02, f.areal_mass).unwrap();
-    let e = g.bring_out(&ball).unwrap_err().to_string();
+    let e = g.bring_out(&ball).unwrap_err();
+    assert!(matches!(e, garment_core::Error::Placement { .. }), "{e:?}");
+    let e = e.to_string();
     assert!(
         e.contains("panel \"deep\" starts inside the body") && e.contains("no move of up to 30 cm"),
         "{e}"

@@ -630,6 +630,10 @@ fn parameters_change_between_steps_through_set_params() {
             ..before.clone()
         })
         .unwrap_err();
+    assert!(
+        matches!(&e, garment_core::Error::OutOfBound { field, value, .. } if field == "dt" && *value == 0.0),
+        "{e:?}"
+    );
     assert!(format!("{e:#}").contains("dt"), "{e:#}");
     let e = sim
         .set_params(Params {
@@ -637,6 +641,7 @@ fn parameters_change_between_steps_through_set_params() {
             ..before.clone()
         })
         .unwrap_err();
+    assert!(matches!(e, garment_core::Error::Invalid { .. }), "{e:?}");
     assert!(format!("{e:#}").contains("hysteresis"), "{e:#}");
     assert_eq!(sim.params().dt, before.dt);
     let mut twin = sim.clone();

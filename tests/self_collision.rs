@@ -679,7 +679,12 @@ fn a_tangled_start_is_refused() {
     let c = Cloth::merge(vec![a, b]).unwrap();
     assert!(intersections(&c.x, &c.triangles, &[]) > 0);
     let mut sim = Simulation::new(c.clone(), f.clone(), params(0.01, true)).unwrap();
-    let err = sim.step().unwrap_err().to_string();
+    let err = sim.step().unwrap_err();
+    assert!(
+        matches!(err, garment_core::Error::Placement { .. }),
+        "{err:?}"
+    );
+    let err = err.to_string();
     assert!(err.contains("starts tangled"), "{err}");
     assert_eq!(sim.steps, 0, "nothing advanced");
     // without self-collision the same cloth runs

@@ -314,7 +314,7 @@ fn flat_specimen(fabric: &Fabric, opt: &DrapeOptions, e: f64) -> Result<Cloth> {
         center: [0.0, 0.0],
         radius: opt.diameter / 2.0,
     };
-    Cloth::panel(&PanelSpec {
+    Ok(Cloth::panel(&PanelSpec {
         outline,
         spacing: [opt.spacing, opt.spacing],
         origin: [0.0, 0.0],
@@ -331,7 +331,7 @@ fn flat_specimen(fabric: &Fabric, opt: &DrapeOptions, e: f64) -> Result<Cloth> {
             HingeLayout::Skewed
         },
         corners: Vec::new(),
-    })
+    })?)
 }
 
 /// The clamped vertices (within the pin radius `opt.clamp` gives), the pin

@@ -325,7 +325,7 @@ pub const PARAMETERS: &[Parameter] = &[
         put: |s, v| {
             let k = text(v);
             if !k.is_empty() {
-                k.parse::<LinearSolverKind>()?;
+                k.parse::<LinearSolverKind>().map_err(|e| e.to_string())?;
             }
             s.solver = k;
             Ok(())

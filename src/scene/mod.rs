@@ -525,11 +525,11 @@ impl Scene {
                 .isometry(&format!("obstacles[{k}].pose"))
                 .with_context(ctx)?;
             let mut ob = match (&o.shape, &o.motion) {
-                (Some(shape), None) => shape
-                    .resolve(&o.id, &base)
-                    .and_then(|shape| Obstacle::new(&o.id, shape, pose, o.thickness, o.friction)),
+                (Some(shape), None) => shape.resolve(&o.id, &base).and_then(|shape| {
+                    Ok(Obstacle::new(&o.id, shape, pose, o.thickness, o.friction)?)
+                }),
                 (None, Some(m)) => m.load(&base).and_then(|l| {
-                    Obstacle::with_motion(
+                    Ok(Obstacle::with_motion(
                         &o.id,
                         l.triangles,
                         l.motion,
@@ -538,7 +538,7 @@ impl Scene {
                         pose,
                         o.thickness,
                         o.friction,
-                    )
+                    )?)
                 }),
                 _ => Err(anyhow::anyhow!(
                     "give a shape, or a motion (whose meshes are the shape), not both"

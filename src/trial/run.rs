@@ -200,7 +200,14 @@ fn check_phases(sew: &SewingFile, st: &SettleFile, max_time: f64) -> Result<()> 
         "at most 10 minutes simulated",
     )?;
     check_range("settle.speed", st.speed, 1e-6, 1.0, "m/s", "an rms speed")?;
-    check_range("settle.hold", st.hold, 0.0, 10.0, "s", "a hold time")
+    Ok(check_range(
+        "settle.hold",
+        st.hold,
+        0.0,
+        10.0,
+        "s",
+        "a hold time",
+    )?)
 }
 
 /// Steps the simulation and keeps the run's figures: time and solver work,

@@ -38,7 +38,7 @@ pub struct Hang {
 
 /// An acrylic-like fabric from its KES summary values (Charfi 2006's study
 /// fabric), undamped.
-fn fabric() -> anyhow::Result<Fabric> {
+fn fabric() -> garment_core::Result<Fabric> {
     let dir = |lt, wt, rt, emt, g, hg, hg5, b, hb| DirectionSpec {
         tensile: BehaviourSpec {
             lt: Some(lt),
@@ -76,12 +76,12 @@ fn fabric() -> anyhow::Result<Fabric> {
         },
     };
     Fabric::from_file(file, &|name| {
-        anyhow::bail!("no KES curve files in this example ({name})")
+        Err(format!("no KES curve files in this example ({name})"))
     })
 }
 
 /// Builds the square, pins two corners, runs 200 steps of 1 ms.
-pub fn run() -> anyhow::Result<Hang> {
+pub fn run() -> garment_core::Result<Hang> {
     let fabric = fabric()?;
     let side = 0.4;
     let spec = GridSpec {
@@ -140,7 +140,7 @@ pub fn run() -> anyhow::Result<Hang> {
     })
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> garment_core::Result<()> {
     let h = run()?;
     let g = Params::default().gravity.norm();
     println!(

@@ -9,10 +9,10 @@
 //! in the world.
 
 use crate::conform;
+use crate::error::{fail, Result};
 use crate::fabric::LawState;
 pub(crate) use crate::plane::seg_dist;
 pub use crate::plane::{polygon_contains, REMOVED};
-use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// Largest grid the builder accepts (vertices); larger asks are a clear error.
@@ -431,23 +431,30 @@ impl Outline {
         match self {
             Outline::Rectangle { size } => {
                 if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
-                    bail!("outline rectangle {size:?} m: sides must be finite and > 0");
+                    fail!(
+                        mesh,
+                        "outline rectangle {size:?} m: sides must be finite and > 0"
+                    );
                 }
             }
             Outline::Circle { center, radius } => {
                 if !(radius.is_finite() && *radius > 0.0 && center.iter().all(|c| c.is_finite())) {
-                    bail!("outline circle radius {radius} m at {center:?}: must be finite and > 0");
+                    fail!(
+                        mesh,
+                        "outline circle radius {radius} m at {center:?}: must be finite and > 0"
+                    );
                 }
             }
             Outline::Polygon(p) => {
                 if p.len() < 3 || p.iter().flatten().any(|c| !c.is_finite()) {
-                    bail!(
+                    fail!(
+                        mesh,
                         "outline polygon needs at least 3 finite vertices, got {}",
                         p.len()
                     );
                 }
                 if polygon_area(p).abs() < 1e-12 {
-                    bail!("outline polygon has zero area");
+                    fail!(mesh, "outline polygon has zero area");
                 }
             }
         }
@@ -849,10 +856,14 @@ impl Cloth {
         if let Outline::Rectangle { size } = outline {
             for (k, n) in ["size.warp", "size.weft"].iter().enumerate() {
                 if !(size[k].is_finite() && size[k] > 0.0) {
-                    bail!("cloth {n} = {}: must be > 0 m", size[k]);
+                    fail!(bound(*n, size[k]), "cloth {n} = {}: must be > 0 m", size[k]);
                 }
                 if !(spacing[k].is_finite() && spacing[k] > 0.0) {
-                    bail!("cloth spacing = {}: must be > 0 m", spacing[k]);
+                    fail!(
+                        bound("spacing", spacing[k]),
+                        "cloth spacing = {}: must be > 0 m",
+                        spacing[k]
+                    );
                 }
             }
             (nx, ny) = GridSpec {
@@ -862,7 +873,7 @@ impl Cloth {
             }
             .dims();
             if nx.saturating_mul(ny) > MAX_VERTICES {
-                bail!(
+                fail!(too_large,
                     "cloth of {nx} × {ny} vertices is larger than the limit of {MAX_VERTICES}; use a coarser spacing"
                 );
             }
@@ -873,7 +884,10 @@ impl Cloth {
             outline.validate()?;
             (lc, lt) = (spacing[0], spacing[1]);
             if !(lc.is_finite() && lc > 0.0 && lt.is_finite() && lt > 0.0) {
-                bail!("cloth spacing {spacing:?}: must be > 0 m");
+                fail!(
+                    bound("spacing", lc.min(lt)),
+                    "cloth spacing {spacing:?}: must be > 0 m"
+                );
             }
             origin = spec.origin;
             let poly = outline.polygon();
@@ -895,13 +909,16 @@ impl Cloth {
             nx = (i1 - i0 + 1) as usize;
             ny = (j1 - j0 + 1) as usize;
             if nx.saturating_mul(ny) > MAX_VERTICES {
-                bail!(
+                fail!(too_large,
                     "clipped cloth needs a {nx} × {ny} grid, larger than the limit of {MAX_VERTICES}; use a coarser spacing"
                 );
             }
         }
         if !(areal_mass.is_finite() && areal_mass > 0.0) {
-            bail!("areal mass {areal_mass} kg/m²: must be > 0");
+            fail!(
+                bound("areal mass", areal_mass),
+                "areal mass {areal_mass} kg/m²: must be > 0"
+            );
         }
         let poly = outline.polygon();
         let node_uv = |i: usize, j: usize| {
@@ -953,7 +970,7 @@ impl Cloth {
             conform::drop_unlinked(links, nx, ny, &mut grid_vertex, &mut material);
         }
         if material.len() < 4 {
-            bail!(
+            fail!(mesh,
                 "outline of area {:.3e} m² keeps only {} grid nodes at spacing {lc} × {lt} m; use a finer spacing",
                 outline.area(),
                 material.len()
@@ -1245,7 +1262,8 @@ impl Cloth {
             return Ok(());
         }
         if !self.shear.len().is_multiple_of(2) {
-            bail!(
+            fail!(
+                mesh,
                 "{} shear springs: not pairs of cell diagonals",
                 self.shear.len()
             );
@@ -1266,7 +1284,8 @@ impl Cloth {
                 || d1.lt != d2.lt
                 || !(side(v[0], v[2]) && side(v[2], v[1]) && side(v[1], v[3]) && side(v[3], v[0]))
             {
-                bail!(
+                fail!(
+                    mesh,
                     "shear springs {} and {} are not the diagonals of one cell",
                     2 * k,
                     2 * k + 1
@@ -1341,7 +1360,7 @@ impl Cloth {
     /// the first piece's.
     pub fn merge(parts: Vec<Cloth>) -> Result<Cloth> {
         let Some(first) = parts.first() else {
-            bail!("a cloth needs at least one piece");
+            fail!(invalid, "a cloth needs at least one piece");
         };
         let (lc, lt) = (first.lc, first.lt);
         let mut c = Cloth {
@@ -1399,7 +1418,8 @@ impl Cloth {
         }
         c.nx = c.x.len();
         if c.nx > MAX_VERTICES {
-            bail!(
+            fail!(
+                too_large,
                 "the pieces have {} vertices together, more than the limit of {MAX_VERTICES}",
                 c.nx
             );
@@ -1420,7 +1440,13 @@ impl Cloth {
     /// Index of grid vertex (i, j), or an error naming the bad index.
     pub fn index(&self, i: usize, j: usize) -> Result<usize> {
         if i >= self.nx || j >= self.ny {
-            bail!(
+            let (k, n) = if i >= self.nx {
+                (i, self.nx)
+            } else {
+                (j, self.ny)
+            };
+            fail!(
+                index("grid index", k, n),
                 "grid index ({i}, {j}) is outside the cloth's {} × {} grid",
                 self.nx,
                 self.ny
@@ -1430,7 +1456,10 @@ impl Cloth {
             return Ok(j * self.nx + i);
         }
         match self.grid_vertex[j * self.nx + i] {
-            REMOVED => bail!("grid node ({i}, {j}) lies outside the cloth's outline"),
+            REMOVED => fail!(
+                mesh,
+                "grid node ({i}, {j}) lies outside the cloth's outline"
+            ),
             v => Ok(v),
         }
     }

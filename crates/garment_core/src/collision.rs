@@ -4,7 +4,7 @@
 //! triangle meshes whose vertices move ([`crate::deforming`]).
 
 use crate::deforming::{DeformingBody, Motion};
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use parry3d_f64::query::{PointQueryWithLocation, Ray};
 use parry3d_f64::shape::{
@@ -345,7 +345,8 @@ impl Obstacle {
         }
         if let Some((i, d)) = self.deepest_inside(x) {
             if d > MAX_OVERLAP {
-                bail!(
+                fail!(
+                    placement,
                     "obstacle {:?} overlaps the cloth: vertex {i} at ({:.4}, {:.4}, {:.4}) m lies \
                      {d:.4} m inside it, more than {MAX_OVERLAP} m (MAX_OVERLAP; the contacts \
                      would throw the cloth out): place the cloth or the obstacle apart",
@@ -553,10 +554,11 @@ pub fn is_closed(t: &[[u32; 3]]) -> bool {
 
 fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
     if t.is_empty() {
-        bail!("obstacle {id:?}: mesh has no triangles");
+        fail!(mesh, "obstacle {id:?}: mesh has no triangles");
     }
     if t.len() > MAX_MESH_TRIANGLES {
-        bail!(
+        fail!(
+            too_large,
             "obstacle {id:?}: mesh has {} triangles, more than the limit {MAX_MESH_TRIANGLES}",
             t.len()
         );
@@ -564,7 +566,8 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
     for (k, tri) in t.iter().enumerate() {
         for &i in tri {
             if i as usize >= v.len() {
-                bail!(
+                fail!(
+                    index("vertex", i as usize, v.len()),
                     "obstacle {id:?}: triangle {k} uses vertex {i} but the mesh has {} vertices",
                     v.len()
                 );
@@ -573,11 +576,15 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
     }
     for (k, p) in v.iter().enumerate() {
         if p.iter().any(|c| !c.is_finite()) {
-            bail!("obstacle {id:?}: mesh vertex {k} is not finite: {p:?}");
+            fail!(
+                non_finite(format!("obstacle {id:?}: mesh vertex {k}"), k),
+                "obstacle {id:?}: mesh vertex {k} is not finite: {p:?}"
+            );
         }
         let r = Vector3::from(*p).norm();
         if r > crate::limits::MAX_OBSTACLE_SIZE {
-            bail!(
+            fail!(
+                bound(format!("obstacle {id:?}: mesh vertex {k}"), r),
                 "obstacle {id:?}: mesh vertex {k} = {p:?} lies {r:.3e} m from the obstacle's \
                  origin, more than {} m (MAX_OBSTACLE_SIZE; a mesh in mm?)",
                 crate::limits::MAX_OBSTACLE_SIZE
@@ -591,7 +598,7 @@ fn trimesh(id: &str, v: &[[f64; 3]], t: &[[u32; 3]]) -> Result<SharedShape> {
         TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES,
     )
     .or_else(|_| TriMesh::new(pts, t.to_vec()))
-    .map_err(|e| anyhow::anyhow!("obstacle {id:?}: bad triangle mesh: {e:?}"))?;
+    .map_err(|e| crate::Error::mesh(format!("obstacle {id:?}: bad triangle mesh: {e:?}")))?;
     Ok(SharedShape::new(m))
 }
 

@@ -28,8 +28,8 @@
 //! vertex lies in the triangle ([`DeformingBody::first_hit`]).
 
 use crate::bvh::{Aabb, Bvh};
+use crate::error::{fail, Result};
 use crate::self_contact::geometry::{coplanarity_cubic, cubic_roots, point_triangle};
-use anyhow::{bail, Result};
 use nalgebra::{Isometry3, Vector3};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -60,17 +60,27 @@ impl Keyframes {
     /// from 0, naming the frame.
     pub fn new(times: Vec<f64>, frames: Vec<Vec<V>>) -> Result<Keyframes> {
         if frames.is_empty() {
-            bail!("a motion needs at least one frame");
+            fail!(invalid, "a motion needs at least one frame");
         }
         if times.len() != frames.len() {
-            bail!("{} frame times for {} frames", times.len(), frames.len());
+            fail!(
+                length("frame times", times.len(), frames.len()),
+                "{} frame times for {} frames",
+                times.len(),
+                frames.len()
+            );
         }
         if times[0] != 0.0 {
-            bail!("the first frame's time is {} s: it must be 0", times[0]);
+            fail!(
+                bound("the first frame's time", times[0]),
+                "the first frame's time is {} s: it must be 0",
+                times[0]
+            );
         }
         for k in 1..times.len() {
             if !(times[k].is_finite() && times[k] > times[k - 1]) {
-                bail!(
+                fail!(
+                    bound(format!("frame {k}: time"), times[k]),
                     "frame {k}: time {} s does not follow frame {}'s {} s",
                     times[k],
                     k - 1,
@@ -81,13 +91,18 @@ impl Keyframes {
         let n = frames[0].len();
         for (k, f) in frames.iter().enumerate() {
             if f.len() != n {
-                bail!(
+                fail!(
+                    length(format!("frame {k}"), f.len(), n),
                     "frame {k} has {} vertices, frame 0 has {n}: every frame must have the same",
                     f.len()
                 );
             }
             if let Some(i) = f.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-                bail!("frame {k}: vertex {i} is not finite: {:?}", f[i]);
+                fail!(
+                    non_finite(format!("frame {k}"), i),
+                    "frame {k}: vertex {i} is not finite: {:?}",
+                    f[i]
+                );
             }
         }
         Ok(Keyframes { times, frames })
@@ -96,7 +111,10 @@ impl Keyframes {
     /// Frames `1 / fps` apart.
     pub fn at_rate(fps: f64, frames: Vec<Vec<V>>) -> Result<Keyframes> {
         if !(fps.is_finite() && fps > 0.0) {
-            bail!("frame rate {fps}: must be > 0 frames/s");
+            fail!(
+                bound("frame rate", fps),
+                "frame rate {fps}: must be > 0 frames/s"
+            );
         }
         let times = (0..frames.len()).map(|k| k as f64 / fps).collect();
         Keyframes::new(times, frames)
@@ -241,17 +259,33 @@ impl DeformingBody {
             .enumerate()
             .find(|(_, t)| t.iter().any(|&i| i as usize >= n))
         {
-            bail!("triangle {k} {t:?} uses a vertex beyond the motion's {n}");
+            fail!(
+                index(
+                    "vertex",
+                    t.iter().map(|&i| i as usize).max().unwrap_or(0),
+                    n
+                ),
+                "triangle {k} {t:?} uses a vertex beyond the motion's {n}"
+            );
         }
         let d = motion.duration();
         if !(d.is_finite() && d >= 0.0) {
-            bail!("motion duration {d} s: must be finite and ≥ 0");
+            fail!(
+                bound("motion duration", d),
+                "motion duration {d} s: must be finite and ≥ 0"
+            );
         }
         if looping && d <= 0.0 {
-            bail!("a looping motion needs a duration > 0 s");
+            fail!(
+                bound("motion duration", d),
+                "a looping motion needs a duration > 0 s"
+            );
         }
         if !start.is_finite() {
-            bail!("motion start {start} s: must be finite");
+            fail!(
+                bound("motion start", start),
+                "motion start {start} s: must be finite"
+            );
         }
         let mut edge_of: HashMap<(u32, u32), u32> = HashMap::new();
         let tri_edges = tris
@@ -325,7 +359,8 @@ impl DeformingBody {
                 .iter()
                 .position(|p| !p.iter().all(|c| c.is_finite()))
             {
-                bail!(
+                fail!(
+                    non_finite("the motion's vertices", i),
                     "the motion gives vertex {i} a non-finite position {:?} at t = {t} s",
                     self.local[i]
                 );

@@ -13,7 +13,7 @@
 
 use crate::cloth::{Border, Cloth, HingeLayout, Outline, PanelSpec, Stitch};
 use crate::collision::Obstacle;
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 /// One pattern piece, in its own plane (panel coordinates, m).
@@ -108,13 +108,15 @@ impl Panel {
     pub fn vertex(&self, i: usize, j: usize) -> Result<usize> {
         let [nx, ny] = self.grid;
         if i >= nx || j >= ny {
-            bail!(
+            fail!(
+                mesh,
                 "grid node ({i}, {j}) is outside panel {:?}'s {nx} × {ny} grid",
                 self.name
             );
         }
         match self.grid_vertex[j * nx + i] {
-            crate::cloth::REMOVED => bail!(
+            crate::cloth::REMOVED => fail!(
+                mesh,
                 "grid node ({i}, {j}) of panel {:?} lies outside its outline",
                 self.name
             ),
@@ -207,10 +209,11 @@ impl Garment {
         areal_masses: &[f64],
     ) -> Result<Garment> {
         if cuts.is_empty() {
-            bail!("a garment needs at least one panel");
+            fail!(invalid, "a garment needs at least one panel");
         }
         if fabric_of.len() != cuts.len() {
-            bail!(
+            fail!(
+                length("fabric indices", fabric_of.len(), cuts.len()),
                 "{} panels but {} fabric indices",
                 cuts.len(),
                 fabric_of.len()
@@ -221,7 +224,8 @@ impl Garment {
         let mut first = 0;
         for (cut, &k) in cuts.iter().zip(fabric_of) {
             let Some(&areal_mass) = areal_masses.get(usize::from(k)) else {
-                bail!(
+                fail!(
+                    index("fabric", usize::from(k), areal_masses.len()),
                     "panel {:?}: fabric {k}, but there are {} fabrics",
                     cut.name,
                     areal_masses.len()
@@ -240,14 +244,25 @@ impl Garment {
         for (k, s) in seams.iter().enumerate() {
             for (side, (p, e)) in [("a", s.a), ("b", s.b)] {
                 if p >= panels.len() || e >= cuts[p].edges.len() {
-                    bail!("seam {k}: side {side} names panel {p} edge {e}, which does not exist");
+                    fail!(
+                        invalid,
+                        "seam {k}: side {side} names panel {p} edge {e}, which does not exist"
+                    );
                 }
             }
             if !(s.stiffness.is_finite() && s.stiffness > 0.0) {
-                bail!("seam {k}: stiffness {} N/m per m must be > 0", s.stiffness);
+                fail!(
+                    bound("stiffness", s.stiffness),
+                    "seam {k}: stiffness {} N/m per m must be > 0",
+                    s.stiffness
+                );
             }
             if !(s.damping.is_finite() && s.damping >= 0.0) {
-                bail!("seam {k}: damping {} s must be ≥ 0", s.damping);
+                fail!(
+                    bound("damping", s.damping),
+                    "seam {k}: damping {} s must be ≥ 0",
+                    s.damping
+                );
             }
             // each edge's border vertices, their fractions stretched to run
             // 0 → 1 from the first to the last (a corner the grid did not keep
@@ -266,7 +281,8 @@ impl Garment {
             );
             for (side, (p, e), ev) in [("a", s.a, ea), ("b", s.b, eb)] {
                 if ev.is_empty() {
-                    bail!(
+                    fail!(
+                        mesh,
                         "seam {k}: edge {e} of panel {:?} (side {side}) has {} border vertices at \
                          spacing {spacing} m; it needs one: use a finer spacing",
                         panels[p].name,
@@ -362,7 +378,7 @@ impl Garment {
             let steps = (MAX_BRING_OUT / 2.5e-3).round() as usize;
             let Some(d) = (1..=steps).map(|n| n as f64 * 2.5e-3).find(|&d| free(d)) else {
                 let x = g.cloth.x[worst];
-                bail!(
+                fail!(placement,
                     "panel {:?} starts inside the body (its vertex {} at ({:.3}, {:.3}, {:.3}) m lies \
                      {:.1} cm under the skin) and no move of up to {:.0} cm along the body's normals \
                      frees it: move the panel (its placement) or the body (body.pose)",
@@ -411,7 +427,8 @@ impl Garment {
     pub fn panel(&self, name: &str) -> Result<&Panel> {
         match self.panels.iter().find(|p| p.name == name) {
             Some(p) => Ok(p),
-            None => bail!(
+            None => fail!(
+                invalid,
                 "no panel {name:?} (the garment's panels: {})",
                 self.panels
                     .iter()
@@ -461,21 +478,26 @@ fn cut_panel(
 ) -> Result<(Cloth, Panel)> {
     let name = &cut.name;
     if cut.edges.is_empty() || cut.edges.iter().any(|e| e.len() < 2) {
-        bail!("panel {name:?}: needs edges of at least two points each");
+        fail!(
+            mesh,
+            "panel {name:?}: needs edges of at least two points each"
+        );
     }
     let poly = cut.polygon();
     if poly.iter().flatten().any(|c| !c.is_finite()) {
-        bail!("panel {name:?}: outline has a non-finite point");
+        fail!(mesh, "panel {name:?}: outline has a non-finite point");
     }
     if let Some((i, j)) = self_intersection(&cut.edges) {
-        bail!(
+        fail!(
+            mesh,
             "panel {name:?}: its outline crosses itself (edge {i} crosses edge {j}); a panel must \
              be a simple closed outline"
         );
     }
     let gl = (cut.grain[0].powi(2) + cut.grain[1].powi(2)).sqrt();
     if !(gl.is_finite() && gl > 1e-9) {
-        bail!(
+        fail!(
+            mesh,
             "panel {name:?}: grain {:?} must be a non-zero direction",
             cut.grain
         );
@@ -499,7 +521,7 @@ fn cut_panel(
         corners,
         ..PanelSpec::new(&outline, [spacing, spacing], [0.0, 0.0], &pose, areal_mass)
     })
-    .map_err(|e| anyhow::anyhow!("panel {name:?}: {e}"))?;
+    .map_err(|e| e.prefixed(&format!("panel {name:?}: ")))?;
     let uv: Vec<[f64; 2]> = cloth.material.iter().map(|&m| from_uv(m)).collect();
     // border vertices: on an edge of the triangulation used by one triangle
     let mut count = std::collections::HashMap::new();

@@ -17,7 +17,8 @@
 //! of a [`Cloth`] (a [`GridSpec`] rectangle, a [`PanelSpec`] outline, or a
 //! [`Garment`] of [`PanelCut`]s sewn by [`SeamSpec`]s) of a [`Fabric`]
 //! with its [`Params`], [`Obstacle`]s and [`Pin`]s added through it and
-//! named by [`Handle`]s, and each step's [`StepStats`]. `examples/hang.rs`
+//! named by [`Handle`]s, and each step's [`StepStats`]. What fails returns an
+//! [`Error`], whose variants are the kinds of failure. `examples/hang.rs`
 //! hangs a square by two corners.
 
 pub mod bvh;
@@ -25,6 +26,7 @@ pub mod cloth;
 pub mod collision;
 pub mod conform;
 pub mod deforming;
+mod error;
 pub mod fabric;
 pub mod garment;
 pub mod limits;
@@ -36,6 +38,7 @@ pub mod solver;
 pub use cloth::{Border, Cloth, GridSpec, HingeLayout, Outline, PanelSpec};
 pub use collision::{Obstacle, ShapeSpec};
 pub use deforming::{DeformingBody, Keyframes, Motion};
+pub use error::{Error, Result};
 pub use fabric::{BehaviourSpec, Damping, DirectionSpec, Fabric, FabricFile, Law, LawState};
 pub use garment::{Garment, PanelCut, SeamSpec};
 pub use set::{Handle, Set};

@@ -8,7 +8,7 @@
 //! part of the crate: the obstacles ([`crate::collision::Obstacle::check_overlap`])
 //! and the solver use it.
 
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use nalgebra::Vector3;
 
 /// Fastest a pin may be asked to move, m/s. A hand or a robot gripper
@@ -71,7 +71,8 @@ pub fn check_cloth_grid(
     for (k, dir) in ["warp", "weft"].iter().enumerate() {
         for (field, v) in [(size_field, size[k]), (spacing_field, spacing[k])] {
             if !(v.is_finite() && v >= MIN_CLOTH_SPACING) {
-                bail!(
+                fail!(
+                    bound(field, v),
                     "{field} ({dir}) = {} m: must be a finite number ≥ {MIN_CLOTH_SPACING} m \
                      ({why})",
                     num(v)
@@ -80,7 +81,8 @@ pub fn check_cloth_grid(
         }
         let cell = size[k] / (size[k] / spacing[k]).round().max(1.0);
         if cell < MIN_CLOTH_SPACING {
-            bail!(
+            fail!(
+                bound(size_field, cell),
                 "{size_field} ({dir}) = {} m at {spacing_field} = {} m gives cells of {} m, \
                  below {MIN_CLOTH_SPACING} m ({why})",
                 num(size[k]),
@@ -115,7 +117,8 @@ fn num(v: f64) -> String {
 pub fn check_capture_position(what: &str, p: &Vector3<f64>) -> Result<()> {
     let d = p.norm();
     if d.is_nan() || d > MAX_CAPTURE_DISTANCE {
-        bail!(
+        fail!(
+            bound(what, d),
             "{what} = ({}, {}, {}) m lies {d:.3e} m from the capture's origin, beyond \
              {MAX_CAPTURE_DISTANCE} m (MAX_CAPTURE_DISTANCE: a capture volume is a room; \
              millimetres written as metres, or a corrupt sample?)",
@@ -160,7 +163,10 @@ pub const MAX_DT: f64 = 0.05;
 /// A time step in (0, [`MAX_DT`]] s.
 pub fn check_dt(what: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v > 0.0 && v <= MAX_DT) {
-        bail!("{what} = {v}: must lie in (0, {MAX_DT}] s (MAX_DT: the step is linearised once)");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must lie in (0, {MAX_DT}] s (MAX_DT: the step is linearised once)"
+        );
     }
     Ok(())
 }
@@ -168,7 +174,10 @@ pub fn check_dt(what: &str, v: f64) -> Result<()> {
 /// A duration: finite and ≥ 0 s.
 pub fn check_duration(what: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v >= 0.0) {
-        bail!("{what} = {v}: must be a finite number ≥ 0 s");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must be a finite number ≥ 0 s"
+        );
     }
     Ok(())
 }
@@ -187,7 +196,10 @@ pub const KES_B: (f64, f64) = (0.0, 50.0);
 /// A KES summary value in `(lo, hi]`.
 pub fn check_kes(what: &str, v: f64, (lo, hi): (f64, f64), unit: &str) -> Result<()> {
     if !(v.is_finite() && v > lo && v <= hi) {
-        bail!("{what} = {v}: must lie in ({lo}, {hi}] {unit} (the range of measured fabrics)");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must lie in ({lo}, {hi}] {unit} (the range of measured fabrics)"
+        );
     }
     Ok(())
 }
@@ -214,7 +226,8 @@ pub fn check_memory(nx: usize, ny: usize, available: Option<u64>) -> Result<()> 
     let need = memory_estimate(n);
     if let Some(avail) = available {
         if need > avail {
-            bail!(
+            fail!(
+                too_large,
                 "a cloth of {nx} × {ny} = {n} vertices needs about {:.2} GB, more than the \
                  {:.2} GB of memory available; use a coarser spacing",
                 need as f64 / 1e9,
@@ -230,7 +243,10 @@ pub fn check_memory(nx: usize, ny: usize, available: Option<u64>) -> Result<()> 
 /// guess (the cloth frozen in place).
 pub fn check_cg_tolerance(what: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v > 0.0 && v < 1.0) {
-        bail!("{what} = {v}: must lie in (0, 1) (a relative residual)");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must lie in (0, 1) (a relative residual)"
+        );
     }
     Ok(())
 }
@@ -238,7 +254,10 @@ pub fn check_cg_tolerance(what: &str, v: f64) -> Result<()> {
 /// A finite number > 0.
 pub fn check_positive(what: &str, v: f64, unit: &str) -> Result<()> {
     if !(v.is_finite() && v > 0.0) {
-        bail!("{what} = {v}: must be a finite number > 0 {unit}");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must be a finite number > 0 {unit}"
+        );
     }
     Ok(())
 }
@@ -246,7 +265,10 @@ pub fn check_positive(what: &str, v: f64, unit: &str) -> Result<()> {
 /// A finite number in `[lo, hi]`, with the reason given.
 pub fn check_range(what: &str, v: f64, lo: f64, hi: f64, unit: &str, why: &str) -> Result<()> {
     if !(v.is_finite() && v >= lo && v <= hi) {
-        bail!("{what} = {v}: must lie in [{lo}, {hi}] {unit} ({why})");
+        fail!(
+            bound(what, v),
+            "{what} = {v}: must lie in [{lo}, {hi}] {unit} ({why})"
+        );
     }
     Ok(())
 }
@@ -254,7 +276,8 @@ pub fn check_range(what: &str, v: f64, lo: f64, hi: f64, unit: &str, why: &str) 
 /// An obstacle dimension: > 0 and at most [`MAX_OBSTACLE_SIZE`].
 pub fn check_size(what: &str, v: f64) -> Result<()> {
     if !(v.is_finite() && v > 0.0 && v <= MAX_OBSTACLE_SIZE) {
-        bail!(
+        fail!(
+            bound(what, v),
             "{what} = {v}: must be > 0 and at most {MAX_OBSTACLE_SIZE} m \
              (MAX_OBSTACLE_SIZE, a room-sized floor)"
         );
@@ -266,7 +289,8 @@ pub fn check_size(what: &str, v: f64) -> Result<()> {
 pub fn check_speed(what: &str, v: &Vector3<f64>, max: f64, unit: &str) -> Result<()> {
     let s = v.norm();
     if !(v.iter().all(|c| c.is_finite()) && s <= max) {
-        bail!(
+        fail!(
+            bound(what, s),
             "{what} = ({}, {}, {}): speed {s:.3e} {unit} is not finite or above the limit \
              of {max} {unit}",
             v.x,
@@ -297,11 +321,21 @@ pub fn reach_box(x: &[Vector3<f64>], margin: f64) -> ([f64; 3], [f64; 3]) {
 /// A point within [`MAX_REACH`] of the box around the cloth `x`.
 pub fn check_reach(what: &str, p: &Vector3<f64>, x: &[Vector3<f64>]) -> Result<()> {
     if !p.iter().all(|c| c.is_finite()) {
-        bail!("{what} = ({}, {}, {}) is not finite", p.x, p.y, p.z);
+        let a = p.iter().position(|c| !c.is_finite()).unwrap_or(0);
+        fail!(
+            non_finite(what, a),
+            "{what} = ({}, {}, {}) is not finite",
+            p.x,
+            p.y,
+            p.z
+        );
     }
     let (lo, hi) = reach_box(x, MAX_REACH);
     if (0..3).any(|a| p[a] < lo[a] || p[a] > hi[a]) {
-        bail!(
+        // how far outside the cloth's own box, m (the bound is MAX_REACH)
+        let out = (0..3).fold(0.0f64, |m, a| m.max(lo[a] - p[a]).max(p[a] - hi[a])) + MAX_REACH;
+        fail!(
+            bound(what, out),
             "{what} = ({}, {}, {}) m is more than {MAX_REACH} m (MAX_REACH) outside the box \
              around the cloth, x ∈ [{:.3}, {:.3}], y ∈ [{:.3}, {:.3}], z ∈ [{:.3}, {:.3}] m \
              (a position in mm, or in another frame?)",

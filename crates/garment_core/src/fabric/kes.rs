@@ -228,49 +228,58 @@ pub fn interp(branch: &[(f64, f64)], x: f64) -> Option<f64> {
 /// `strain_pct,force_gf_cm,branch` (tensile), `angle_deg,force_gf_cm,branch`
 /// (shear), `curvature_per_cm,moment_gf_cm_cm,branch` (bending); `branch` is
 /// `load` or `recover`. Values are converted to SI here.
-pub fn parse_curve_csv(text: &str, source: &str) -> anyhow::Result<KesCurve> {
-    use anyhow::{bail, Context};
+pub fn parse_curve_csv(text: &str, source: &str) -> crate::Result<KesCurve> {
+    use crate::error::fail;
+    use crate::Error;
     let mut lines = text.lines().enumerate().filter(|(_, l)| {
         let t = l.trim();
         !t.is_empty() && !t.starts_with('#')
     });
     let (_, header) = lines
         .next()
-        .with_context(|| format!("{}: empty curve file", source))?;
+        .ok_or_else(|| Error::fabric(format!("{}: empty curve file", source)))?;
     let cols: Vec<&str> = header.split(',').map(|s| s.trim()).collect();
     let (sx, sy) = match (cols.first().copied(), cols.get(1).copied()) {
         (Some("strain_pct"), Some("force_gf_cm")) => (0.01, GF_PER_CM),
         (Some("strain"), Some("force_n_m")) => (1.0, 1.0),
         (Some("angle_deg"), Some("force_gf_cm")) => (DEG, GF_PER_CM),
         (Some("curvature_per_cm"), Some("moment_gf_cm_cm")) => (PER_CM, GF_CM_PER_CM),
-        _ => bail!(
+        _ => fail!(
+            fabric,
             "{}: line 1: unknown header {header:?}; expected strain_pct,force_gf_cm,branch \
              or angle_deg,force_gf_cm,branch or curvature_per_cm,moment_gf_cm_cm,branch",
             source
         ),
     };
     if cols.get(2).copied() != Some("branch") {
-        bail!("{}: line 1: third column must be `branch`", source);
+        fail!(fabric, "{}: line 1: third column must be `branch`", source);
     }
     let mut c = KesCurve::default();
     for (ln, l) in lines {
         let f: Vec<&str> = l.split(',').map(|s| s.trim()).collect();
         if f.len() < 3 {
-            bail!("{}: line {}: expected 3 columns", source, ln + 1);
+            fail!(fabric, "{}: line {}: expected 3 columns", source, ln + 1);
         }
-        let x: f64 = f[0]
-            .parse()
-            .with_context(|| format!("{}: line {}: bad number {:?}", source, ln + 1, f[0]))?;
-        let y: f64 = f[1]
-            .parse()
-            .with_context(|| format!("{}: line {}: bad number {:?}", source, ln + 1, f[1]))?;
+        let x: f64 = f[0].parse().map_err(|e| {
+            Error::external(
+                format!("{}: line {}: bad number {:?}", source, ln + 1, f[0]),
+                e,
+            )
+        })?;
+        let y: f64 = f[1].parse().map_err(|e| {
+            Error::external(
+                format!("{}: line {}: bad number {:?}", source, ln + 1, f[1]),
+                e,
+            )
+        })?;
         if !x.is_finite() || !y.is_finite() {
-            bail!("{}: line {}: non-finite value", source, ln + 1);
+            fail!(fabric, "{}: line {}: non-finite value", source, ln + 1);
         }
         match f[2] {
             "load" => c.load.push((x * sx, y * sy)),
             "recover" => c.recover.push((x * sx, y * sy)),
-            other => bail!(
+            other => fail!(
+                fabric,
                 "{}: line {}: branch must be load or recover, got {other:?}",
                 source,
                 ln + 1
@@ -278,7 +287,8 @@ pub fn parse_curve_csv(text: &str, source: &str) -> anyhow::Result<KesCurve> {
         }
     }
     if c.load.len() < 4 || c.recover.len() < 4 {
-        bail!(
+        fail!(
+            fabric,
             "{}: need at least 4 points on each branch (load {}, recover {})",
             source,
             c.load.len(),

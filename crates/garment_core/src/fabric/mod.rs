@@ -11,8 +11,8 @@
 pub mod kes;
 pub mod law;
 
+use crate::error::{fail, Error, Result};
 use crate::limits::{check_kes, KES_B, KES_EMT, KES_G};
-use anyhow::{bail, Context, Result};
 use kes::*;
 pub use law::{ElasticPoly, Hysteresis, Law, LawState};
 use serde::{Deserialize, Serialize};
@@ -189,7 +189,10 @@ impl Fabric {
     /// Builds the SI fabric from its file's contents; `curve` reads a raw KES
     /// curve named by a `curve:` field (the I/O layer resolves the name
     /// against the fabric file's folder).
-    pub fn from_file(file: FabricFile, curve: &dyn Fn(&str) -> Result<KesCurve>) -> Result<Fabric> {
+    pub fn from_file<E: Into<CurveError>>(
+        file: FabricFile,
+        curve: &dyn Fn(&str) -> Result<KesCurve, E>,
+    ) -> Result<Fabric> {
         positive("areal_mass_mg_per_cm2", file.areal_mass_mg_per_cm2)?;
         if let Some(t) = file.thickness_mm {
             positive("thickness_mm", t)?;
@@ -204,7 +207,8 @@ impl Fabric {
         }
         if let Some(mu) = file.cloth_friction {
             if !(mu.is_finite() && (0.0..=crate::limits::MAX_FRICTION).contains(&mu)) {
-                bail!(
+                fail!(
+                    bound("cloth_friction", mu),
                     "cloth_friction = {mu}: must be finite, 0 to {} (MAX_FRICTION)",
                     crate::limits::MAX_FRICTION
                 );
@@ -218,7 +222,7 @@ impl Fabric {
             ("damping.beta_tension", d.beta_tension),
         ] {
             if !v.is_finite() || v > 0.0 {
-                bail!("{n} = {v}: must be finite and ≤ 0 (thesis sign convention: C·V opposes motion)");
+                fail!(bound(n, v), "{n} = {v}: must be finite and ≤ 0 (thesis sign convention: C·V opposes motion)");
             }
         }
         let warp = direction(&file.warp, "warp", curve)?;
@@ -308,16 +312,24 @@ fn shear_law(w: &BehaviourSpec, t: &BehaviourSpec, curve: &KesCurve) -> Law {
     fit_law(Family::Shear, curve).0
 }
 
+/// The error of a [`Fabric::from_file`]'s curve reader: anything that
+/// converts into a boxed error (an `anyhow::Error`, an `std::io::Error`, an
+/// [`Error`]).
+pub type CurveError = Box<dyn std::error::Error + Send + Sync + 'static>;
+
 fn positive(name: &str, v: f64) -> Result<()> {
     if !v.is_finite() || v <= 0.0 {
-        bail!("{name} = {v}: must be a finite number > 0");
+        fail!(bound(name, v), "{name} = {v}: must be a finite number > 0");
     }
     Ok(())
 }
 
 fn need(name: &str, v: Option<f64>) -> Result<f64> {
-    let v =
-        v.with_context(|| format!("{name} is missing (give the KES summary values or `curve:`)"))?;
+    let v = v.ok_or_else(|| {
+        Error::fabric(format!(
+            "{name} is missing (give the KES summary values or `curve:`)"
+        ))
+    })?;
     positive(name, v)?;
     Ok(v)
 }
@@ -331,28 +343,32 @@ fn need_kes(name: &str, v: Option<f64>, range: (f64, f64), unit: &str) -> Result
 }
 
 fn nonneg(name: &str, v: Option<f64>) -> Result<f64> {
-    let v = v.with_context(|| format!("{name} is missing"))?;
+    let v = v.ok_or_else(|| Error::fabric(format!("{name} is missing")))?;
     if !v.is_finite() || v < 0.0 {
-        bail!("{name} = {v}: must be a finite number ≥ 0");
+        fail!(bound(name, v), "{name} = {v}: must be a finite number ≥ 0");
     }
     Ok(v)
 }
 
-fn curve_of(
+fn curve_of<E: Into<CurveError>>(
     spec: &BehaviourSpec,
     name: &str,
-    curve: &dyn Fn(&str) -> Result<KesCurve>,
+    curve: &dyn Fn(&str) -> Result<KesCurve, E>,
 ) -> Result<Option<KesCurve>> {
     match &spec.curve {
-        Some(c) => Ok(Some(curve(c).with_context(|| format!("{name}.curve"))?)),
+        Some(c) => {
+            Ok(Some(curve(c).map_err(|e| {
+                Error::external(format!("{name}.curve"), e)
+            })?))
+        }
         None => Ok(None),
     }
 }
 
-fn direction(
+fn direction<E: Into<CurveError>>(
     d: &DirectionSpec,
     name: &str,
-    curve: &dyn Fn(&str) -> Result<KesCurve>,
+    curve: &dyn Fn(&str) -> Result<KesCurve, E>,
 ) -> Result<DirectionLaws> {
     let tn = format!("{name}.tensile");
     let tensile_curve = match curve_of(&d.tensile, &tn, curve)? {
@@ -365,13 +381,18 @@ fn direction(
                 emt: need_kes(&format!("{tn}.EMT"), d.tensile.emt, KES_EMT, "%")?,
             };
             if s.lt >= 2.0 {
-                bail!(
+                fail!(
+                    bound(format!("{tn}.LT"), s.lt),
                     "{tn}.LT = {}: must be < 2 (a curve above linear by more than 2×)",
                     s.lt
                 );
             }
             if s.rt > 100.0 {
-                bail!("{tn}.RT = {}: a resilience is a percentage ≤ 100", s.rt);
+                fail!(
+                    bound(format!("{tn}.RT"), s.rt),
+                    "{tn}.RT = {}: a resilience is a percentage ≤ 100",
+                    s.rt
+                );
             }
             let fm = d.tensile.fm_gf_per_cm.unwrap_or(TENSILE_FM_DEFAULT_GF_CM);
             positive(&format!("{tn}.Fm_gf_per_cm"), fm)?;
@@ -433,7 +454,8 @@ fn direction(
 fn check_law(name: &str, l: &Law) -> Result<()> {
     let c = &l.elastic.c;
     if !c.iter().all(|v| v.is_finite() && *v >= 0.0) || c.iter().all(|v| *v == 0.0) {
-        bail!(
+        fail!(
+            fabric,
             "{name}.elastic.c = {c:?}: the coefficients must be finite, ≥ 0 and not all \
              zero (a negative one makes the tangent negative at large deformations)"
         );
@@ -445,7 +467,8 @@ fn check_law(name: &str, l: &Law) -> Result<()> {
         && h.xs.is_finite()
         && h.xs > 0.0)
     {
-        bail!(
+        fail!(
+            fabric,
             "{name}.hysteresis = {{h0: {}, h1: {}, h2: {}, xs: {}}}: the half-width \
              coefficients must be finite and ≥ 0, the memory length xs finite and > 0",
             h.h0,

@@ -72,7 +72,7 @@
 pub mod geometry;
 
 use crate::bvh::{Aabb, Bvh};
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use geometry::*;
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde::Serialize;
@@ -296,17 +296,53 @@ impl SelfContact {
     ) -> Result<SelfContact> {
         let nc = x.len();
         if thickness.len() != nc || friction.len() != nc {
-            bail!("self-contact: one thickness and one friction per vertex");
+            fail!(
+                length(
+                    "self-contact: thickness and friction",
+                    if thickness.len() != nc {
+                        thickness.len()
+                    } else {
+                        friction.len()
+                    },
+                    nc
+                ),
+                "self-contact: one thickness and one friction per vertex"
+            );
         }
         if let Some(t) = tris.iter().find(|t| t.iter().any(|&v| v >= nc)) {
-            bail!("self-contact: triangle {t:?} names a vertex beyond {nc}");
+            fail!(
+                index(
+                    "self-contact: vertex",
+                    t.iter().copied().max().unwrap_or(0),
+                    nc
+                ),
+                "self-contact: triangle {t:?} names a vertex beyond {nc}"
+            );
         }
         let nb = obstacles.x.len();
         if obstacles.gap.len() != nb || obstacles.friction.len() != nb {
-            bail!("self-contact: one gap and one friction per obstacle vertex");
+            fail!(
+                length(
+                    "self-contact: obstacle gap and friction",
+                    if obstacles.gap.len() != nb {
+                        obstacles.gap.len()
+                    } else {
+                        obstacles.friction.len()
+                    },
+                    nb
+                ),
+                "self-contact: one gap and one friction per obstacle vertex"
+            );
         }
         if let Some(t) = obstacles.tris.iter().find(|t| t.iter().any(|&v| v >= nb)) {
-            bail!("self-contact: obstacle triangle {t:?} names a vertex beyond {nb}");
+            fail!(
+                index(
+                    "self-contact: obstacle vertex",
+                    t.iter().copied().max().unwrap_or(0),
+                    nb
+                ),
+                "self-contact: obstacle triangle {t:?} names a vertex beyond {nb}"
+            );
         }
         let ntc = tris.len();
         let all: Vec<[usize; 3]> = tris
@@ -345,7 +381,10 @@ impl SelfContact {
         let mut adj: Vec<Vec<u32>> = vec![Vec::new(); n];
         for &[a, b] in stitches {
             if a >= n || b >= n {
-                bail!("self-contact: stitch {a}–{b} beyond {n} vertices");
+                fail!(
+                    index("self-contact: stitch vertex", a.max(b), n),
+                    "self-contact: stitch {a}–{b} beyond {n} vertices"
+                );
             }
             if a != b {
                 adj[a].push(b as u32);
@@ -477,7 +516,12 @@ impl SelfContact {
     /// [`SelfContact::resolve`] at its end.
     pub fn set_obstacles(&mut self, x: &[V]) -> Result<()> {
         if x.len() != self.obst_x.len() {
-            bail!(
+            fail!(
+                length(
+                    "self-contact: obstacle vertices",
+                    x.len(),
+                    self.obst_x.len()
+                ),
                 "self-contact: {} obstacle vertices given, {} expected",
                 x.len(),
                 self.obst_x.len()
@@ -580,7 +624,8 @@ impl SelfContact {
             .filter(|&(_, b)| b >= ntc)
             .collect();
         if let Some(&(a, b)) = caught.iter().min() {
-            bail!(
+            fail!(
+                placement,
                 "the cloth starts caught on an obstacle: {} of its triangles cross the \
                  obstacle's (first: cloth triangle {a} {:?} and obstacle triangle {} {:?}). \
                  The obstacle's vertices and edges cannot be pulled back through the cloth: \
@@ -592,7 +637,8 @@ impl SelfContact {
             );
         }
         if let Some(&(a, b)) = crossing.iter().min() {
-            bail!(
+            fail!(
+                placement,
                 "the cloth starts tangled: {} pairs of its triangles cross each other \
                  (first: triangles {a} {:?} and {b} {:?}). Self-collision keeps layers \
                  apart but cannot pull one back through another: place the panels so \
@@ -1003,7 +1049,8 @@ impl SelfContact {
     /// the first step).
     pub fn begin(&mut self, x: &[V], first: bool) -> Result<()> {
         if x.len() != self.nc {
-            bail!(
+            fail!(
+                length("self-contact: cloth vertices", x.len(), self.nc),
                 "self-contact: {} cloth vertices given, {} expected",
                 x.len(),
                 self.nc

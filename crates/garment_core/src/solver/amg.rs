@@ -61,7 +61,7 @@ use super::cpu::has_fma;
 use super::linear::sum_blocks_fma;
 use super::linear::{blocks_mul_best, Direct, Filter, Precision, Precond};
 use super::sparse::BlockMatrix;
-use anyhow::Result;
+use crate::error::Result;
 use nalgebra::{Matrix3, Vector3};
 
 /// The arm (m) of the inertia added to every rotation node: keeps an

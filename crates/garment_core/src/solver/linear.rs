@@ -10,7 +10,7 @@
 use super::cpu::has_fma;
 use super::sparse::{BlockMatrix, LowerCsc, Triangles};
 use super::team::{Barrier, Team};
-use anyhow::{anyhow, Result};
+use crate::error::{Error, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
@@ -53,17 +53,17 @@ pub enum LinearSolverKind {
 }
 
 impl std::str::FromStr for LinearSolverKind {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
         match s {
             "pcg" => Ok(Self::Pcg),
             "sgs" => Ok(Self::Sgs),
             "cholesky" => Ok(Self::Cholesky),
             "auto" => Ok(Self::Auto),
             "amg" => Ok(Self::Amg),
-            _ => Err(format!(
+            _ => Err(Error::invalid(format!(
                 "unknown linear solver {s:?}: expected auto, pcg, sgs, amg or cholesky"
-            )),
+            ))),
         }
     }
 }
@@ -324,15 +324,15 @@ impl Pcg {
             rj += self.r[i].dot(&(self.pinv[i] * self.r[i]));
         }
         if !(delta0.is_finite() && rj.is_finite()) {
-            return Err(anyhow!("PCG breakdown: non-finite right-hand side"));
+            return Err(Error::breakdown("non-finite right-hand side"));
         }
         // the reference: the right-hand side, or gravity's impulse if larger
         let delta0 = delta0.max(floor);
         let eps2 = tol * tol * delta0;
         if delta0 <= 0.0 && !zero_rhs(b, filter) {
-            return Err(anyhow!(
-                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
-                 out of range)"
+            return Err(Error::breakdown(
+                "the right-hand side's norm underflows (the system is scaled \
+                 out of range)",
             ));
         }
         if delta0 <= 0.0 || rj <= eps2 {
@@ -341,7 +341,7 @@ impl Pcg {
         let mut dnew = direct.apply_dot(a, filter, &self.r, &mut self.s);
         self.c.copy_from_slice(&self.s);
         if !(dnew.is_finite() && dnew > 0.0) {
-            return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
+            return Err(Error::breakdown("non-finite preconditioned residual"));
         }
         let mut it = 0;
         loop {
@@ -353,9 +353,9 @@ impl Pcg {
                 cq += self.c[i].dot(&v);
             }
             if cq <= 0.0 || !cq.is_finite() {
-                return Err(anyhow!(
-                    "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
-                ));
+                return Err(Error::breakdown(format!(
+                    "the system matrix is not positive definite (cᵀAc = {cq:e})"
+                )));
             }
             let alpha = dnew / cq;
             rj = 0.0;
@@ -370,12 +370,12 @@ impl Pcg {
                 return Ok(it);
             }
             if !rj.is_finite() {
-                return Err(anyhow!("PCG breakdown: non-finite residual"));
+                return Err(Error::breakdown("non-finite residual"));
             }
             let dold = dnew;
             dnew = direct.apply_dot(a, filter, &self.r, &mut self.s);
             if !(dnew.is_finite() && dnew > 0.0) {
-                return Err(anyhow!("PCG breakdown: non-finite preconditioned residual"));
+                return Err(Error::breakdown("non-finite preconditioned residual"));
             }
             let beta = dnew / dold;
             for i in 0..n {
@@ -472,16 +472,18 @@ fn reference_terms(
 /// ([`Cap::Reachable`]), every 8 iterations once the cap is out of reach.
 fn capped(it: usize, ratio2: f64, tol: f64, max_iter: usize, early: bool) -> Result<()> {
     if it >= max_iter {
-        return Err(anyhow!(
-            "PCG did not converge in {max_iter} iterations (residual ratio {:.2e})",
-            ratio2.sqrt()
-        ));
+        return Err(Error::NotConverged {
+            max_iterations: max_iter,
+            residual_ratio: ratio2.sqrt(),
+            stopped_at: None,
+        });
     }
     if early && it.is_multiple_of(8) && out_of_reach(it, ratio2, tol, max_iter) {
-        return Err(anyhow!(
-            "PCG would not converge in {max_iter} iterations (residual ratio {:.2e} after {it})",
-            ratio2.sqrt()
-        ));
+        return Err(Error::NotConverged {
+            max_iterations: max_iter,
+            residual_ratio: ratio2.sqrt(),
+            stopped_at: Some(it),
+        });
     }
     Ok(())
 }
@@ -757,11 +759,11 @@ fn pcg_rows_impl<'a, const FMA: bool, P: RowPrecond<'a>>(
     // a non-finite reference or residual would end the loop below at once
     // (NaN compares false) and pass the first guess off as the solution
     if !(delta0.is_finite() && dnew.is_finite() && rho.is_none_or(f64::is_finite)) {
-        return Err(anyhow!(
-            "PCG breakdown: non-finite right-hand side or residual (δ0 = {delta0:e}, \
+        return Err(Error::breakdown(format!(
+            "non-finite right-hand side or residual (δ0 = {delta0:e}, \
              rᵀM⁻¹r = {dnew:e}{})",
             rho.map_or(String::new(), |rho| format!(", rᵀD⁻¹r = {rho:e}"))
-        ));
+        )));
     }
     if delta0 <= 0.0 {
         // nothing to solve only if the right-hand side is zero: a non-zero
@@ -769,9 +771,9 @@ fn pcg_rows_impl<'a, const FMA: bool, P: RowPrecond<'a>>(
         // stretched by orders of magnitude) is not a converged solve
         return match zero_rhs(b, filter) {
             true => Ok(0),
-            false => Err(anyhow!(
-                "PCG breakdown: the right-hand side's norm underflows (the system is scaled \
-                 out of range)"
+            false => Err(Error::breakdown(
+                "the right-hand side's norm underflows (the system is scaled \
+                 out of range)",
             )),
         };
     }
@@ -794,9 +796,9 @@ fn pcg_rows_impl<'a, const FMA: bool, P: RowPrecond<'a>>(
         sh.barrier.wait();
         let cq = sh.sum(2);
         if cq <= 0.0 || !cq.is_finite() {
-            return Err(anyhow!(
-                "PCG breakdown: the system matrix is not positive definite (cᵀAc = {cq:e})"
-            ));
+            return Err(Error::breakdown(format!(
+                "the system matrix is not positive definite (cᵀAc = {cq:e})"
+            )));
         }
         let alpha = dnew / cq;
         let dold = dnew;
@@ -813,10 +815,10 @@ fn pcg_rows_impl<'a, const FMA: bool, P: RowPrecond<'a>>(
         sh.barrier.wait();
         dnew = sh.sum(1);
         if !dnew.is_finite() {
-            return Err(anyhow!(
-                "PCG breakdown: non-finite residual after {} iterations",
+            return Err(Error::breakdown(format!(
+                "non-finite residual after {} iterations",
                 it + 1
-            ));
+            )));
         }
         let beta = dnew / dold;
         p.next_direction(&rows, s, c, beta);
@@ -1105,9 +1107,9 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
         sh.barrier.wait();
         let rho = sh.sum(3);
         if !rho.is_finite() {
-            return Err(anyhow!(
-                "PCG breakdown: non-finite residual after {it} iterations"
-            ));
+            return Err(Error::breakdown(format!(
+                "non-finite residual after {it} iterations"
+            )));
         }
         if rho <= eps2 {
             return Ok(None);
@@ -1593,7 +1595,7 @@ impl Direct {
             SymmetricOrdering::Identity,
             Default::default(),
         )
-        .map_err(|e| anyhow!("sparse Cholesky analysis failed: {e:?}"))?;
+        .map_err(|e| Error::factorization(format!("sparse Cholesky analysis failed: {e:?}")))?;
         let l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
@@ -1734,7 +1736,11 @@ impl Direct {
             )
         };
         let stack = MemStack::new(&mut self.mem);
-        let err = |e| anyhow!("sparse Cholesky failed (matrix not positive definite?): {e:?}");
+        let err = |e| {
+            Error::factorization(format!(
+                "sparse Cholesky failed (matrix not positive definite?): {e:?}"
+            ))
+        };
         match precision {
             Precision::F64 => {
                 let mat = SparseColMatRef::new(sym, &self.csc.values[..self.csc.row_idx.len()]);

@@ -31,9 +31,9 @@ mod vertices;
 
 use crate::cloth::Cloth;
 use crate::collision::Obstacle;
+use crate::error::{fail, Error, Result};
 use crate::fabric::Fabric;
 use crate::set::{Handle, Set};
-use anyhow::{bail, Result};
 pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -146,11 +146,15 @@ impl Params {
         crate::limits::check_dt("dt", self.dt)?;
         crate::limits::check_cg_tolerance("cg_tolerance", self.cg_tolerance)?;
         if self.cg_max_iterations == 0 {
-            bail!("cg_max_iterations = 0: must be ≥ 1");
+            fail!(
+                bound("cg_max_iterations", 0.0),
+                "cg_max_iterations = 0: must be ≥ 1"
+            );
         }
         let g = self.gravity;
         if !(g.iter().all(|c| c.is_finite()) && g.norm() <= crate::limits::MAX_GRAVITY) {
-            bail!(
+            fail!(
+                bound("gravity", g.norm()),
                 "gravity = ({}, {}, {}) m/s²: must be finite and at most {} m/s² (MAX_GRAVITY)",
                 g.x,
                 g.y,
@@ -167,7 +171,8 @@ impl Params {
             "CLOTH_THICKNESS: a film to a quilt",
         )?;
         if self.threads > MAX_THREADS {
-            bail!(
+            fail!(
+                bound("threads", self.threads as f64),
                 "threads = {}: at most {MAX_THREADS} (0: one per core)",
                 self.threads
             );
@@ -689,12 +694,13 @@ impl Simulation {
     pub fn with_fabrics(cloth: Cloth, fabrics: Vec<Fabric>, params: Params) -> Result<Simulation> {
         let mut rest = fabrics.into_iter();
         let Some(first) = rest.next() else {
-            bail!("a simulation needs at least one fabric");
+            fail!(invalid, "a simulation needs at least one fabric");
         };
         let rest: Vec<Fabric> = rest.collect();
         let vf = &cloth.vertex_fabric;
         if !vf.is_empty() && vf.len() != cloth.len() {
-            bail!(
+            fail!(
+                length("vertex_fabric", vf.len(), cloth.len()),
                 "vertex_fabric has {} entries for {} vertices",
                 vf.len(),
                 cloth.len()
@@ -705,7 +711,8 @@ impl Simulation {
             .enumerate()
             .find(|(_, &k)| usize::from(k) > rest.len())
         {
-            bail!(
+            fail!(
+                index("fabric", usize::from(*k), rest.len() + 1),
                 "vertex {v} names fabric {k}, but there are {} fabrics",
                 rest.len() + 1
             );
@@ -788,7 +795,10 @@ impl Simulation {
     pub fn set_params(&mut self, params: Params) -> Result<()> {
         params.check()?;
         if params.hysteresis != self.params.hysteresis {
-            bail!("hysteresis is set when the simulation is built, not while it runs");
+            fail!(
+                invalid,
+                "hysteresis is set when the simulation is built, not while it runs"
+            );
         }
         let rebuild = params.threads != self.params.threads
             || params.linear_solver != self.params.linear_solver;
@@ -847,7 +857,8 @@ impl Simulation {
     pub fn set_pin_set(&mut self, pins: Set<Pin>) -> Result<()> {
         for p in &pins {
             if p.vertex >= self.cloth.len() {
-                bail!(
+                fail!(
+                    index("pin vertex", p.vertex, self.cloth.len()),
                     "pin on vertex {} but the cloth has {} vertices",
                     p.vertex,
                     self.cloth.len()
@@ -866,7 +877,7 @@ impl Simulation {
                 p.path = path;
                 Ok(())
             }
-            None => bail!("no pin {h:?}"),
+            None => fail!(invalid, "no pin {h:?}"),
         }
     }
 
@@ -988,7 +999,11 @@ impl Simulation {
             LinearSolverKind::Auto => self.solve_auto(),
             LinearSolverKind::Amg => self.solve_amg_or_direct(),
         };
-        let iterations = solved.map_err(|e| e.context(self.diagnose()))?;
+        let iterations = solved.map_err(|e| Error::StepFailed {
+            step: self.steps,
+            diagnosis: self.diagnose(),
+            source: Box::new(e),
+        })?;
         let solve_s = t_solve.elapsed().as_secs_f64();
         if let Some(guess) = guess {
             self.captured = Some(Box::new(LinearSystem {
@@ -1601,17 +1616,15 @@ impl Simulation {
 
     /// The error of a step that diverged at vertex `i` (a non-finite
     /// `what`), with [`Simulation::diagnose`].
-    fn diverged(&self, i: usize, what: &str) -> anyhow::Error {
-        anyhow::anyhow!(
-            "the step diverged at vertex {i} (non-finite {what}{}) at t = {:.4} s; {}",
-            if self.pinned[i].is_some() {
-                ", pinned"
-            } else {
-                ""
-            },
-            self.time,
-            self.diagnose()
-        )
+    fn diverged(&self, i: usize, what: &'static str) -> Error {
+        Error::Diverged {
+            vertex: i,
+            step: self.steps,
+            time: self.time,
+            quantity: what,
+            pinned: self.pinned[i].is_some(),
+            diagnosis: self.diagnose(),
+        }
     }
 
     /// What most likely drove a failed step, from the state at its start:

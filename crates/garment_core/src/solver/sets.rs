@@ -19,8 +19,8 @@ use super::{Energies, Fabrics};
 use crate::cloth::{
     Cloth, EggCrateGuard, Hinge, ShearCell, ShearSpring, Stitch, TensionSpring, EGG_CRATE_WEIGHTS,
 };
+use crate::error::{Error, Result};
 use crate::fabric::{Fabric, Law, LawState};
-use anyhow::{bail, Result};
 use nalgebra::{Matrix3, Vector3};
 
 /// A spring family: what the per-family force and Jacobian queries
@@ -999,13 +999,23 @@ impl Element for Stitch {
             || !(s.k.is_finite() && s.k >= 0.0 && s.d.is_finite() && s.d >= 0.0)
             || s.c.iter().any(|c| !c.is_finite())
         {
-            bail!(
+            let message = format!(
                 "seam stitch {k}: vertices {:?} (the cloth has {n}), stiffness {} N/m, \
                  damping {} N·s/m: needs vertices of the cloth and finite k, d ≥ 0",
-                s.v,
-                s.k,
-                s.d
+                s.v, s.k, s.d
             );
+            let beyond = s.v.iter().copied().find(|&v| v >= n);
+            let bad_k = !(s.k.is_finite() && s.k >= 0.0);
+            let bad_d = !(s.d.is_finite() && s.d >= 0.0);
+            return Err(match beyond {
+                Some(v) => Error::index("seam stitch vertex", v, n, message),
+                None if bad_k => Error::bound("seam stitch stiffness", s.k, message),
+                None if bad_d => Error::bound("seam stitch damping", s.d, message),
+                None => {
+                    let i = s.c.iter().position(|c| !c.is_finite()).unwrap_or(0);
+                    Error::non_finite("seam stitch direction", i, message)
+                }
+            });
         }
         Ok(())
     }
@@ -1115,7 +1125,7 @@ mod tests {
             },
         };
         let no_curves = |name: &str| -> Result<crate::fabric::kes::KesCurve> {
-            bail!("no curve files here ({name})")
+            Err(Error::invalid(format!("no curve files here ({name})")))
         };
         Fabric::from_file(file, &no_curves).unwrap()
     }

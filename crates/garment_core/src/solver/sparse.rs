@@ -161,14 +161,14 @@ impl LowerCsc {
     ///
     /// Fails when the matrix has more entries than 32-bit positions address
     /// (about 4.7e8 blocks).
-    pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> anyhow::Result<LowerCsc> {
+    pub fn new_permuted(a: &BlockMatrix, perm: &[usize]) -> crate::Result<LowerCsc> {
         let dim = 3 * a.n;
         if 9 * a.val.len() + 1 >= u32::MAX as usize {
-            anyhow::bail!(
+            return Err(crate::Error::factorization(format!(
                 "the system matrix has {} blocks: too many for the direct solver (at most {})",
                 a.val.len(),
                 u32::MAX / 9
-            );
+            )));
         }
         let mut inv = vec![0; a.n];
         for (new, &old) in perm.iter().enumerate() {
