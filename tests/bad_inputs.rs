@@ -472,11 +472,17 @@ fn a_failed_step_names_the_spring_and_the_strain() {
             })
             .unwrap();
         sim.fabric.warp.tensile.elastic.c = [100.0, 0.0, 0.0, 100.0];
-        let x0 = sim.cloth.x[0];
-        for p in sim.cloth.x.iter_mut() {
+        let x0 = sim.cloth.positions()[0];
+        let mut x = sim.cloth.positions().to_vec();
+        for p in x.iter_mut() {
             p.x = x0.x + (p.x - x0.x) * stretch;
         }
-        let before = (sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time);
+        sim.cloth.set_positions(&x).unwrap();
+        let before = (
+            sim.cloth.positions().to_vec(),
+            sim.cloth.velocities().to_vec(),
+            sim.time,
+        );
         let e = match sim.step() {
             Ok(_) => panic!("{solver:?}, stretch {stretch:e}: the step succeeded"),
             Err(e) => format!("{e:#}"),
@@ -488,7 +494,14 @@ fn a_failed_step_names_the_spring_and_the_strain() {
             "{solver:?}, stretch {stretch:e}: {e}"
         );
         // nothing changed
-        assert_eq!((sim.cloth.x.clone(), sim.cloth.v.clone(), sim.time), before);
+        assert_eq!(
+            (
+                sim.cloth.positions().to_vec(),
+                sim.cloth.velocities().to_vec(),
+                sim.time
+            ),
+            before
+        );
     }
 }
 
@@ -521,7 +534,11 @@ fn a_drape_whose_step_fails_writes_the_steps_before_it() {
     assert!(failure.contains("diverged at vertex 0"), "{failure}");
     assert_eq!(s.steps, 5);
     assert!((sim.time - 5.0 * dt).abs() < 1e-12, "{}", sim.time);
-    assert!(sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    assert!(sim
+        .cloth
+        .positions()
+        .iter()
+        .all(|p| p.iter().all(|c| c.is_finite())));
     // the files: the energies from the start to the last good step, that
     // state, and the summary with the failure
     let csv = std::fs::read_to_string(out.join("energy.csv")).unwrap();
@@ -805,7 +822,7 @@ fn a_cloth_below_the_smallest_spacing_is_refused_naming_the_field_and_bound() {
         .unwrap()
         .build(&Overrides::default())
         .unwrap();
-    assert_eq!(sim.cloth.x.len(), 121);
+    assert_eq!(sim.cloth.positions().len(), 121);
 }
 
 /// A scene of 400 KB of nested brackets is refused at once (before the YAML
@@ -864,7 +881,7 @@ fn random_extreme_messages_never_break_the_step() {
     };
     let mut sim = build();
     let mut reg = ObstacleRegistry::from_sim(&sim);
-    let centre = sim.cloth.x[sim.cloth.len() / 2];
+    let centre = sim.cloth.positions()[sim.cloth.len() / 2];
     let pool = [
         0.0,
         1e-300,
@@ -980,7 +997,10 @@ fn random_extreme_messages_never_break_the_step() {
                 panic!("case {case}, step {k} after {}: {e:#}", what.1);
             }
             assert!(
-                sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+                sim.cloth
+                    .positions()
+                    .iter()
+                    .all(|p| p.iter().all(|c| c.is_finite())),
                 "case {case}: non-finite position after {}",
                 what.1
             );

@@ -37,7 +37,13 @@ fn write_expected(path: &Path) {
     let mut frames: Vec<Vec<f64>> = Vec::new();
     let mut sample = |sim: &garment_sim::solver::Simulation, times: &mut Vec<f64>| {
         times.push(sim.time);
-        frames.push(sim.cloth.x.iter().flat_map(|p| [p.x, p.y, p.z]).collect());
+        frames.push(
+            sim.cloth
+                .positions()
+                .iter()
+                .flat_map(|p| [p.x, p.y, p.z])
+                .collect(),
+        );
     };
     let steps = (DURATION / DT).round() as usize;
     if clock.due(sim.time, RATE) {

@@ -116,7 +116,7 @@ fn a_sheet_on_a_plate_presses_with_its_weight_and_areal_weight() {
     // the plate, the force straight down
     let c = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .zip(&sim.cloth.mass)
         .map(|(x, mi)| x * *mi)

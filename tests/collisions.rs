@@ -52,7 +52,7 @@ fn incline(angle: f64, mu: f64) -> Simulation {
 }
 
 fn mean_velocity(sim: &Simulation) -> Vector3<f64> {
-    sim.cloth.v.iter().sum::<Vector3<f64>>() / sim.cloth.len() as f64
+    sim.cloth.velocities().iter().sum::<Vector3<f64>>() / sim.cloth.len() as f64
 }
 
 #[test]
@@ -127,7 +127,8 @@ fn cloth_on_a_turntable_turns_with_it() {
     }
     let omega = 1.0;
     sim.obstacle_mut(table).unwrap().angular_velocity = Vector3::new(0.0, 0.0, omega);
-    let centroid = |s: &Simulation| s.cloth.x.iter().sum::<Vector3<f64>>() / s.cloth.len() as f64;
+    let centroid =
+        |s: &Simulation| s.cloth.positions().iter().sum::<Vector3<f64>>() / s.cloth.len() as f64;
     let angle = |s: &Simulation| {
         let c = centroid(s);
         c.y.atan2(c.x)
@@ -189,19 +190,19 @@ fn drop_on(
     let mut worst = f64::INFINITY;
     for _ in 0..steps {
         sim.step().unwrap();
-        for p in &sim.cloth.x {
+        for p in sim.cloth.positions() {
             worst = worst.min(sim.obstacles()[0].proximity(p).distance);
         }
     }
     let lowest = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .map(|p| p.z)
         .fold(f64::INFINITY, f64::min);
     let highest = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .map(|p| p.z)
         .fold(f64::NEG_INFINITY, f64::max);
@@ -328,14 +329,14 @@ fn thin_board(height: f64, dt: f64, rise: f64, steps: usize) -> (f64, f64) {
     for _ in 0..steps {
         sim.step().unwrap();
         let top = sim.obstacles()[0].pose.translation.z + 0.001;
-        for p in &sim.cloth.x {
+        for p in sim.cloth.positions() {
             lowest = lowest.min(p.z - top);
         }
     }
     let top = sim.obstacles()[0].pose.translation.z + 0.001;
     let highest = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .map(|p| p.z - top)
         .fold(f64::NEG_INFINITY, f64::max);

@@ -34,7 +34,10 @@ fn drape_coefficient_falls_with_softer_bending() {
             "drop {}",
             rep.drop_m
         );
-        assert!(cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
+        assert!(cloth
+            .positions()
+            .iter()
+            .all(|p| p.iter().all(|c| c.is_finite())));
         // folds: a stiff specimen makes few, a limp one several (Cusick:
         // 3–12). B × 10 stays within the node prominence (10 % of the hanging
         // length, 6 mm): shallow waves, the shadow radius 14.5–14.9 cm
@@ -208,7 +211,8 @@ fn mirror_symmetric_hinges_bend_alike_in_every_direction() {
                         radius * (s / radius).sin(),
                         radius * (1.0 - (s / radius).cos()),
                     );
-                    c.x[i] = Vector3::new(ps * cs - t * sn, ps * sn + t * cs, pz);
+                    c.set_position(i, Vector3::new(ps * cs - t * sn, ps * sn + t * cs, pz))
+                        .unwrap();
                 }
                 Simulation::new(c, wool.clone(), Params::default())
                     .unwrap()
@@ -331,7 +335,11 @@ fn border_on_the_circle_is_at_rest_and_covers_the_annulus() {
         c.triangles
             .iter()
             .map(|t| {
-                let (a, b, d) = (c.x[t[0]], c.x[t[1]], c.x[t[2]]);
+                let (a, b, d) = (
+                    c.positions()[t[0]],
+                    c.positions()[t[1]],
+                    c.positions()[t[2]],
+                );
                 0.5 * (b - a).cross(&(d - a)).norm()
             })
             .sum()
@@ -478,11 +486,15 @@ fn hinge_pairs_match_the_single_hinge_on_folds_along_the_threads() {
                     radius * (s / radius).sin(),
                     radius * (1.0 - (s / radius).cos()),
                 );
-                c.x[i] = if weft_axis {
-                    Vector3::new(ps, t, pz)
-                } else {
-                    Vector3::new(t, ps, pz)
-                };
+                c.set_position(
+                    i,
+                    if weft_axis {
+                        Vector3::new(ps, t, pz)
+                    } else {
+                        Vector3::new(t, ps, pz)
+                    },
+                )
+                .unwrap();
             }
             Simulation::new(c, wool.clone(), Params::default())
                 .unwrap()
@@ -583,7 +595,8 @@ fn the_egg_crate_costs_energy_with_either_shear_measure() {
             for i in 0..c.len() {
                 let [u, v] = c.material[i];
                 let odd = ((u / h).round() as i64 + (v / h).round() as i64) % 2 != 0;
-                c.x[i] = Vector3::new(u * d, v * d, if odd { -a } else { a });
+                c.set_position(i, Vector3::new(u * d, v * d, if odd { -a } else { a }))
+                    .unwrap();
             }
             let area = (0.2 * d).powi(2);
             let want = b * (4.0 * a / (h * h)).powi(2);
@@ -947,7 +960,8 @@ fn the_hinge_chain_bends_a_wave_softer_by_its_dispersion() {
         .unwrap();
         for i in 0..c.len() {
             let [u, v] = c.material[i];
-            c.x[i] = Vector3::new(u, v, a * (k * u).sin());
+            c.set_position(i, Vector3::new(u, v, a * (k * u).sin()))
+                .unwrap();
         }
         let e = Simulation::new(c, wool.clone(), Params::default())
             .unwrap()

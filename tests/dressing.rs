@@ -222,7 +222,7 @@ fn run_with_no_vertex_inside(t: &Trial, ov: &Overrides, on_step: &mut dyn FnMut(
     let mut worst: Option<(f64, usize, [f64; 3])> = None;
     let run = dress(t, ov, &mut |sim| {
         on_step();
-        for (i, p) in sim.cloth.x.iter().enumerate() {
+        for (i, p) in sim.cloth.positions().iter().enumerate() {
             if mesh.inside(p) && worst.is_none() {
                 worst = Some((sim.time, i, [p.x, p.y, p.z]));
             }

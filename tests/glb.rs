@@ -38,7 +38,7 @@ fn drape() -> Drape {
         if step.is_multiple_of(every) {
             let x = s
                 .cloth
-                .x
+                .positions()
                 .iter()
                 .map(|p| [p.x as f32, p.y as f32, p.z as f32]);
             frames.push((s.time, x.collect()));

@@ -35,26 +35,30 @@ fn deformed_with(seed: u64, scale: f64, cell_shear: bool) -> Simulation {
     };
     let mut sim = Simulation::new(cloth, fixture(), params).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    for p in sim.cloth.x.iter_mut() {
+    let mut x = sim.cloth.positions().to_vec();
+    for p in x.iter_mut() {
         *p += Vector3::new(
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
         ) * scale;
     }
+    sim.cloth.set_positions(&x).unwrap();
     sim.commit();
     let (t, s, b) = sim.laws_mut();
     for st in t.iter_mut().chain(s.iter_mut()).chain(b.iter_mut()) {
         st.sp = rng.random_range(-0.3..0.3);
         st.dir = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
     }
-    for p in sim.cloth.x.iter_mut() {
+    let mut x = sim.cloth.positions().to_vec();
+    for p in x.iter_mut() {
         *p += Vector3::new(
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
         ) * scale;
     }
+    sim.cloth.set_positions(&x).unwrap();
     sim
 }
 
@@ -71,12 +75,30 @@ fn check_with(fam: Family, seed: u64, scale: f64, cell_shear: bool) {
     let h = 1e-7;
     for j in 0..n {
         for q in 0..3 {
-            let x0 = sim.cloth.x[j][q];
-            sim.cloth.x[j][q] = x0 + h;
+            let x0 = sim.cloth.positions()[j][q];
+            sim.cloth
+                .set_position(j, {
+                    let mut p = sim.cloth.positions()[j];
+                    p[q] = x0 + h;
+                    p
+                })
+                .unwrap();
             let fp = sim.family_forces(fam);
-            sim.cloth.x[j][q] = x0 - h;
+            sim.cloth
+                .set_position(j, {
+                    let mut p = sim.cloth.positions()[j];
+                    p[q] = x0 - h;
+                    p
+                })
+                .unwrap();
             let fm = sim.family_forces(fam);
-            sim.cloth.x[j][q] = x0;
+            sim.cloth
+                .set_position(j, {
+                    let mut p = sim.cloth.positions()[j];
+                    p[q] = x0;
+                    p
+                })
+                .unwrap();
             for i in 0..n {
                 let fd = (fp[i] - fm[i]) / (2.0 * h);
                 let an = match k.col[k.row_ptr[i]..k.row_ptr[i + 1]].binary_search(&(j as u32)) {
@@ -133,7 +155,7 @@ fn both_hysteresis_branches_are_exercised() {
     let c = &sim.cloth;
     let (mut up, mut down) = (0, 0);
     for (s, st) in c.tension.iter().zip(&c.tension_state) {
-        let e = (c.x[s.b] - c.x[s.a]).norm() / s.l0 - 1.0;
+        let e = (c.positions()[s.b] - c.positions()[s.a]).norm() / s.l0 - 1.0;
         if e > st.x {
             up += 1
         } else if e < st.x {
@@ -165,7 +187,7 @@ fn velocity_jacobian_with(cell_shear: bool) {
             )
         })
         .collect();
-    sim.cloth.v = v.clone();
+    sim.cloth.set_velocities(&v).unwrap();
     let c = sim.damping_matrix();
     let h = 1e-6;
     let mut max_err: f64 = 0.0;
@@ -221,12 +243,30 @@ fn forces_are_energy_gradients_with(cell_shear: bool) {
         let mut max_val: f64 = 0.0;
         for j in 0..n {
             for q in 0..3 {
-                let x0 = sim.cloth.x[j][q];
-                sim.cloth.x[j][q] = x0 + h;
+                let x0 = sim.cloth.positions()[j][q];
+                sim.cloth
+                    .set_position(j, {
+                        let mut p = sim.cloth.positions()[j];
+                        p[q] = x0 + h;
+                        p
+                    })
+                    .unwrap();
                 let ep = fam_e(&sim, fam);
-                sim.cloth.x[j][q] = x0 - h;
+                sim.cloth
+                    .set_position(j, {
+                        let mut p = sim.cloth.positions()[j];
+                        p[q] = x0 - h;
+                        p
+                    })
+                    .unwrap();
                 let em = fam_e(&sim, fam);
-                sim.cloth.x[j][q] = x0;
+                sim.cloth
+                    .set_position(j, {
+                        let mut p = sim.cloth.positions()[j];
+                        p[q] = x0;
+                        p
+                    })
+                    .unwrap();
                 let fd = -(ep - em) / (2.0 * h);
                 max_err = max_err.max((fd - force[j][q]).abs());
                 max_val = max_val.max(force[j][q].abs());
@@ -288,7 +328,8 @@ fn threaded_assembly_equals_serial() {
         };
         let mut cloth = Cloth::grid(&spec, 0.213).unwrap();
         let mut rng = rand::rngs::StdRng::seed_from_u64(9);
-        for (p, v) in cloth.x.iter_mut().zip(cloth.v.iter_mut()) {
+        let (mut x, mut vel) = (cloth.positions().to_vec(), cloth.velocities().to_vec());
+        for (p, v) in x.iter_mut().zip(vel.iter_mut()) {
             *p += Vector3::new(
                 rng.random_range(-1.0..1.0),
                 rng.random_range(-1.0..1.0),
@@ -300,6 +341,8 @@ fn threaded_assembly_equals_serial() {
                 rng.random_range(-1.0..1.0),
             );
         }
+        cloth.set_positions(&x).unwrap();
+        cloth.set_velocities(&vel).unwrap();
         let params = Params {
             threads,
             ..Params::default()

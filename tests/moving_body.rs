@@ -197,12 +197,14 @@ fn a_rigidly_moved_mesh_moves_the_cloth_as_the_rigid_obstacle() {
         let b = moved.step().unwrap();
         assert_eq!(a.contacts, b.contacts, "t = {}", rigid.time);
         contacts = contacts.max(a.contacts);
-        for (p, q) in rigid.cloth.x.iter().zip(&moved.cloth.x) {
+        for (p, q) in rigid.cloth.positions().iter().zip(moved.cloth.positions()) {
             worst = worst.max((p - q).norm());
         }
     }
     // the cloth was carried: its centre moved along x with the capsule
-    let cx = |s: &Simulation| s.cloth.x.iter().map(|p| p.x).sum::<f64>() / s.cloth.len() as f64;
+    let cx = |s: &Simulation| {
+        s.cloth.positions().iter().map(|p| p.x).sum::<f64>() / s.cloth.len() as f64
+    };
     println!(
         "rigid vs deforming: max vertex distance {worst:.3e} m over 150 steps, up to {contacts} \
          contacts, cloth centre x {:.4} m vs {:.4} m",
@@ -261,7 +263,7 @@ fn a_capsule_at_2_m_s_does_not_go_through_the_sheet() {
         sim.step().unwrap();
         let zc = z0 + speed * sim.time.min(0.3);
         let (a, b) = (V::new(0.0, -half, zc), V::new(0.0, half, zc));
-        for (i, p) in sim.cloth.x.iter().enumerate() {
+        for (i, p) in sim.cloth.positions().iter().enumerate() {
             let d = to_segment(p, &a, &b);
             assert!(
                 d >= r_in,
@@ -273,7 +275,7 @@ fn a_capsule_at_2_m_s_does_not_go_through_the_sheet() {
         }
         lifted = sim
             .cloth
-            .x
+            .positions()
             .iter()
             .map(|p| p.z)
             .fold(f64::NEG_INFINITY, f64::max);
@@ -316,7 +318,7 @@ fn a_capsule_swept_at_2_m_s_through_a_curtain_does_not_go_through() {
         .iter()
         .map(|&(i, j)| {
             let k = sim.cloth.index(i, j).unwrap();
-            Pin::new(k, PinPath::Fixed(sim.cloth.x[k]))
+            Pin::new(k, PinPath::Fixed(sim.cloth.positions()[k]))
         })
         .collect();
     sim.set_pins(pins).unwrap();
@@ -348,7 +350,7 @@ fn a_capsule_swept_at_2_m_s_through_a_curtain_does_not_go_through() {
         sim.step().unwrap();
         let xc = x0 + speed * sim.time.min(0.2);
         let (a, b) = (V::new(xc, 0.0, z - half), V::new(xc, 0.0, z + half));
-        for (i, p) in sim.cloth.x.iter().enumerate() {
+        for (i, p) in sim.cloth.positions().iter().enumerate() {
             let d = to_segment(p, &a, &b);
             assert!(
                 d >= r_in,
@@ -360,7 +362,7 @@ fn a_capsule_swept_at_2_m_s_through_a_curtain_does_not_go_through() {
         }
         pushed = sim
             .cloth
-            .x
+            .positions()
             .iter()
             .map(|p| p.x)
             .fold(f64::NEG_INFINITY, f64::max);
@@ -704,7 +706,7 @@ fn a_bending_arm_does_not_go_through_the_sheet() {
         // in sim axes the elbow turns the forearm from +x towards +z
         let th = PI / 2.0 * (sim.time / bend).min(1.0);
         let dir = V::new(th.cos(), 0.0, th.sin());
-        for (i, p) in sim.cloth.x.iter().enumerate() {
+        for (i, p) in sim.cloth.positions().iter().enumerate() {
             let upper = (p.x >= 0.0 && p.x <= 0.25).then(|| (p.y * p.y + p.z * p.z).sqrt());
             let s = (p - elbow).dot(&dir);
             let fore = (0.05..=0.3)
@@ -724,7 +726,7 @@ fn a_bending_arm_does_not_go_through_the_sheet() {
     }
     let top = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .map(|p| p.z)
         .fold(f64::NEG_INFINITY, f64::max);
@@ -825,20 +827,25 @@ fn tube_on_a_turning_frustum(depth: f64, omega: f64) {
     };
     let mut cloth = Cloth::grid(&grid, f.areal_mass).unwrap();
     assert_eq!(cloth.nx, nx);
-    for i in 0..cloth.len() {
-        let [u, v] = cloth.material[i];
-        let a = 2.0 * PI * u / w;
-        cloth.x[i] = V::new(radius * a.cos(), radius * a.sin(), z0 + v);
-    }
-    for j in 0..cloth.ny {
-        let (a, b) = (cloth.index(0, j).unwrap(), cloth.index(nx - 1, j).unwrap());
-        cloth.seams.push(Stitch {
-            v: [a, b, b],
-            c: [1.0, -1.0, 0.0],
-            k: 400.0,
-            d: 1.0,
-        });
-    }
+    let x: Vec<V> = (cloth.material.iter())
+        .map(|&[u, v]| {
+            let a = 2.0 * PI * u / w;
+            V::new(radius * a.cos(), radius * a.sin(), z0 + v)
+        })
+        .collect();
+    cloth.set_positions(&x).unwrap();
+    let stitches: Vec<Stitch> = (0..cloth.ny)
+        .map(|j| {
+            let (a, b) = (cloth.index(0, j).unwrap(), cloth.index(nx - 1, j).unwrap());
+            Stitch {
+                v: [a, b, b],
+                c: [1.0, -1.0, 0.0],
+                k: 400.0,
+                d: 1.0,
+            }
+        })
+        .collect();
+    cloth.add_seams(&stitches).unwrap();
     let mut sim = Simulation::new(
         cloth,
         f,
@@ -865,7 +872,7 @@ fn tube_on_a_turning_frustum(depth: f64, omega: f64) {
     // turn over the window is their mass-weighted mean change
     let angle = |p: &V| p.y.atan2(p.x);
     let mut turned = vec![0.0; sim.cloth.len()];
-    let mut last: Vec<f64> = sim.cloth.x.iter().map(angle).collect();
+    let mut last: Vec<f64> = sim.cloth.positions().iter().map(angle).collect();
     let window = (start + 1.0, start + 3.0);
     let m: f64 = sim.cloth.mass.iter().sum();
     // the rate over each quarter second of the window, and the contacts
@@ -877,7 +884,7 @@ fn tube_on_a_turning_frustum(depth: f64, omega: f64) {
     while sim.time < window.1 - 1e-9 {
         let stats = sim.step().unwrap();
         let inside = sim.time > window.0 + 1e-9;
-        for (k, p) in sim.cloth.x.iter().enumerate() {
+        for (k, p) in sim.cloth.positions().iter().enumerate() {
             let a = angle(p);
             let d = (a - last[k] + PI).rem_euclid(2.0 * PI) - PI;
             if inside {
@@ -906,7 +913,7 @@ fn tube_on_a_turning_frustum(depth: f64, omega: f64) {
     let mean = turn / (window.1 - window.0);
     let rest_z = sim
         .cloth
-        .x
+        .positions()
         .iter()
         .map(|p| p.z)
         .fold(f64::INFINITY, f64::min);
@@ -1130,8 +1137,8 @@ fn a_trial_body_with_a_motion_carries_the_garment() {
         let t = Trial::load(&p).unwrap();
         let (mut sim, g) = t.build(&Overrides::default()).unwrap();
         let st = run_quietly(&mut sim, &t);
-        let deepest = sim.obstacles()[0].deepest_inside(&sim.cloth.x);
-        let z = sim.cloth.x.iter().map(|p| p.z).sum::<f64>() / sim.cloth.len() as f64;
+        let deepest = sim.obstacles()[0].deepest_inside(sim.cloth.positions());
+        let z = sim.cloth.positions().iter().map(|p| p.z).sum::<f64>() / sim.cloth.len() as f64;
         // the fit report measures against the body where it is now
         let (fit, _, _) = trial::fit(&sim, &g, &t, st.clone());
         assert_eq!(fit.body_penetrations, 0, "{name}");
@@ -1255,10 +1262,15 @@ fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
     );
     // the sleeves: the vertices more than 20 cm out from the body's axis on the still body
     let sleeve: Vec<usize> = (0..s0.cloth.len())
-        .filter(|&i| s0.cloth.x[i].x.abs() > 0.2)
+        .filter(|&i| s0.cloth.positions()[i].x.abs() > 0.2)
         .collect();
-    let mean_z =
-        |s: &Simulation| sleeve.iter().map(|&i| s.cloth.x[i].z).sum::<f64>() / sleeve.len() as f64;
+    let mean_z = |s: &Simulation| {
+        sleeve
+            .iter()
+            .map(|&i| s.cloth.positions()[i].z)
+            .sum::<f64>()
+            / sleeve.len() as f64
+    };
     let rise = mean_z(&s1) - mean_z(&s0);
     // how far the arm under them rose: the body vertex nearest each sleeve
     // vertex on the still body, from the first pose to the last
@@ -1269,7 +1281,7 @@ fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
     let arm_rise = sleeve
         .iter()
         .map(|&i| {
-            let p = s0.cloth.x[i];
+            let p = s0.cloth.positions()[i];
             let k = (0..first.len())
                 .min_by(|&a, &b| (first[a] - p).norm().total_cmp(&(first[b] - p).norm()))
                 .unwrap();
@@ -1277,7 +1289,7 @@ fn the_tshirt_follows_the_arms_of_the_shipped_motion() {
         })
         .sum::<f64>()
         / sleeve.len() as f64;
-    let deepest = s1.obstacles()[0].deepest_inside(&s1.cloth.x);
+    let deepest = s1.obstacles()[0].deepest_inside(s1.cloth.positions());
     println!(
         "T-shirt on the arms raise: {} sleeve vertices rose {:.1} cm, the arm under them {:.1} cm; \
          {} inside the body",
@@ -1449,7 +1461,7 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
             return Control::Continue;
         }
         let b = s.obstacles()[0].deforming().unwrap().positions();
-        let x = &s.cloth.x;
+        let x = s.cloth.positions();
         let counting = at > window.0 + 1e-9 && at < window.1 + 1e-9;
         match &mut skirt {
             Some((c, u, _)) => {
@@ -1486,7 +1498,7 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
     );
     let (c, u, w) = skirt.unwrap();
     let span = window.1 - window.0;
-    let deepest = sim.obstacles()[0].deepest_inside(&sim.cloth.x);
+    let deepest = sim.obstacles()[0].deepest_inside(sim.cloth.positions());
     (c.mean(&mass) / span, u.mean(&w) / span, bins, deepest)
 }
 

@@ -41,8 +41,8 @@ fn swinging(fabric: Fabric, dt: f64) -> Simulation {
     let a = sim.cloth.index(0, 0).unwrap();
     let b = sim.cloth.index(10, 0).unwrap();
     let pins = vec![
-        Pin::new(a, PinPath::Fixed(sim.cloth.x[a])),
-        Pin::new(b, PinPath::Fixed(sim.cloth.x[b])),
+        Pin::new(a, PinPath::Fixed(sim.cloth.positions()[a])),
+        Pin::new(b, PinPath::Fixed(sim.cloth.positions()[b])),
     ];
     sim.set_pins(pins).unwrap();
     sim
@@ -103,7 +103,7 @@ fn free_fall_reaches_terminal_speed_g_over_alpha() {
     for _ in 0..1500 {
         sim.step().unwrap();
     }
-    let vz: f64 = sim.cloth.v.iter().map(|v| v.z).sum::<f64>() / sim.cloth.len() as f64;
+    let vz: f64 = sim.cloth.velocities().iter().map(|v| v.z).sum::<f64>() / sim.cloth.len() as f64;
     let expected = 9.81 / alpha.abs();
     println!(
         "terminal speed {:.4} m/s, g/|alpha| = {expected:.4} m/s",
@@ -138,7 +138,7 @@ fn hanging_cloth_reaches_static_equilibrium() {
     let weight = sim.cloth.total_mass() * g;
     let c = &sim.cloth;
     for s in &c.tension {
-        let eps = (c.x[s.b] - c.x[s.a]).norm() / s.l0 - 1.0;
+        let eps = (c.positions()[s.b] - c.positions()[s.a]).norm() / s.l0 - 1.0;
         let curve = &sim.fabric.dir(s.weft).tensile_curve.load;
         let load = weight / s.width;
         let allowed = curve
@@ -188,7 +188,7 @@ fn mean_distance(coarse: &Simulation, fine: &Simulation) -> f64 {
     let s: f64 = c
         .material
         .iter()
-        .zip(&c.x)
+        .zip(c.positions())
         .map(|(m, p)| (fine.cloth.at_material(m[0], m[1]) - p).norm())
         .sum();
     s / c.len() as f64
@@ -207,7 +207,7 @@ fn table_drape_rests_on_board_and_settles_and_converges() {
     let top = board.pose.translation.vector + up * 0.0025;
     let (mut over, mut worst_gap, mut min_d, mut hang): (usize, f64, f64, f64) =
         (0, 0.0, f64::INFINITY, 0.0);
-    for (p, m) in sim.cloth.x.iter().zip(&sim.cloth.material) {
+    for (p, m) in sim.cloth.positions().iter().zip(&sim.cloth.material) {
         let pr = board.proximity(p);
         min_d = min_d.min(pr.distance);
         let height = (p - top).dot(&up);
@@ -292,29 +292,30 @@ fn mirror_symmetric_hinges_hang_a_scene_as_its_own_mirror_image() {
         };
         let mut sim = sc.build(&ov).unwrap();
         let hinges_of = sim.cloth.hinges.len();
-        let start = sim.cloth.x.clone();
+        let start = sim.cloth.positions().to_vec();
         run::run(&mut sim, 1.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
         let c = &sim.cloth;
         let (nx, ny) = (c.nx, c.ny);
         // the mirror plane: half way between the two pins' start positions
         let (a, b) = (c.index(0, 0).unwrap(), c.index(nx - 1, 0).unwrap());
-        let mid = 0.5 * (c.x[a] + c.x[b]);
-        let normal = (c.x[b] - c.x[a]).normalize();
+        let mid = 0.5 * (c.positions()[a] + c.positions()[b]);
+        let normal = (c.positions()[b] - c.positions()[a]).normalize();
         let mirror = |p: Vector3<f64>| p - 2.0 * (p - mid).dot(&normal) * normal;
         let mut worst: f64 = 0.0;
         for j in 0..ny {
             for i in 0..nx {
-                let p = c.x[c.index(i, j).unwrap()];
-                let q = c.x[c.index(nx - 1 - i, j).unwrap()];
+                let p = c.positions()[c.index(i, j).unwrap()];
+                let q = c.positions()[c.index(nx - 1 - i, j).unwrap()];
                 worst = worst.max((p - mirror(q)).norm());
             }
         }
         // how far the cloth moved: its sag, not its start, is compared
-        let travel =
-            c.x.iter()
-                .zip(&start)
-                .map(|(p, s)| (p - s).norm())
-                .fold(0.0, f64::max);
+        let travel = c
+            .positions()
+            .iter()
+            .zip(&start)
+            .map(|(p, s)| (p - s).norm())
+            .fold(0.0, f64::max);
         (worst, hinges_of, travel)
     };
     let (skewed, n_skewed, t_skewed) = asymmetry(HingesFile::Skewed);
@@ -371,7 +372,7 @@ fn table_drape_shape_converges_at_least_linearly_with_the_grid() {
 fn pins_follow_their_path_exactly() {
     let mut sim = swinging(fixture(), 1e-3);
     let a = sim.cloth.index(0, 0).unwrap();
-    let p0 = sim.cloth.x[a];
+    let p0 = sim.cloth.positions()[a];
     let path = PinPath::Waypoints(vec![
         (0.0, p0),
         (0.2, p0 + Vector3::new(0.0, 0.1, 0.05)),
@@ -384,8 +385,8 @@ fn pins_follow_their_path_exactly() {
     for _ in 0..500 {
         sim.step().unwrap();
         let (target, vel) = path.at(sim.time);
-        worst = worst.max((sim.cloth.x[a] - target).norm());
-        worst = worst.max((sim.cloth.v[a] - vel).norm() * 1e-3);
+        worst = worst.max((sim.cloth.positions()[a] - target).norm());
+        worst = worst.max((sim.cloth.velocities()[a] - vel).norm() * 1e-3);
     }
     println!("pin path: worst distance to target {worst:.2e} m");
     assert!(worst < 1e-9, "{worst}");
@@ -404,7 +405,7 @@ fn pins_and_obstacles_are_addressed_by_handles() {
         .set_pins(
             [a, b, c]
                 .iter()
-                .map(|&v| Pin::new(v, PinPath::Fixed(sim.cloth.x[v])))
+                .map(|&v| Pin::new(v, PinPath::Fixed(sim.cloth.positions()[v])))
                 .collect(),
         )
         .unwrap();
@@ -419,16 +420,16 @@ fn pins_and_obstacles_are_addressed_by_handles() {
         .set_pin_path(held[2], PinPath::Fixed(Vector3::zeros()))
         .is_err());
     // b's new path is followed exactly; a stays where it was
-    let (xa, xb) = (sim.cloth.x[a], sim.cloth.x[b]);
+    let (xa, xb) = (sim.cloth.positions()[a], sim.cloth.positions()[b]);
     let to = xb + Vector3::new(0.0, 0.0, 0.01);
     sim.set_pin_path(held[1], PinPath::Fixed(to)).unwrap();
     for _ in 0..20 {
         sim.step().unwrap();
     }
-    assert_eq!(sim.cloth.x[a], xa);
-    assert!((sim.cloth.x[b] - to).norm() < 1e-12);
+    assert_eq!(sim.cloth.positions()[a], xa);
+    assert!((sim.cloth.positions()[b] - to).norm() < 1e-12);
     // the freed vertex falls
-    assert!(sim.cloth.x[c].z < xa.z - 1e-3);
+    assert!(sim.cloth.positions()[c].z < xa.z - 1e-3);
     // obstacles: a floor added under the cloth, removed by its handle
     let floor = garment_sim::collision::Obstacle::new(
         "floor",
@@ -463,7 +464,7 @@ fn auto_solver_runs_are_reproducible() {
             let s = sim.step().unwrap();
             iters.push((s.iterations, s.solved_by));
         }
-        (sim.cloth.x.clone(), iters)
+        (sim.cloth.positions().to_vec(), iters)
     };
     let (a, ia) = run();
     let (b, ib) = run();
@@ -596,11 +597,11 @@ fn a_cloned_simulation_steps_as_the_original() {
         assert!(sim.last.contacts > 0);
         let same = |a: &[Vector3<f64>], b: &[Vector3<f64>]| a.iter().zip(b).all(|(p, q)| p == q);
         assert!(
-            same(&sim.cloth.x, &twin.cloth.x),
+            same(sim.cloth.positions(), twin.cloth.positions()),
             "{threads} threads: positions differ"
         );
         assert!(
-            same(&sim.cloth.v, &twin.cloth.v),
+            same(sim.cloth.velocities(), twin.cloth.velocities()),
             "{threads} threads: velocities differ"
         );
         assert!(same(&sim.contact_forces(), &twin.contact_forces()));
@@ -657,7 +658,12 @@ fn parameters_change_between_steps_through_set_params() {
         sim.step().unwrap();
         twin.step().unwrap();
     }
-    assert!(sim.cloth.x.iter().zip(&twin.cloth.x).all(|(p, q)| p == q));
+    assert!(sim
+        .cloth
+        .positions()
+        .iter()
+        .zip(twin.cloth.positions())
+        .all(|(p, q)| p == q));
     // a runtime parameter (the trial switches gravity off while sewing)
     sim.set_params(Params {
         gravity: Vector3::zeros(),
@@ -697,7 +703,7 @@ fn threads_change_round_off_only() {
             iters.push(s.iterations);
             contacts = s.contacts;
         }
-        (sim.cloth.x.clone(), iters, contacts)
+        (sim.cloth.positions().to_vec(), iters, contacts)
     };
     let (x1, i1, _) = run("hanging_corners.yaml", 2e-3, 30, 1);
     for threads in [2, 3] {

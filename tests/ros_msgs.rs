@@ -47,7 +47,7 @@ fn messages_match_rosbags_byte_for_byte() {
     let cloud = publish::cloud(&sim, h.clone());
     assert_eq!(cloud.width as usize, sim.cloth.len());
     let pts = publish::cloud_points(&cloud).unwrap();
-    for (p, x) in pts.iter().zip(&sim.cloth.x) {
+    for (p, x) in pts.iter().zip(sim.cloth.positions()) {
         assert_eq!(p[2], x.z as f32);
     }
     round_trip(&cloud);

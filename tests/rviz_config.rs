@@ -171,20 +171,20 @@ fn rviz_config_shows_what_the_node_publishes() {
         f["Y"].as_f64().unwrap(),
         f["Z"].as_f64().unwrap(),
     ];
-    let n = sim.cloth.x.len() as f64;
-    let centre = sim.cloth.x.iter().fold([0.0; 3], |a, p| {
+    let n = sim.cloth.positions().len() as f64;
+    let centre = sim.cloth.positions().iter().fold([0.0; 3], |a, p| {
         [a[0] + p.x / n, a[1] + p.y / n, a[2] + p.z / n]
     });
-    let (lo, hi) = sim
-        .cloth
-        .x
-        .iter()
-        .fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
-            (
-                [lo[0].min(p.x), lo[1].min(p.y), lo[2].min(p.z)],
-                [hi[0].max(p.x), hi[1].max(p.y), hi[2].max(p.z)],
-            )
-        });
+    let (lo, hi) =
+        sim.cloth
+            .positions()
+            .iter()
+            .fold(([f64::MAX; 3], [f64::MIN; 3]), |(lo, hi), p| {
+                (
+                    [lo[0].min(p.x), lo[1].min(p.y), lo[2].min(p.z)],
+                    [hi[0].max(p.x), hi[1].max(p.y), hi[2].max(p.z)],
+                )
+            });
     let size = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
     let off = (0..3)
         .map(|a| (focal[a] - centre[a]).powi(2))

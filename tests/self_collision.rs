@@ -199,7 +199,7 @@ fn intersections(x: &[V], tris: &[[usize; 3]], sewn: &[[usize; 2]]) -> usize {
 
 /// The vertex pairs a cloth's seam stitches join.
 fn stitched(c: &Cloth) -> Vec<[usize; 2]> {
-    c.seams
+    c.seams()
         .iter()
         .flat_map(|s| [[s.v[0], s.v[1]], [s.v[0], s.v[2]]])
         .collect()
@@ -241,7 +241,7 @@ fn the_counter_finds_known_intersections() {
         0.1,
     );
     let c = Cloth::merge(vec![a, b]).unwrap();
-    let n = intersections(&c.x, &c.triangles, &[]);
+    let n = intersections(c.positions(), &c.triangles, &[]);
     // the line y = 0.0505 crosses 10 cells of each sheet: at least the 20
     // triangles of those cells on one side meet at least one of the other's
     assert!(n >= 20, "{n}");
@@ -312,9 +312,10 @@ fn stacked(on: bool, dt: f64) -> Simulation {
     let turn = UnitQuaternion::from_euler_angles(0.0, 0.0, 30f64.to_radians());
     // turned about its own centre, 1 cm above the lower one
     let mut b = sheet(0.3, 0.02, [0.0, 0.0, 0.0], turn, f.areal_mass);
-    for p in b.x.iter_mut() {
-        *p += V::new(0.0, 0.0, 0.06) - turn * V::new(0.15, 0.15, 0.0);
-    }
+    let x: Vec<V> = (b.positions().iter())
+        .map(|p| p + (V::new(0.0, 0.0, 0.06) - turn * V::new(0.15, 0.15, 0.0)))
+        .collect();
+    b.set_positions(&x).unwrap();
     let c = Cloth::merge(vec![a, b]).unwrap();
     let mut sim = Simulation::new(c, f, params(dt, on)).unwrap();
     sim.add_obstacle(table());
@@ -410,7 +411,7 @@ fn counted(
     let sewn = stitched(&sim.cloth);
     let tris = sim.cloth.triangles.clone();
     assert_eq!(
-        intersections(&sim.cloth.x, &tris, &sewn),
+        intersections(sim.cloth.positions(), &tris, &sewn),
         0,
         "starts untangled"
     );
@@ -422,7 +423,7 @@ fn counted(
         contacts += st.self_contacts;
         collisions += st.self_collisions;
         if k % every == 0 || k == steps {
-            worst = worst.max(intersections(&sim.cloth.x, &tris, &sewn));
+            worst = worst.max(intersections(sim.cloth.positions(), &tris, &sewn));
         }
     }
     eprintln!(
@@ -461,7 +462,7 @@ fn a_sheet_folded_over_a_rod_never_passes_through_itself_at_a_60th_of_a_second()
     // folded over the rod, not slid off it: the cloth's centre stays
     // within 1 cm of the rod's vertical plane, and below it
     let n = sim.cloth.len() as f64;
-    let centre = sim.cloth.x.iter().sum::<V>() / n;
+    let centre = sim.cloth.positions().iter().sum::<V>() / n;
     assert!(
         centre.x.abs() < 0.01 && centre.z < 0.25,
         "on the rod: centre {centre:?}"
@@ -550,7 +551,7 @@ fn stacked_layers_rest_at_least_nine_tenths_of_the_thickness_apart() {
         .copied()
         .filter(|t| t.iter().all(|&v| v < half))
         .collect();
-    let x = &sim.cloth.x;
+    let x = sim.cloth.positions();
     // the upper sheet's vertices over the lower one (2 cm in from its border)
     let over: Vec<usize> = (half..sim.cloth.len())
         .filter(|&i| x[i].x.abs() < 0.13 && x[i].y.abs() < 0.13)
@@ -612,11 +613,11 @@ fn slide_on_cloth(deg: f64, time: f64) -> f64 {
     let c = Cloth::merge(vec![incline, patch]).unwrap();
     let mut sim = Simulation::new(c, f, params(0.01, true)).unwrap();
     let pins = (0..n_incline)
-        .map(|i| Pin::new(i, PinPath::Fixed(sim.cloth.x[i])))
+        .map(|i| Pin::new(i, PinPath::Fixed(sim.cloth.positions()[i])))
         .collect();
     sim.set_pins(pins).unwrap();
     let centre = |s: &Simulation| {
-        s.cloth.x[n_incline..].iter().sum::<V>() / (s.cloth.len() - n_incline) as f64
+        s.cloth.positions()[n_incline..].iter().sum::<V>() / (s.cloth.len() - n_incline) as f64
     };
     let down = tilt * V::new(1.0, 0.0, 0.0);
     let start = centre(&sim);
@@ -677,7 +678,7 @@ fn a_tangled_start_is_refused() {
         f.areal_mass,
     );
     let c = Cloth::merge(vec![a, b]).unwrap();
-    assert!(intersections(&c.x, &c.triangles, &[]) > 0);
+    assert!(intersections(c.positions(), &c.triangles, &[]) > 0);
     let mut sim = Simulation::new(c.clone(), f.clone(), params(0.01, true)).unwrap();
     let err = sim.step().unwrap_err();
     assert!(
@@ -709,7 +710,7 @@ fn runs_are_bit_reproducible_with_two_threads() {
         for _ in 0..30 {
             sim.step().unwrap();
         }
-        sim.cloth.x
+        sim.cloth.positions().to_vec()
     };
     let (a, b) = (run(), run());
     assert!(a.iter().zip(&b).all(|(p, q)| p == q));
@@ -735,7 +736,7 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
         let sewn = stitched(&sim.cloth);
         let tris = sim.cloth.triangles.clone();
         assert_eq!(
-            intersections(&sim.cloth.x, &tris, &sewn),
+            intersections(sim.cloth.positions(), &tris, &sewn),
             0,
             "{name} starts untangled"
         );
@@ -754,7 +755,7 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
             &mut |st| {
                 let (s, c) = (st.sim, std::time::Instant::now());
                 let k = usize::from(st.phase != trial::Phase::Sewing);
-                worst[k] = worst[k].max(intersections(&s.cloth.x, &tris, &sewn));
+                worst[k] = worst[k].max(intersections(s.cloth.positions(), &tris, &sewn));
                 frames[k] += 1;
                 contacts[k] += s.last.self_contacts;
                 collisions[k] += s.last.self_collisions;
@@ -803,12 +804,16 @@ fn thrown_stack(on: bool, dt: f64, layers: usize, gap: f64, speed: f64) -> Simul
         .map(|k| {
             let turn = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.1 * k as f64);
             let mut c = sheet(0.1, 0.02, [0.0; 3], turn, f.areal_mass);
-            for p in c.x.iter_mut() {
-                *p += V::new(0.0, 0.0, 0.3 + gap * k as f64) - turn * V::new(0.05, 0.05, 0.0);
-            }
-            for v in c.v.iter_mut() {
-                *v = V::new(0.0, 0.0, if coin() { speed } else { -speed });
-            }
+            let x: Vec<V> = (c.positions().iter())
+                .map(|p| {
+                    p + (V::new(0.0, 0.0, 0.3 + gap * k as f64) - turn * V::new(0.05, 0.05, 0.0))
+                })
+                .collect();
+            c.set_positions(&x).unwrap();
+            let v: Vec<V> = (0..c.len())
+                .map(|_| V::new(0.0, 0.0, if coin() { speed } else { -speed }))
+                .collect();
+            c.set_velocities(&v).unwrap();
             c
         })
         .collect();
@@ -825,14 +830,14 @@ fn impact_zones_resolve_what_the_impulses_leave() {
     assert!(off > 100, "without self-collision: {off} intersections");
     let mut sim = scene(true);
     let tris = sim.cloth.triangles.clone();
-    assert_eq!(intersections(&sim.cloth.x, &tris, &[]), 0);
+    assert_eq!(intersections(sim.cloth.positions(), &tris, &[]), 0);
     let (mut zones, mut steps_with_zones, mut collisions, mut worst) = (0, 0, 0, 0);
     for _ in 0..30 {
         let st = sim.step().unwrap();
         zones += st.self_zones;
         steps_with_zones += usize::from(st.self_zones > 0);
         collisions += st.self_collisions;
-        worst = worst.max(intersections(&sim.cloth.x, &tris, &[]));
+        worst = worst.max(intersections(sim.cloth.positions(), &tris, &[]));
     }
     eprintln!(
         "thrown stack, {} vertices: {off} intersecting pairs without self-collision; with it \
@@ -962,7 +967,7 @@ fn sheet_on_thin_rod(edges: bool, seconds: f64) -> (Simulation, usize, f64) {
     let (mut worst, mut lift) = (0, 0.0);
     for k in 1..=steps {
         sim.step().unwrap();
-        let x = &sim.cloth.x;
+        let x = sim.cloth.positions();
         let crossing = tris
             .iter()
             .flat_map(|t| triangles.iter().map(move |r| (t, r)))
@@ -985,7 +990,12 @@ fn sheet_on_thin_rod(edges: bool, seconds: f64) -> (Simulation, usize, f64) {
 #[test]
 fn a_sheet_hangs_on_a_rod_thinner_than_its_spacing_with_the_obstacles_edges() {
     let (through, _, _) = sheet_on_thin_rod(false, 0.4);
-    let low = through.cloth.x.iter().map(|p| p.z).fold(f64::MIN, f64::max);
+    let low = through
+        .cloth
+        .positions()
+        .iter()
+        .map(|p| p.z)
+        .fold(f64::MIN, f64::max);
     eprintln!("without the rod's edges: the sheet's highest vertex at {low:.3} m after 0.4 s");
     assert!(
         low < 0.2,
@@ -993,7 +1003,7 @@ fn a_sheet_hangs_on_a_rod_thinner_than_its_spacing_with_the_obstacles_edges() {
     );
 
     let (hung, worst, lift) = sheet_on_thin_rod(true, 1.5);
-    let z: Vec<f64> = hung.cloth.x.iter().map(|p| p.z).collect();
+    let z: Vec<f64> = hung.cloth.positions().iter().map(|p| p.z).collect();
     let top = z.iter().copied().fold(f64::MIN, f64::max);
     let bottom = z.iter().copied().fold(f64::MAX, f64::min);
     eprintln!(
@@ -1074,8 +1084,12 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
             if s.phase == garment_sim::trial::Phase::Dressing {
                 step += 1;
                 if step % 5 == 0 {
-                    let c =
-                        cloth_body_crossings(&s.sim.cloth.x, &s.sim.cloth.triangles, &bx, &btris);
+                    let c = cloth_body_crossings(
+                        s.sim.cloth.positions(),
+                        &s.sim.cloth.triangles,
+                        &bx,
+                        &btris,
+                    );
                     worst[k] = worst[k].max(c);
                 }
             }

@@ -377,7 +377,7 @@ fn run_scene(
                     &mut |s| Ok(rep.observe("drape", s.time - t0, duration)),
                 )?;
                 let positions: Vec<[f64; 3]> =
-                    sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect();
+                    sim.cloth.positions().iter().map(|p| [p.x, p.y, p.z]).collect();
                 let faces = sim.cloth.triangles.clone();
                 anyhow::Ok(NativeScene {
                     summary: serde_json::to_string_pretty(&summary)?,

@@ -366,10 +366,11 @@ pub fn run(
     // (x = 0); row n_rows (the tip) starts there
     let edge_at =
         |i: usize, k: usize, y: f64| Vector3::new((row[i] as f64 - k as f64 + 0.5) * h, y, 0.0);
-    let ys: Vec<f64> = cloth.x.iter().map(|p| p.y).collect();
-    for i in 0..cloth.len() {
-        cloth.x[i] = edge_at(i, n_rows, ys[i]);
-    }
+    let ys: Vec<f64> = cloth.positions().iter().map(|p| p.y).collect();
+    let placed: Vec<Vector3<f64>> = (0..cloth.len())
+        .map(|i| edge_at(i, n_rows, ys[i]))
+        .collect();
+    cloth.set_positions(&placed)?;
     let (b_fabric, hb_fabric) = fabric_bending(fabric, dir)?;
     let g = params(opt).gravity.norm();
     let weight = fabric.areal_mass * g;
@@ -420,7 +421,7 @@ pub fn run(
         sim.set_pins(pins_for(k, &|i| PinPath::Fixed(edge_at(i, k, ys[i]))))?;
         let rest = settle(&mut sim, opt, "cantilever hold")?;
         largest_rest = largest_rest.max(rest);
-        let tip = row_mean(&sim.cloth.x, &row, n_rows);
+        let tip = row_mean(sim.cloth.positions(), &row, n_rows);
         let theta = (-tip.z).atan2(tip.x);
         let l = (n_rows - k) as f64 * h + 0.5 * h;
         readings.push(Reading {
@@ -459,7 +460,7 @@ pub fn run(
     let b_kes = b_n_m / GF_CM2_PER_CM;
     let profile = (k..=n_rows)
         .map(|r| {
-            let p = row_mean(&sim.cloth.x, &row, r);
+            let p = row_mean(sim.cloth.positions(), &row, r);
             [p.x, p.z]
         })
         .collect();
@@ -506,11 +507,12 @@ pub fn clamped_strip(
         ..opt.clone()
     };
     let (mut cloth, row, _) = strip(fabric, dir, length, &o)?;
-    for p in cloth.x.iter_mut() {
+    let mut x0 = cloth.positions().to_vec();
+    for p in x0.iter_mut() {
         p.x -= 0.5 * h;
         p.z = 0.0;
     }
-    let x0 = cloth.x.clone();
+    cloth.set_positions(&x0)?;
     let mut sim = Simulation::new(cloth, fabric.clone(), params(&o))?;
     sim.set_pins(
         (0..row.len())
@@ -521,7 +523,7 @@ pub fn clamped_strip(
     settle(&mut sim, &o, "clamped strip")?;
     let profile = (1..=n + 1)
         .map(|r| {
-            let p = row_mean(&sim.cloth.x, &row, r);
+            let p = row_mean(sim.cloth.positions(), &row, r);
             [p.x, p.z]
         })
         .collect();

@@ -337,7 +337,7 @@ fn flat_specimen(fabric: &Fabric, opt: &DrapeOptions, e: f64) -> Result<Cloth> {
 /// The clamped vertices (within the pin radius `opt.clamp` gives), the pin
 /// radius and the radius of the disk with the clamped region's hull's area.
 fn clamp(cloth: &Cloth, opt: &DrapeOptions, rd: f64) -> (Vec<usize>, f64, f64) {
-    let flat = &cloth.x;
+    let flat = cloth.positions();
     let radius = |p: &Vector3<f64>| (p.x * p.x + p.y * p.y).sqrt();
     let pin_radius = match opt.clamp {
         ClampEdge::Rim => rd,
@@ -345,7 +345,7 @@ fn clamp(cloth: &Cloth, opt: &DrapeOptions, rd: f64) -> (Vec<usize>, f64, f64) {
         ClampEdge::HalfSpacingOut => rd + 0.5 * opt.spacing,
     };
     let clamped: Vec<usize> = (0..cloth.len())
-        .filter(|&i| radius(&cloth.x[i]) <= pin_radius + 1e-9)
+        .filter(|&i| radius(&cloth.positions()[i]) <= pin_radius + 1e-9)
         .collect();
     let clamp_radius = {
         let pts: Vec<[f64; 2]> = clamped.iter().map(|&i| [flat[i].x, flat[i].y]).collect();
@@ -400,13 +400,14 @@ pub fn run(
     let disk_h = 0.01;
     let e = params.cloth_thickness; // disk thickness 0: the contact distance is the cloth's
     let mut cloth = flat_specimen(fabric, opt, e)?;
-    let flat: Vec<Vector3<f64>> = cloth.x.clone();
+    let flat: Vec<Vector3<f64>> = cloth.positions().to_vec();
     let (clamped, pin_radius, clamp_radius) = clamp(&cloth, opt, rd);
     let bump = StartPerturbation::new(opt);
-    for i in 0..cloth.len() {
-        let m = cloth.material[i];
-        cloth.x[i].z += bump.at(m[0], m[1]);
+    let mut bumped = flat.clone();
+    for (p, m) in bumped.iter_mut().zip(&cloth.material) {
+        p.z += bump.at(m[0], m[1]);
     }
+    cloth.set_positions(&bumped)?;
     let mut sim = Simulation::new(cloth, fabric.clone(), params)?;
     sim.add_obstacle(Obstacle::new(
         "support_disk",
@@ -428,7 +429,7 @@ pub fn run(
     let shadow = Shadow::of(&sim.cloth, rs, opt.pixel);
     let flat_shadow = {
         let mut c = sim.cloth.clone();
-        c.x = flat;
+        c.set_positions(&flat)?;
         Shadow::of(&c, rs, opt.pixel)
     };
     let a_disk = std::f64::consts::PI * rd * rd;
@@ -440,7 +441,11 @@ pub fn run(
     let (rmin, rmax) = profile
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &r| (a.min(r), b.max(r)));
-    let drop = sim.cloth.x.iter().fold(0.0f64, |m, p| m.max(e - p.z));
+    let drop = sim
+        .cloth
+        .positions()
+        .iter()
+        .fold(0.0f64, |m, p| m.max(e - p.z));
     let rep = DrapeReport {
         fabric: fabric.name.clone(),
         diameter_m: opt.diameter,
@@ -547,9 +552,9 @@ impl Shadow {
         let to_px = |p: &Vector3<f64>| ((p.x + half) / pixel, (half - p.y) / pixel);
         for t in &cloth.triangles {
             img.fill_triangle(
-                to_px(&cloth.x[t[0]]),
-                to_px(&cloth.x[t[1]]),
-                to_px(&cloth.x[t[2]]),
+                to_px(&cloth.positions()[t[0]]),
+                to_px(&cloth.positions()[t[1]]),
+                to_px(&cloth.positions()[t[2]]),
                 BLACK,
             );
         }

@@ -333,13 +333,13 @@ fn frame_equations(
         .windows(2)
         .map(|w| w[1].iter().zip(&w[0]).map(|(b, a)| (b - a) / dt).collect())
         .collect();
-    sim.cloth.x.clone_from(&frames[0]);
+    sim.cloth.set_positions(&frames[0])?;
     sim.commit();
     let mut evals = Vec::with_capacity(frames.len() - 2);
     let mut speed = Vec::with_capacity(frames.len() - 2);
     for i in 0..frames.len() - 2 {
         let k = i + 1;
-        sim.cloth.x.clone_from(&frames[k]);
+        sim.cloth.set_positions(&frames[k])?;
         sim.commit();
         let v1 = &vel[k];
         let r0: Vec<Vector3<f64>> = (0..n)
@@ -688,14 +688,13 @@ fn start_state(
     let cloth = Cloth::grid(&grid.spec(), fabric.areal_mass)?;
     let mut sim = Simulation::new(cloth, fabric.clone(), params.clone())?;
     for f in &frames[..=first] {
-        sim.cloth.x.clone_from(f);
+        sim.cloth.set_positions(f)?;
         sim.commit();
     }
-    sim.cloth.v = frames[first]
-        .iter()
-        .zip(&frames[first - 1])
+    let v: Vec<Vector3<f64>> = (frames[first].iter().zip(&frames[first - 1]))
         .map(|(a, b)| (a - b) / params.dt)
         .collect();
+    sim.cloth.set_velocities(&v)?;
     Ok(sim.cloth)
 }
 
@@ -719,7 +718,7 @@ fn simulate_window(
     let mut r = Vec::with_capacity((last - first) * frames[0].len());
     for f in &frames[first + 1..=last] {
         sim.step().ok()?;
-        r.extend(sim.cloth.x.iter().zip(f).map(|(a, b)| a - b));
+        r.extend(sim.cloth.positions().iter().zip(f).map(|(a, b)| a - b));
     }
     r.iter()
         .all(|d| d.iter().all(|c| c.is_finite()))
@@ -948,12 +947,12 @@ pub fn sample_capture(
     }
     let frames = (duration * rate_hz).round() as usize;
     let mut out = Vec::with_capacity(frames + 1);
-    out.push(sim.cloth.x.clone());
+    out.push(sim.cloth.positions().to_vec());
     for _ in 0..frames {
         for _ in 0..every {
             sim.step()?;
         }
-        out.push(sim.cloth.x.clone());
+        out.push(sim.cloth.positions().to_vec());
     }
     Ok(out)
 }

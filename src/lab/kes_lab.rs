@@ -412,7 +412,7 @@ fn tensile(
         HingeLayout::Skewed,
     )?;
     let (fixed, moving) = fb1_clamps(&gw, gauge);
-    let x0: Vec<Vector3<f64>> = cloth.x.clone();
+    let x0: Vec<Vector3<f64>> = cloth.positions().to_vec();
     let mut sim = Simulation::new(cloth, fabric.clone(), params(opt.dt))?;
     let mut pins: Vec<Pin> = fixed
         .iter()
@@ -495,7 +495,7 @@ fn shear(
         HingeLayout::Skewed,
     )?;
     let (fixed, moving) = fb1_clamps(&gw, gauge);
-    let x0: Vec<Vector3<f64>> = cloth.x.clone();
+    let x0: Vec<Vector3<f64>> = cloth.positions().to_vec();
     let mut sim = Simulation::new(cloth, fabric.clone(), params(opt.dt))?;
     let mut pins: Vec<Pin> = fixed
         .iter()
@@ -671,25 +671,26 @@ fn bending(
         let (px, pz) = poly[row(i)];
         Vector3::new(px, y, pz)
     };
-    let ys: Vec<f64> = cloth.x.iter().map(|p| p.y).collect();
+    let ys: Vec<f64> = cloth.positions().iter().map(|p| p.y).collect();
     let fixed: Vec<usize> = (0..gw.len()).filter(|&i| row(i) <= 1).collect();
     let moving: Vec<usize> = (0..gw.len()).filter(|&i| row(i) > n).collect();
     let edge: Vec<usize> = (0..gw.len()).filter(|&i| row(i) == n + 1).collect();
     let mut sim = Simulation::new(cloth, fabric.clone(), params(opt.dt))?;
     // shift the grid so row 0 (material g = l) sits at the origin
     let flat = discrete_cochleoid(0.0, l, n);
-    for i in 0..sim.cloth.len() {
-        sim.cloth.x[i] = place(&flat, i, ys[i]);
-    }
+    let placed: Vec<Vector3<f64>> = (0..sim.cloth.len())
+        .map(|i| place(&flat, i, ys[i]))
+        .collect();
+    sim.cloth.set_positions(&placed)?;
     let mut pins: Vec<Pin> = fixed
         .iter()
-        .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.x[i])))
+        .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.positions()[i])))
         .collect();
     let first_moving = pins.len();
     pins.extend(
         moving
             .iter()
-            .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.x[i]))),
+            .map(|&i| Pin::new(i, PinPath::Fixed(sim.cloth.positions()[i]))),
     );
     let held = sim.set_pins(pins)?;
     let moving_pins = held[first_moving..].to_vec();
@@ -732,10 +733,10 @@ fn bending(
         run.steps += 1;
         let f = sim.internal_forces();
         // moment about the moving clamp's edge (row n+1 = the arc's end), axis +Y
-        let c = sim.cloth.x[edge[0]];
+        let c = sim.cloth.positions()[edge[0]];
         let m: f64 = moving
             .iter()
-            .map(|&i| (sim.cloth.x[i] - c).cross(&f[i]).y)
+            .map(|&i| (sim.cloth.positions()[i] - c).cross(&f[i]).y)
             .sum::<f64>();
         // the moment the clamp applies to the specimen (positive for K > 0)
         let moment = m / width;

@@ -57,13 +57,13 @@ pub fn cloud_with(sim: &Simulation, header: Header, extra: &[(&str, &[f64])]) ->
     let step = 4 * names.len();
     let mut data = Vec::with_capacity(n * step);
     for i in 0..n {
-        let p = sim.cloth.x[i];
+        let p = sim.cloth.positions()[i];
         let vals = [
             p.x as f32,
             p.y as f32,
             p.z as f32,
             strain[i] as f32,
-            sim.cloth.v[i].norm() as f32,
+            sim.cloth.velocities()[i].norm() as f32,
         ];
         for v in vals.into_iter().chain(extra.iter().map(|e| e.1[i] as f32)) {
             data.extend_from_slice(&v.to_le_bytes());
@@ -166,7 +166,7 @@ pub fn cloth_marker(sim: &Simulation, header: Header) -> Marker {
     let mut colors = Vec::with_capacity(3 * tris.len());
     for t in tris {
         for &i in t {
-            points.push(Point::from(sim.cloth.x[i]));
+            points.push(Point::from(sim.cloth.positions()[i]));
             colors.push(strain_colour(strain[i], 0.02));
         }
     }

@@ -347,7 +347,7 @@ impl Picture {
         let mut p = Picture::new(
             title,
             Surface {
-                vertices: c.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
+                vertices: c.positions().iter().map(|p| [p.x, p.y, p.z]).collect(),
                 triangles: c.triangles.clone(),
             },
         );
@@ -1118,7 +1118,7 @@ impl Raster {
 /// Per-vertex strain: the largest engineering strain (l/l0 − 1) of the
 /// tension springs at the vertex (positive: stretched).
 pub fn vertex_strain(sim: &crate::solver::Simulation) -> Vec<f64> {
-    let x = &sim.cloth.x;
+    let x = sim.cloth.positions();
     let mut s = vec![f64::NEG_INFINITY; x.len()];
     for sp in &sim.cloth.tension {
         let e = (x[sp.a] - x[sp.b]).norm() / sp.l0 - 1.0;

@@ -507,7 +507,7 @@ impl BodyStreams {
                         friction
                     },
                 )
-                .and_then(|o| o.check_overlap(&sim.cloth.x).map(|_| o));
+                .and_then(|o| o.check_overlap(sim.cloth.positions()).map(|_| o));
                 let o = match made {
                     Ok(o) => o,
                     Err(e) => {

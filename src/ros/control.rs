@@ -181,7 +181,7 @@ fn move_obstacle(
         if let Some(o) = sim.obstacles().get(h) {
             let mut o = o.clone();
             set_motion(&mut o, frame, &sub, &lin, &ang);
-            o.check_overlap(&sim.cloth.x)
+            o.check_overlap(sim.cloth.positions())
                 .map_err(|e| fail(e.to_string()))?;
             moved.push((h, o));
         }
@@ -281,7 +281,7 @@ fn add_obstacle(
         let mut o = Obstacle::new(&pid, spec, frame * sub, thickness, friction)
             .map_err(|e| format!("{e:#}"))?;
         set_motion(&mut o, &frame, &sub, &lin, &ang);
-        o.check_overlap(&sim.cloth.x)
+        o.check_overlap(sim.cloth.positions())
             .map_err(|e| fail(e.to_string()))?;
         built.push((o, sub));
     }
@@ -339,12 +339,12 @@ pub fn apply_obstacle(
         }
         msgs::Obstacle::MOVE => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
-            reach(&frame, &sim.cloth.x)?;
+            reach(&frame, sim.cloth.positions())?;
             move_obstacle(sim, reg, id, &frame, twist)
         }
         msgs::Obstacle::ADD => {
             let frame = pose(&m.pose, "pose").map_err(fail)?;
-            reach(&frame, &sim.cloth.x)?;
+            reach(&frame, sim.cloth.positions())?;
             add_obstacle(sim, reg, m, frame, twist, max_triangles)
         }
         op => Err(fail(format!(
@@ -446,7 +446,7 @@ pub fn apply_pin(
     check_len("targets", m.targets.len())?;
     check_len("velocities", m.velocities.len())?;
     for (k, p) in m.targets.iter().enumerate() {
-        limits::check_reach(&format!("targets[{k}]"), &p.vector(), &sim.cloth.x)
+        limits::check_reach(&format!("targets[{k}]"), &p.vector(), sim.cloth.positions())
             .map_err(|e| fail(e.to_string()))?;
     }
     for (k, p) in m.velocities.iter().enumerate() {
@@ -462,7 +462,7 @@ pub fn apply_pin(
     // a target farther than one step at PIN_TRAVEL_SPEED is travelled to
     // at that speed (PinPath::travel)
     let at = |k: usize| -> PinPath {
-        let here = sim.cloth.x[vertices[k]];
+        let here = sim.cloth.positions()[vertices[k]];
         let target = m.targets.get(k).map(|p| p.vector()).unwrap_or(here);
         let path = match m.velocities.get(k) {
             Some(v) if v.vector() != Vector3::zeros() => PinPath::Velocity {
@@ -596,7 +596,7 @@ impl Recovery {
                 Err(e) => last = format!("{e:#}"),
             }
         }
-        sim.cloth.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+        sim.cloth.stop();
         match sim.step() {
             Ok(stats) => {
                 let what = "set every velocity to zero (the cloth at rest where it was)";
@@ -754,7 +754,7 @@ mod tests {
         apply_pin(&mut s, None, &m, "world").unwrap();
         assert_eq!(
             s.pins().last().unwrap().path,
-            PinPath::Fixed(s.cloth.x[corner])
+            PinPath::Fixed(s.cloth.positions()[corner])
         );
         m.operation = msgs::Pin::MOVE;
         m.targets = vec![msgs::Point {
@@ -770,7 +770,7 @@ mod tests {
         apply_pin(&mut s, None, &m, "world").unwrap();
         // the target is far: the pin travels there at PIN_TRAVEL_SPEED, then
         // moves on with the velocity
-        let d = (Vector3::new(0.0, 0.0, 2.0) - s.cloth.x[corner]).norm();
+        let d = (Vector3::new(0.0, 0.0, 2.0) - s.cloth.positions()[corner]).norm();
         let arrive = s.time + d / limits::PIN_TRAVEL_SPEED;
         let (p, v) = s.pins().last().unwrap().path.at(arrive + 1.0);
         assert!((p - Vector3::new(0.0, 0.0, 2.1)).norm() < 1e-12 && v.z == 0.1);
@@ -824,7 +824,10 @@ mod tests {
                 panic!("step {k} failed: {e:#}");
             }
             assert!(
-                s.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())),
+                s.cloth
+                    .positions()
+                    .iter()
+                    .all(|p| p.iter().all(|c| c.is_finite())),
                 "non-finite position after step {k}"
             );
         }
@@ -885,7 +888,7 @@ mod tests {
             "world",
         )
         .unwrap();
-        let x0 = s.cloth.x[a];
+        let x0 = s.cloth.positions()[a];
         let goal = x0 + Vector3::new(0.0, 0.0, 1.5);
         let target = Some([goal.x, goal.y, goal.z]);
         apply_pin(
@@ -897,17 +900,25 @@ mod tests {
         .unwrap();
         let dt = s.params().dt;
         let mut fastest: f64 = 0.0;
-        let mut last = s.cloth.x[a];
+        let mut last = s.cloth.positions()[a];
         let steps = (1.5 / 2.0 / dt).ceil() as usize + 50;
         for k in 0..steps {
             if let Err(e) = s.step() {
                 panic!("step {k} failed: {e:#}");
             }
-            assert!(s.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite())));
-            fastest = fastest.max((s.cloth.x[a] - last).norm() / dt);
-            last = s.cloth.x[a];
+            assert!(s
+                .cloth
+                .positions()
+                .iter()
+                .all(|p| p.iter().all(|c| c.is_finite())));
+            fastest = fastest.max((s.cloth.positions()[a] - last).norm() / dt);
+            last = s.cloth.positions()[a];
         }
-        assert!((s.cloth.x[a] - goal).norm() < 1e-9, "{:?}", s.cloth.x[a]);
+        assert!(
+            (s.cloth.positions()[a] - goal).norm() < 1e-9,
+            "{:?}",
+            s.cloth.positions()[a]
+        );
         assert!(fastest <= 2.0 + 1e-9, "pin moved at {fastest} m/s");
     }
 
@@ -925,7 +936,7 @@ mod tests {
             "world",
         )
         .unwrap();
-        let g = s.cloth.x[a] + Vector3::new(2.0, 2.0, 1.0);
+        let g = s.cloth.positions()[a] + Vector3::new(2.0, 2.0, 1.0);
         let m = pin_msg(
             msgs::Pin::PIN,
             a as u32,
@@ -936,7 +947,7 @@ mod tests {
         steps_ok(&mut s, 1700);
         let (p, v) = s.pins().last().unwrap().path.at(s.time);
         assert!(
-            (s.cloth.x[a] - p).norm() < 1e-9 && v.x == 0.5,
+            (s.cloth.positions()[a] - p).norm() < 1e-9 && v.x == 0.5,
             "{p:?} {v:?}"
         );
     }
@@ -963,7 +974,7 @@ mod tests {
         let mut s = sim();
         let mut reg = ObstacleRegistry::from_sim(&s);
         let n0 = s.obstacles().len();
-        let c = s.cloth.x[s.cloth.len() / 2];
+        let c = s.cloth.positions()[s.cloth.len() / 2];
         // a 0.3 m sphere around the cloth's middle, a sphere of radius
         // 1e300, one 1 km away, one moving at 1e5 m/s
         let around = sphere("around", 0.3, c);
@@ -1015,7 +1026,7 @@ mod tests {
         // an obstacle added (a plausible message) and a pin at a target no
         // message may give (not finite), since the last good step
         rec.before_change(&s, &reg);
-        let c = s.cloth.x[s.cloth.len() / 2];
+        let c = s.cloth.positions()[s.cloth.len() / 2];
         apply_obstacle(
             &mut s,
             &mut reg,
@@ -1031,14 +1042,24 @@ mod tests {
             PinPath::Fixed(Vector3::new(f64::INFINITY, 0.0, 0.0)),
         ));
         s.set_pins(bad).unwrap();
-        let before = (s.cloth.x.clone(), s.cloth.v.clone(), s.time, s.steps);
+        let before = (
+            s.cloth.positions().to_vec(),
+            s.cloth.velocities().to_vec(),
+            s.time,
+            s.steps,
+        );
         // the step alone fails and changes no position, velocity or time;
         // the hysteresis memory is where the step starts from, and a retry
         // leaves it there
         let e = s.step().unwrap_err();
         assert!(format!("{e:#}").contains("diverged at vertex 0"), "{e:#}");
         assert_eq!(
-            (s.cloth.x.clone(), s.cloth.v.clone(), s.time, s.steps),
+            (
+                s.cloth.positions().to_vec(),
+                s.cloth.velocities().to_vec(),
+                s.time,
+                s.steps
+            ),
             before
         );
         let memory = s.cloth.tension_state.clone();
@@ -1064,7 +1085,10 @@ mod tests {
         assert!(apply_obstacle(&mut s, &mut reg, &gone, "world", 100).is_err());
         steps_ok(&mut s, 3);
         // a broken state, no message since: the cloth is taken at rest
-        s.cloth.v[5] = Vector3::new(0.0, 0.0, f64::INFINITY);
+        // (a velocity that overflows the first position it moves)
+        let mut v = s.cloth.velocities().to_vec();
+        v[5] = Vector3::new(0.0, 0.0, 1e308);
+        s.cloth.set_velocities(&v).unwrap();
         let steps = s.steps;
         match rec.step(&mut s, &mut reg) {
             Ok(Stepped::Recovered { undone, .. }) => {
@@ -1074,7 +1098,7 @@ mod tests {
         }
         assert_eq!(rec.recovered, 2);
         assert_eq!(s.steps, steps + 1);
-        assert!(s.cloth.v.iter().all(|v| v.norm() < 1.0));
+        assert!(s.cloth.velocities().iter().all(|v| v.norm() < 1.0));
         assert!(matches!(rec.step(&mut s, &mut reg), Ok(Stepped::Ok(_))));
         assert_eq!(rec.recovered, 2);
     }

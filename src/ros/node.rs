@@ -1288,11 +1288,11 @@ mod tests {
         let worst = l
             .sim
             .cloth
-            .seams
+            .seams()
             .iter()
-            .map(|st| st.gap(&l.sim.cloth.x).norm())
+            .map(|st| st.gap(l.sim.cloth.positions()).norm())
             .fold(0.0, f64::max);
-        assert!(!l.sim.cloth.seams.is_empty());
+        assert!(!l.sim.cloth.seams().is_empty());
         assert!(worst < 2e-3, "seam gap {worst} m after sewing");
         assert_eq!(l.sim.obstacles().len(), 1);
         assert_eq!(l.sim.obstacles()[0].id, "body");
@@ -1333,7 +1333,7 @@ mod tests {
         let (z, d, p) = (field("z"), field("distance"), field("pressure"));
         let w = l.worn.as_ref().unwrap();
         for i in 0..l.sim.cloth.len() {
-            let x = l.sim.cloth.x[i];
+            let x = l.sim.cloth.positions()[i];
             assert!((z[i] - x.z).abs() < 1e-5);
             // distance: the body's own projection, not the contacts'
             let q = w.body.proximity(&x).distance;

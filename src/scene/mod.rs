@@ -641,8 +641,11 @@ impl Scene {
                 }
                 _ => unreachable!("validated"),
             };
-            let start = p.target.map(Vector3::from).unwrap_or(cloth.x[vertex]);
-            limits::check_reach(&format!("pins[{k}].target"), &start, &cloth.x)
+            let start = p
+                .target
+                .map(Vector3::from)
+                .unwrap_or(cloth.positions()[vertex]);
+            limits::check_reach(&format!("pins[{k}].target"), &start, cloth.positions())
                 .with_context(ctx)?;
             if let Some(v) = p.velocity {
                 limits::check_speed(
@@ -694,7 +697,7 @@ impl Scene {
                     limits::check_reach(
                         &format!("pins[{k}].path[{q}].position"),
                         &Vector3::from(w.position),
-                        &cloth.x,
+                        cloth.positions(),
                     )
                     .with_context(ctx)?;
                 }
@@ -739,10 +742,10 @@ impl Scene {
             limits::check_reach(
                 &format!("obstacles[{k}] ({:?}) pose.position", ob.id),
                 &ob.pose.translation.vector,
-                &cloth.x,
+                cloth.positions(),
             )
             .with_context(ctx)?;
-            ob.check_overlap(&cloth.x)
+            ob.check_overlap(cloth.positions())
                 .with_context(|| format!("obstacles[{k}]"))
                 .with_context(ctx)?;
         }

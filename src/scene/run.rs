@@ -393,7 +393,7 @@ pub fn write_ply(sim: &Simulation, path: &Path) -> Result<()> {
             "element face {}\nproperty list uchar int vertex_indices\nend_header",
             c.triangles.len()
         )?;
-        for (p, m) in c.x.iter().zip(&c.material) {
+        for (p, m) in c.positions().iter().zip(&c.material) {
             writeln!(w, "{} {} {} {} {}", p.x, p.y, p.z, m[0], m[1])?;
         }
         for t in &c.triangles {

@@ -173,7 +173,7 @@ impl Shape {
     /// A simulated cloth as it is now, with its material coordinates.
     pub fn from_cloth(c: &crate::cloth::Cloth) -> Shape {
         Shape {
-            vertices: c.x.clone(),
+            vertices: c.positions().to_vec(),
             material: Some(c.material.clone()),
             triangles: c.triangles.clone(),
         }

@@ -74,7 +74,7 @@ pub fn contacts_with(sim: &Simulation, body: Handle<Obstacle>) -> Option<Vec<Bod
         if *f == Vector3::zeros() {
             continue;
         }
-        let x = sim.cloth.x[i];
+        let x = sim.cloth.positions()[i];
         let mut best: Option<(usize, f64, Proximity)> = None;
         for (k, ob) in all.iter().enumerate() {
             let e = ob.thickness + cloth_t;

@@ -1546,8 +1546,8 @@ impl Dressing {
         // `hand: hull`: the hand's convex hull, an obstacle of its own, with
         // the body's contact layer and friction
         let hull: Option<HandHull> = hand_hull(&ob, &bv, &arm, lim_hand, d)?;
-        let sleeve_end = find_cuff(g, &sim.cloth.x, &arm)?;
-        let x0 = sim.cloth.x.clone();
+        let sleeve_end = find_cuff(g, sim.cloth.positions(), &arm)?;
+        let x0 = sim.cloth.positions().to_vec();
         // the held ring (called the cuff below whichever it is): holding the
         // armhole, the sleeve's side of its seam
         let cuff = match d.grip {
@@ -1564,9 +1564,9 @@ impl Dressing {
         let placed = place_past_fingertips(&x0, start, c, n, out, contact, |p| {
             skin_distance(&ob, &hull, p)
         })?;
-        sim.cloth.x = placed;
-        sim.cloth.v.iter_mut().for_each(|v| *v = V3::zeros());
-        let x = sim.cloth.x.clone();
+        sim.cloth.set_positions(&placed)?;
+        sim.cloth.stop();
+        let x = sim.cloth.positions().to_vec();
         let e1 = carried_frames(&arm, &out);
         let t0v = -out;
         let toward: Option<V3> = match d.grip {
@@ -1649,7 +1649,7 @@ impl Dressing {
 
     /// The row of the step just taken.
     pub fn row(&self, sim: &Simulation) -> DressingRow {
-        let x = &sim.cloth.x;
+        let x = sim.cloth.positions();
         let ring: Vec<V3> = self.cuff.iter().map(|&i| x[i]).collect();
         let (p, off) = progress(&self.arm.axis, self.arm.s[self.arm.wrist_at], &ring);
         let end: Vec<V3> = self.sleeve_end.iter().map(|&i| x[i]).collect();
@@ -1860,7 +1860,7 @@ impl Dressing {
 
     /// The cuff's centroid now.
     pub fn cuff_centroid(&self, sim: &Simulation) -> V3 {
-        centroid(&sim.cloth.x, &self.cuff)
+        centroid(sim.cloth.positions(), &self.cuff)
     }
 }
 

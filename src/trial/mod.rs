@@ -537,7 +537,7 @@ impl Trial {
             self.garment.name,
             g.panels.len(),
             g.seams.len(),
-            g.cloth.seams.len(),
+            g.cloth.seams().len(),
             g.cloth.len(),
             1e3 * g.cloth.total_mass(),
             sim.fabric.name,
@@ -852,7 +852,7 @@ pub struct VertexFit {
 fn spring_strains(
     c: &crate::cloth::Cloth,
 ) -> impl Iterator<Item = (usize, usize, usize, f64)> + '_ {
-    let x = &c.x;
+    let x = c.positions();
     c.tension
         .iter()
         .map(move |s| {
@@ -923,7 +923,11 @@ pub fn vertex_fit(sim: &Simulation, g: &Garment, body: &Obstacle) -> VertexFit {
         bias,
         stretch,
         pressure,
-        distance: c.x.iter().map(|p| body.proximity(p).distance).collect(),
+        distance: c
+            .positions()
+            .iter()
+            .map(|p| body.proximity(p).distance)
+            .collect(),
         force,
         normal: normals,
         area,
@@ -1036,7 +1040,7 @@ fn girth_fits(
     trial: &Trial,
     distance: &[f64],
 ) -> BTreeMap<String, GirthFit> {
-    let (x, n) = (&c.x, c.len());
+    let (x, n) = (c.positions(), c.len());
     let mut girths = BTreeMap::new();
     let (bv, bt) = body.local_triangles();
     let bw: Vec<[f64; 3]> = bv
@@ -1134,7 +1138,7 @@ pub fn fit(
     run: RunStats,
 ) -> (Fit, VertexFit, Option<BodyPressure>) {
     let c = &sim.cloth;
-    let x = &c.x;
+    let x = c.positions();
     let n = c.len();
     let body = body_now(sim, trial);
     let vf = vertex_fit(sim, g, body);
@@ -1407,7 +1411,7 @@ pub fn write_obj(sim: &Simulation, g: &Garment, path: &Path) -> Result<()> {
             "# garment_sim garment: one group per panel; vt = panel coordinates, m"
         )?;
         writeln!(w, "o garment")?;
-        for p in &sim.cloth.x {
+        for p in sim.cloth.positions() {
             writeln!(w, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z)?;
         }
         for p in &g.panels {
@@ -1449,7 +1453,7 @@ pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
         writeln!(w, "element face {}", c.triangles.len())?;
         writeln!(w, "property list uchar int vertex_indices\nend_header")?;
         for i in 0..c.len() {
-            let p = c.x[i];
+            let p = c.positions()[i];
             writeln!(
                 w,
                 "{:.6} {:.6} {:.6} {} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e} {:.6e}",
@@ -1462,7 +1466,7 @@ pub fn write_ply(sim: &Simulation, vf: &VertexFit, path: &Path) -> Result<()> {
                 vf.bias[i],
                 vf.pressure[i],
                 vf.distance[i],
-                c.v[i].norm()
+                c.velocities()[i].norm()
             )?;
         }
         for t in &c.triangles {

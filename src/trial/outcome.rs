@@ -103,7 +103,7 @@ pub fn outcome(t: &Trial, sim: &Simulation, g: &Garment, vf: &VertexFit, fit: &F
     }
     let dressing = fit.dressing.is_some();
     let at_rest = run.settle_time_s.is_some();
-    let x = &sim.cloth.x;
+    let x = sim.cloth.positions();
     let near = |i: usize| format!("near ({:.3}, {:.3}, {:.3}) m", x[i].x, x[i].y, x[i].z);
     let mut reasons = Vec::new();
     if fit.largest_seam_gap_mm > 1e3 * SEAM_CLOSED {
@@ -168,7 +168,7 @@ pub fn outcome(t: &Trial, sim: &Simulation, g: &Garment, vf: &VertexFit, fit: &F
         ));
     }
     if !at_rest && !dressing {
-        let v = &sim.cloth.v;
+        let v = sim.cloth.velocities();
         let i = (0..v.len())
             .max_by(|&a, &b| v[a].norm().total_cmp(&v[b].norm()))
             .unwrap_or(0);

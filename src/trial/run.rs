@@ -284,7 +284,7 @@ fn sewing(
 ) -> Result<f64> {
     let gravity = sim.params().gravity;
     let alphas: Vec<f64> = sim.fabrics().map(|f| f.damping.alpha).collect();
-    let own: Vec<(f64, f64)> = sim.cloth.seams.iter().map(|s| (s.k, s.d)).collect();
+    let own: Vec<(f64, f64)> = sim.cloth.seams().iter().map(|s| (s.k, s.d)).collect();
     if !sew.gravity {
         sim.set_params(Params {
             gravity: Vector3::zeros(),
@@ -294,10 +294,9 @@ fn sewing(
     for f in sim.fabrics_mut() {
         f.damping.alpha = f.damping.alpha.min(-sew.drag);
     }
-    for s in sim.cloth.seams.iter_mut() {
-        s.k *= sew.stiffness_factor;
-        s.d *= sew.stiffness_factor;
-    }
+    let f = sew.stiffness_factor;
+    sim.cloth
+        .set_seam_gains(&own.iter().map(|&(k, d)| (k * f, d * f)).collect::<Vec<_>>())?;
     let bound = sew
         .max_force
         .map(|w| w * sim.cloth.total_mass() * STANDARD_GRAVITY);
@@ -348,10 +347,7 @@ fn sewing(
     for (f, a) in sim.fabrics_mut().zip(alphas) {
         f.damping.alpha = a;
     }
-    for (s, (k, d)) in sim.cloth.seams.iter_mut().zip(own) {
-        s.k = k;
-        s.d = d;
-    }
+    sim.cloth.set_seam_gains(&own)?;
     Ok(sewing_s)
 }
 
@@ -447,20 +443,20 @@ fn play_motion(
 /// pull keeps the linear law's shape (a wider gap pulls harder) and its
 /// sum is bounded however wide the gaps.
 fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f64) {
-    let pull: f64 = (sim.cloth.seams.iter().zip(own))
-        .map(|(s, &(k, _))| factor * k * s.gap(&sim.cloth.x).norm())
+    let pull: f64 = (sim.cloth.seams().iter().zip(own))
+        .map(|(s, &(k, _))| factor * k * s.gap(sim.cloth.positions()).norm())
         .sum();
     let scale = factor * if pull > bound { bound / pull } else { 1.0 };
-    for (s, &(k, d)) in sim.cloth.seams.iter_mut().zip(own) {
-        s.k = k * scale;
-        s.d = d * scale;
-    }
+    let gains: Vec<(f64, f64)> = own.iter().map(|&(k, d)| (k * scale, d * scale)).collect();
+    sim.cloth
+        .set_seam_gains(&gains)
+        .expect("scaled gains of checked seams");
 }
 
 /// The widest gap of any stitch, m.
 fn largest_gap(sim: &Simulation) -> f64 {
-    (sim.cloth.seams.iter())
-        .map(|s| s.gap(&sim.cloth.x).norm())
+    (sim.cloth.seams().iter())
+        .map(|s| s.gap(sim.cloth.positions()).norm())
         .fold(0.0, f64::max)
 }
 
@@ -527,7 +523,7 @@ impl Frames {
     }
 
     fn shot(sim: &Simulation) -> (f64, Vec<[f32; 3]>) {
-        let x = sim.cloth.x.iter();
+        let x = sim.cloth.positions().iter();
         (
             sim.time,
             x.map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect(),
@@ -562,7 +558,10 @@ impl Frames {
 
 /// Every position of the garment is finite.
 fn finite(sim: &Simulation) -> bool {
-    sim.cloth.x.iter().all(|p| p.iter().all(|c| c.is_finite()))
+    sim.cloth
+        .positions()
+        .iter()
+        .all(|p| p.iter().all(|c| c.is_finite()))
 }
 
 /// What a trial with a `dressing` adds to its outcome.
@@ -749,7 +748,12 @@ fn dress(
 impl TrialOutcome {
     /// The garment's vertices as the run ended, m.
     pub fn positions(&self) -> Vec<[f64; 3]> {
-        self.sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect()
+        self.sim
+            .cloth
+            .positions()
+            .iter()
+            .map(|p| [p.x, p.y, p.z])
+            .collect()
     }
 
     /// The garment's triangles (indices into [`TrialOutcome::positions`]).
@@ -826,7 +830,12 @@ impl TrialOutcome {
     fn write_pictures(&self, t: &Trial, dir: &Path) -> Result<()> {
         let (sim, vf) = (&self.sim, &self.vertex_fit);
         let cloth = Surface {
-            vertices: sim.cloth.x.iter().map(|p| [p.x, p.y, p.z]).collect(),
+            vertices: sim
+                .cloth
+                .positions()
+                .iter()
+                .map(|p| [p.x, p.y, p.z])
+                .collect(),
             triangles: sim.cloth.triangles.clone(),
         };
         let body = vec![Surface::from_obstacle(body_now(sim, t))];

@@ -236,7 +236,7 @@ pub fn ray_crosses(
 pub fn pin_failing_at_step_6(sim: &mut garment_sim::solver::Simulation, v: usize) {
     use garment_sim::solver::{Pin, PinPath};
     let dt = sim.params().dt;
-    let p0 = sim.cloth.x[v];
+    let p0 = sim.cloth.positions()[v];
     let mut pins: Vec<Pin> = sim.pins().to_vec();
     pins.retain(|p| p.vertex != v);
     pins.push(Pin::new(

@@ -98,7 +98,7 @@ pub fn run() -> garment_core::Result<Hang> {
     let mut sim = Simulation::new(cloth, fabric, params)?;
     // the corners (0, 0) and (nx − 1, 0), held where they are
     let corners = [0, nx - 1];
-    let held: Vec<Vector3<f64>> = corners.iter().map(|&v| sim.cloth.x[v]).collect();
+    let held: Vec<Vector3<f64>> = corners.iter().map(|&v| sim.cloth.positions()[v]).collect();
     sim.set_pins(
         corners
             .iter()
@@ -125,7 +125,7 @@ pub fn run() -> garment_core::Result<Hang> {
     let held_moved = corners
         .iter()
         .zip(&held)
-        .map(|(&v, p)| (sim.cloth.x[v] - p).norm())
+        .map(|(&v, p)| (sim.cloth.positions()[v] - p).norm())
         .fold(0.0, f64::max);
     Ok(Hang {
         vertices: sim.cloth.len(),

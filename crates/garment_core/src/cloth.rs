@@ -197,6 +197,28 @@ impl Stitch {
     }
 }
 
+/// One finite vector per vertex of a cloth of `n`, or the error naming
+/// `what` (positions, velocities).
+fn check_vertices(what: &str, x: &[Vector3<f64>], n: usize) -> Result<()> {
+    if x.len() != n {
+        fail!(
+            length(what, x.len(), n),
+            "{} {what} given for a cloth of {n} vertices",
+            x.len()
+        );
+    }
+    if let Some(i) = x.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+        fail!(
+            non_finite(what, i),
+            "{what}: vertex {i} is not finite: ({}, {}, {})",
+            x[i].x,
+            x[i].y,
+            x[i].z
+        );
+    }
+    Ok(())
+}
+
 /// Distance from `p` to the closed polygon and the closest point on it.
 fn closest_on_polygon(poly: &[[f64; 2]], p: [f64; 2]) -> (f64, [f64; 2]) {
     let n = poly.len();
@@ -308,10 +330,10 @@ pub struct Cloth {
     pub lt: f64,
     /// Material coordinates (u along warp, v along weft), m.
     pub material: Vec<[f64; 2]>,
-    /// Positions, m.
-    pub x: Vec<Vector3<f64>>,
-    /// Velocities, m/s.
-    pub v: Vec<Vector3<f64>>,
+    /// Positions, m ([`Cloth::positions`], [`Cloth::set_positions`]).
+    pub(crate) x: Vec<Vector3<f64>>,
+    /// Velocities, m/s ([`Cloth::velocities`], [`Cloth::set_velocities`]).
+    pub(crate) v: Vec<Vector3<f64>>,
     /// Masses, kg.
     pub mass: Vec<f64>,
     /// Tension springs along warp and weft.
@@ -339,8 +361,9 @@ pub struct Cloth {
     /// grid node `j·nx + i`, or [`REMOVED`]. Empty for a full rectangular grid,
     /// whose vertex of node (i, j) is `j·nx + i`.
     pub grid_vertex: Vec<usize>,
-    /// Seam stitches joining panels of a garment (empty for a single piece).
-    pub seams: Vec<Stitch>,
+    /// Seam stitches joining panels of a garment (empty for a single piece;
+    /// [`Cloth::seams`], [`Cloth::set_seam_gains`]).
+    pub(crate) seams: Vec<Stitch>,
     /// The fabric of each vertex, an index into the simulation's fabrics
     /// (a garment whose panels are cut from several); empty: all the first.
     /// Every spring and hinge lies within one panel and takes its fabric.
@@ -1435,6 +1458,100 @@ impl Cloth {
     /// Whether the cloth has no vertices.
     pub fn is_empty(&self) -> bool {
         self.x.is_empty()
+    }
+
+    /// The vertices' positions, m.
+    pub fn positions(&self) -> &[Vector3<f64>] {
+        &self.x
+    }
+
+    /// The vertices' velocities, m/s.
+    pub fn velocities(&self) -> &[Vector3<f64>] {
+        &self.v
+    }
+
+    /// The seam stitches joining the panels of a garment.
+    pub fn seams(&self) -> &[Stitch] {
+        &self.seams
+    }
+
+    /// Puts the vertices at `x`, m: one finite position per vertex, or an
+    /// [`Error::Length`] or [`Error::NonFinite`] and nothing changed.
+    pub fn set_positions(&mut self, x: &[Vector3<f64>]) -> Result<()> {
+        check_vertices("positions", x, self.len())?;
+        self.x.copy_from_slice(x);
+        Ok(())
+    }
+
+    /// Puts vertex `i` at `p`, m: an [`Error::Index`] for a vertex beyond
+    /// the cloth, an [`Error::NonFinite`] for a position not finite.
+    pub fn set_position(&mut self, i: usize, p: Vector3<f64>) -> Result<()> {
+        let n = self.len();
+        if i >= n {
+            fail!(
+                index("vertex", i, n),
+                "vertex {i}: the cloth has {n} vertices"
+            );
+        }
+        check_vertices("position", std::slice::from_ref(&p), 1)?;
+        self.x[i] = p;
+        Ok(())
+    }
+
+    /// Gives the vertices the velocities `v`, m/s: one finite velocity per
+    /// vertex, or an [`Error::Length`] or [`Error::NonFinite`] and nothing
+    /// changed.
+    pub fn set_velocities(&mut self, v: &[Vector3<f64>]) -> Result<()> {
+        check_vertices("velocities", v, self.len())?;
+        self.v.copy_from_slice(v);
+        Ok(())
+    }
+
+    /// Adds seam stitches: each on vertices of this cloth, with finite
+    /// coefficients and a finite stiffness and damping ≥ 0, or an error and
+    /// nothing added.
+    pub fn add_seams(&mut self, stitches: &[Stitch]) -> Result<()> {
+        use crate::solver::sets::Element;
+        let (first, n) = (self.seams.len(), self.len());
+        for (k, s) in stitches.iter().enumerate() {
+            s.check(first + k, n)?;
+        }
+        self.seams.extend_from_slice(stitches);
+        Ok(())
+    }
+
+    /// Stops every vertex (velocities zero).
+    pub fn stop(&mut self) {
+        self.v.iter_mut().for_each(|v| *v = Vector3::zeros());
+    }
+
+    /// Sets each seam stitch's stiffness (N/m) and damping (N·s/m), `(k,
+    /// d)` in the order of [`Cloth::seams`]: one pair per stitch, each finite
+    /// and ≥ 0, or an error and nothing changed.
+    pub fn set_seam_gains(&mut self, gains: &[(f64, f64)]) -> Result<()> {
+        let n = self.seams.len();
+        if gains.len() != n {
+            fail!(
+                length("seam gains", gains.len(), n),
+                "{} seam gains for {n} seam stitches",
+                gains.len()
+            );
+        }
+        for (i, &(k, d)) in gains.iter().enumerate() {
+            for (name, v) in [("stiffness", k), ("damping", d)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    fail!(
+                        bound(format!("seam stitch {i}: {name}"), v),
+                        "seam stitch {i}: {name} = {v}: must be a finite number ≥ 0"
+                    );
+                }
+            }
+        }
+        for (s, &(k, d)) in self.seams.iter_mut().zip(gains) {
+            s.k = k;
+            s.d = d;
+        }
+        Ok(())
     }
 
     /// Index of grid vertex (i, j), or an error naming the bad index.
