@@ -869,39 +869,38 @@ impl Amg {
     }
 }
 
-/// The smoothed prolongator `P = (I − ω D⁻¹ Â) T` into `t.p` (`dinv` =
-/// `S D̂⁻¹ S`; T's blocks `S_j` and, with rotations, `t.rot_t`), with AVX2
-/// and FMA when `fma`.
-fn smooth_prolongator(
-    fma: bool,
-    a: &BlockMatrix,
-    filter: Option<&[Filter]>,
-    dinv: &[Matrix3<f64>],
-    omega: f64,
-    t: &mut Transfer,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if fma {
-        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { smooth_prolongator_fma(a, filter, dinv, omega, t) };
-    }
-    smooth_prolongator_k::<false>(a, filter, dinv, omega, t);
+/// A kernel `$k::<FMA>` behind `fn $name(fma, …)`, which calls its copy
+/// compiled with AVX2 and FMA (`$fma`) when `fma` is set (only where the CPU
+/// has them) and the portable one otherwise.
+macro_rules! fma_dispatch {
+    ($(#[$m:meta])* fn $name:ident / $fma:ident => $k:ident($($arg:ident: $ty:ty),* $(,)?)) => {
+        $(#[$m])*
+        fn $name(fma: bool, $($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            if fma {
+                // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
+                return unsafe { $fma($($arg),*) };
+            }
+            $k::<false>($($arg),*);
+        }
+
+        #[doc = concat!("[`", stringify!($name), "`] compiled with AVX2 and FMA.")]
+        ///
+        /// # Safety
+        /// The CPU must have AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn $fma($($arg: $ty),*) {
+            $k::<true>($($arg),*);
+        }
+    };
 }
 
-/// [`smooth_prolongator`] compiled with AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn smooth_prolongator_fma(
-    a: &BlockMatrix,
-    filter: Option<&[Filter]>,
-    dinv: &[Matrix3<f64>],
-    omega: f64,
-    t: &mut Transfer,
-) {
-    smooth_prolongator_k::<true>(a, filter, dinv, omega, t);
+fma_dispatch! {
+    /// The smoothed prolongator `P = (I − ω D⁻¹ Â) T` into `t.p` (`dinv` =
+    /// `S D̂⁻¹ S`; T's blocks `S_j` and, with rotations, `t.rot_t`), with AVX2
+    /// and FMA when `fma`.
+    fn smooth_prolongator / smooth_prolongator_fma => smooth_prolongator_k(a: &BlockMatrix, filter: Option<&[Filter]>, dinv: &[Matrix3<f64>], omega: f64, t: &mut Transfer)
 }
 
 #[inline(always)]
@@ -936,37 +935,11 @@ fn smooth_prolongator_k<const FMA: bool>(
     }
 }
 
-/// `Â P` (`S A P`, S the filter on the finest level) into `t.ap`, then the
-/// upper triangle of the coarse matrix `Pᵀ Â P` into `c` (its lower
-/// triangle zero), with AVX2 and FMA when `fma`.
-fn galerkin(
-    fma: bool,
-    a: &BlockMatrix,
-    filter: Option<&[Filter]>,
-    t: &mut Transfer,
-    c: &mut BlockMatrix,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if fma {
-        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { galerkin_fma(a, filter, t, c) };
-    }
-    galerkin_k::<false>(a, filter, t, c);
-}
-
-/// [`galerkin`] compiled with AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn galerkin_fma(
-    a: &BlockMatrix,
-    filter: Option<&[Filter]>,
-    t: &mut Transfer,
-    c: &mut BlockMatrix,
-) {
-    galerkin_k::<true>(a, filter, t, c);
+fma_dispatch! {
+    /// `Â P` (`S A P`, S the filter on the finest level) into `t.ap`, then the
+    /// upper triangle of the coarse matrix `Pᵀ Â P` into `c` (its lower
+    /// triangle zero), with AVX2 and FMA when `fma`.
+    fn galerkin / galerkin_fma => galerkin_k(a: &BlockMatrix, filter: Option<&[Filter]>, t: &mut Transfer, c: &mut BlockMatrix)
 }
 
 #[inline(always)]
@@ -1084,42 +1057,14 @@ fn mat_vec_add<const FMA: bool>(
     acc + m * v
 }
 
-/// The cycle's way down on one level (matrix `m`, its lower triangle;
-/// `filter` on the finest): a forward block Gauss–Seidel sweep from zero
-/// into `w.x`, and the restriction of the residual left into the next
-/// level's right-hand side `next.b` (scattered by `Pᵀ` through `next.acc`). Each block below the diagonal is read once: for the sweep
-/// (`A_ij x_j`, j < i) and, transposed, for the residual the sweep leaves in
-/// row j (`−A_ijᵀ x_i = −A_ji x_i` into row j with the new x_i, summed in `w.acc`).
-fn down(
-    fma: bool,
-    m: &Lower32,
-    filter: Option<&[Filter]>,
-    t: &Transfer,
-    w: &mut Work,
-    next: &mut Work,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if fma {
-        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { down_fma(m, filter, t, w, next) };
-    }
-    down_k::<false>(m, filter, t, w, next);
-}
-
-/// [`down`] compiled with AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn down_fma(
-    m: &Lower32,
-    filter: Option<&[Filter]>,
-    t: &Transfer,
-    w: &mut Work,
-    next: &mut Work,
-) {
-    down_k::<true>(m, filter, t, w, next);
+fma_dispatch! {
+    /// The cycle's way down on one level (matrix `m`, its lower triangle;
+    /// `filter` on the finest): a forward block Gauss–Seidel sweep from zero
+    /// into `w.x`, and the restriction of the residual left into the next
+    /// level's right-hand side `next.b` (scattered by `Pᵀ` through `next.acc`). Each block below the diagonal is read once: for the sweep
+    /// (`A_ij x_j`, j < i) and, transposed, for the residual the sweep leaves in
+    /// row j (`−A_ijᵀ x_i = −A_ji x_i` into row j with the new x_i, summed in `w.acc`).
+    fn down / down_fma => down_k(m: &Lower32, filter: Option<&[Filter]>, t: &Transfer, w: &mut Work, next: &mut Work)
 }
 
 #[inline(always)]
@@ -1162,41 +1107,13 @@ fn down_k<const FMA: bool>(
     }
 }
 
-/// The cycle's way up on one level: the prolongation of the next level's
-/// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep over
-/// the lower triangle `m`: row i gathers its blocks left of the diagonal and
-/// the diagonal with the x not yet updated, and `w.acc[i]`, where the rows
-/// below have scattered `A_ji x_j` (j > i) with their new x_j.
-fn up(
-    fma: bool,
-    m: &Lower32,
-    filter: Option<&[Filter]>,
-    t: &Transfer,
-    w: &mut Work,
-    xc: &[Vector3<f64>],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if fma {
-        // SAFETY: `fma` is set only where the CPU has AVX2 and FMA
-        return unsafe { up_fma(m, filter, t, w, xc) };
-    }
-    up_k::<false>(m, filter, t, w, xc);
-}
-
-/// [`up`] compiled with AVX2 and FMA.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn up_fma(
-    m: &Lower32,
-    filter: Option<&[Filter]>,
-    t: &Transfer,
-    w: &mut Work,
-    xc: &[Vector3<f64>],
-) {
-    up_k::<true>(m, filter, t, w, xc);
+fma_dispatch! {
+    /// The cycle's way up on one level: the prolongation of the next level's
+    /// correction `xc` into `w.x`, then a backward block Gauss–Seidel sweep over
+    /// the lower triangle `m`: row i gathers its blocks left of the diagonal and
+    /// the diagonal with the x not yet updated, and `w.acc[i]`, where the rows
+    /// below have scattered `A_ji x_j` (j > i) with their new x_j.
+    fn up / up_fma => up_k(m: &Lower32, filter: Option<&[Filter]>, t: &Transfer, w: &mut Work, xc: &[Vector3<f64>])
 }
 
 #[inline(always)]

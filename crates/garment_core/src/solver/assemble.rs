@@ -8,10 +8,10 @@
 //! springs changes nothing else), so every thread also owns a contiguous
 //! slice of each set's memories.
 
+use super::energy::Fabrics;
 use super::sets::{self, memory_mut, Element, Stage, StepIn, StepOut, Visit, VisitMut, SETS};
 use super::sparse::BlockMatrix;
 use super::team::Team;
-use super::Fabrics;
 use crate::cloth::Cloth;
 use crate::fabric::{Fabric, LawState};
 use nalgebra::{Matrix3, Vector3};

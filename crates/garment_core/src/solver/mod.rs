@@ -19,6 +19,7 @@ pub(crate) mod amg;
 pub(crate) mod assemble;
 mod cpu;
 pub mod elements;
+mod energy;
 pub mod family;
 pub(crate) mod linear;
 pub(crate) mod sets;
@@ -34,6 +35,8 @@ use crate::collision::Obstacle;
 use crate::error::{fail, Error, Result};
 use crate::fabric::Fabric;
 use crate::set::{Handle, Set};
+pub use energy::Energies;
+pub(crate) use energy::Fabrics;
 pub use linear::{Filter, LinearSolverKind};
 use nalgebra::Vector3;
 use serde::Serialize;
@@ -351,53 +354,6 @@ pub struct StepStats {
     pub self_s: f64,
     /// Wall-clock time of the whole step, s.
     pub total_s: f64,
-}
-
-/// Energies of the current state, J.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
-pub struct Energies {
-    /// Kinetic.
-    pub kinetic: f64,
-    /// Gravity's potential, `−Σ m g·x` (zero at the origin).
-    pub gravity: f64,
-    /// Tension springs' elastic energy.
-    pub tension: f64,
-    /// Shear elements' elastic energy.
-    pub shear: f64,
-    /// Hinges' and guards' elastic energy.
-    pub bending: f64,
-    /// Seam stitches (garments).
-    pub seam: f64,
-    /// Work done so far by the Rayleigh damping forces (≥ 0 dissipated).
-    pub dissipated_damping: f64,
-}
-
-impl Energies {
-    /// Kinetic + potential (gravity and elastic).
-    pub fn total(&self) -> f64 {
-        self.kinetic + self.gravity + self.tension + self.shear + self.bending + self.seam
-    }
-}
-
-/// A cloth's fabrics as a per-vertex lookup sees them: the first, the
-/// others, and each vertex's index into them (empty: all the first). Every
-/// spring and hinge lies within one panel and takes its vertices' fabric.
-#[derive(Clone, Copy)]
-pub(crate) struct Fabrics<'a> {
-    pub first: &'a Fabric,
-    pub others: &'a [Fabric],
-    pub of: &'a [u16],
-}
-
-impl<'a> Fabrics<'a> {
-    /// The fabric of vertex `v`.
-    #[inline(always)]
-    pub fn at(&self, v: usize) -> &'a Fabric {
-        match self.of.get(v) {
-            Some(&k) if k > 0 => &self.others[usize::from(k) - 1],
-            _ => self.first,
-        }
-    }
 }
 
 /// A cloth, its fabric and its scene, advanced at a fixed step.
@@ -1070,17 +1026,17 @@ impl Simulation {
             linear::Preconditioner::BlockJacobi => SolvedBy::Pcg,
             linear::Preconditioner::Sgs => SolvedBy::Sgs,
         };
-        self.ws.pcg.solve(
-            &self.ws.a,
-            &self.ws.b,
-            &self.ws.filter,
-            &self.ws.z,
-            &mut self.dv,
-            self.params.cg_tolerance,
-            cap,
-            precond,
-            &mut self.ws.team,
-        )
+        let Workspace {
+            pcg,
+            a,
+            b,
+            filter,
+            z,
+            team,
+            ..
+        } = &mut self.ws;
+        let tol = self.params.cg_tolerance;
+        pcg.solve(a, b, filter, z, &mut self.dv, tol, cap, precond, team)
     }
 
     fn solve_direct(&mut self) -> Result<usize> {
@@ -1266,16 +1222,18 @@ impl Simulation {
         )
         .is_ok()
         {
-            if let Ok(it) = self.ws.pcg.solve_factor(
-                &self.ws.a,
-                &self.ws.b,
-                &self.ws.filter,
-                &self.ws.z,
-                &mut self.dv,
-                self.params.cg_tolerance,
-                linear::Cap::Hard(F32_REFINE_CAP),
-                d,
-            ) {
+            let Workspace {
+                pcg,
+                a,
+                b,
+                filter,
+                z,
+                direct,
+                ..
+            } = &mut self.ws;
+            let d = direct.as_mut().expect("direct solver built");
+            let (tol, cap) = (self.params.cg_tolerance, linear::Cap::Hard(F32_REFINE_CAP));
+            if let Ok(it) = pcg.solve_factor(a, b, filter, z, &mut self.dv, tol, cap, d) {
                 return Ok(it);
             }
         }
@@ -1305,29 +1263,20 @@ impl Simulation {
                 None
             },
         };
-        let bounds = &self.ws.part.bounds;
-        let mut filter = vertices::chunks(&mut self.ws.filter, bounds).into_iter();
-        let mut z = vertices::chunks(&mut self.ws.z, bounds).into_iter();
-        let mut y = vertices::chunks(&mut self.ws.y, bounds).into_iter();
-        let mut contact_of = vertices::chunks(&mut self.ws.contact_of, bounds).into_iter();
-        let mut friction_force = vertices::chunks(&mut self.friction_force, bounds).into_iter();
-        let mut normals = vertices::chunks(&mut self.ws.normals, bounds).into_iter();
-        let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
-        let mut rows: Vec<vertices::ConstraintRows> = bounds[..bounds.len() - 1]
-            .iter()
-            .map(|&first| vertices::ConstraintRows {
-                first,
-                filter: filter.next().unwrap_or_default(),
-                z: z.next().unwrap_or_default(),
-                y: y.next().unwrap_or_default(),
-                contact_of: contact_of.next().unwrap_or_default(),
-                friction_force: friction_force.next().unwrap_or_default(),
-                normals: normals.next().unwrap_or_default(),
-                friction: friction.next().unwrap_or_default(),
-                contacts: 0,
-                stuck: 0,
-            })
-            .collect();
+        let mut rows = vertices::split_rows!(
+            &self.ws.part.bounds,
+            vertices::ConstraintRows {
+                filter: &mut self.ws.filter,
+                z: &mut self.ws.z,
+                y: &mut self.ws.y,
+                contact_of: &mut self.ws.contact_of,
+                friction_force: &mut self.friction_force,
+                normals: &mut self.ws.normals,
+                friction: &mut self.friction,
+            },
+            contacts: 0,
+            stuck: 0,
+        );
         self.ws
             .team
             .run_each(&mut rows, |_, r| vertices::constrain(&scene, r));
@@ -1362,19 +1311,14 @@ impl Simulation {
             obstacles: self.obstacles.as_slice(),
             bounds: &self.ws.bounds,
         };
-        let bounds = &self.ws.part.bounds;
-        let mut x = vertices::chunks(&mut self.cloth.x, bounds).into_iter();
-        let mut v = vertices::chunks(&mut self.cloth.v, bounds).into_iter();
-        let mut friction = vertices::chunks(&mut self.friction, bounds).into_iter();
-        let mut rows: Vec<vertices::StateRows> = bounds[..bounds.len() - 1]
-            .iter()
-            .map(|&first| vertices::StateRows {
-                first,
-                x: x.next().unwrap_or_default(),
-                v: v.next().unwrap_or_default(),
-                friction: friction.next().unwrap_or_default(),
-            })
-            .collect();
+        let mut rows = vertices::split_rows!(
+            &self.ws.part.bounds,
+            vertices::StateRows {
+                x: &mut self.cloth.x,
+                v: &mut self.cloth.v,
+                friction: &mut self.friction,
+            },
+        );
         self.ws
             .team
             .run_each(&mut rows, |_, r| vertices::finish(&solved, r));

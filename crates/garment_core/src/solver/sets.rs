@@ -14,8 +14,8 @@
 //! fresh state wherever an element takes one.
 
 use super::elements::*;
+use super::energy::{Energies, Fabrics};
 use super::sparse::BlockMatrix;
-use super::{Energies, Fabrics};
 use crate::cloth::{
     Cloth, EggCrateGuard, Hinge, ShearCell, ShearSpring, Stitch, TensionSpring, EGG_CRATE_WEIGHTS,
 };

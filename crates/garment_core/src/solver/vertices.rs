@@ -365,6 +365,26 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
     }
 }
 
+/// One row struct per thread of the team: `split_rows!(bounds, Rows {
+/// field: slice, … }, other: value, …)` cuts each slice at `bounds`
+/// ([`chunks`]) and gives thread t's `Rows` its `first` vertex, its chunk of
+/// each slice and the other fields' values.
+macro_rules! split_rows {
+    ($bounds:expr, $($rows:ident)::+ { $($field:ident: $slice:expr),* $(,)? } $(, $other:ident: $value:expr)* $(,)?) => {{
+        let bounds: &[usize] = $bounds;
+        $(let mut $field = $crate::solver::vertices::chunks($slice, bounds).into_iter();)*
+        bounds[..bounds.len() - 1]
+            .iter()
+            .map(|&first| $($rows)::+ {
+                first,
+                $($field: $field.next().unwrap_or_default(),)*
+                $($other: $value,)*
+            })
+            .collect::<Vec<_>>()
+    }};
+}
+pub(super) use split_rows;
+
 /// `s` cut at `bounds` (chunk t = `bounds[t]..bounds[t + 1]`, for the
 /// team's thread t).
 pub(super) fn chunks<'a, T>(mut s: &'a mut [T], bounds: &[usize]) -> Vec<&'a mut [T]> {
