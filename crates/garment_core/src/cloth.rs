@@ -1476,15 +1476,15 @@ impl Cloth {
     }
 
     /// Puts the vertices at `x`, m: one finite position per vertex, or an
-    /// [`Error::Length`] or [`Error::NonFinite`] and nothing changed.
+    /// [`Error::Length`](crate::Error::Length) or [`Error::NonFinite`](crate::Error::NonFinite) and nothing changed.
     pub fn set_positions(&mut self, x: &[Vector3<f64>]) -> Result<()> {
         check_vertices("positions", x, self.len())?;
         self.x.copy_from_slice(x);
         Ok(())
     }
 
-    /// Puts vertex `i` at `p`, m: an [`Error::Index`] for a vertex beyond
-    /// the cloth, an [`Error::NonFinite`] for a position not finite.
+    /// Puts vertex `i` at `p`, m: an [`Error::Index`](crate::Error::Index) for a vertex beyond
+    /// the cloth, an [`Error::NonFinite`](crate::Error::NonFinite) for a position not finite.
     pub fn set_position(&mut self, i: usize, p: Vector3<f64>) -> Result<()> {
         let n = self.len();
         if i >= n {
@@ -1499,7 +1499,7 @@ impl Cloth {
     }
 
     /// Gives the vertices the velocities `v`, m/s: one finite velocity per
-    /// vertex, or an [`Error::Length`] or [`Error::NonFinite`] and nothing
+    /// vertex, or an [`Error::Length`](crate::Error::Length) or [`Error::NonFinite`](crate::Error::NonFinite) and nothing
     /// changed.
     pub fn set_velocities(&mut self, v: &[Vector3<f64>]) -> Result<()> {
         check_vertices("velocities", v, self.len())?;
