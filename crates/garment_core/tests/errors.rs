@@ -300,3 +300,73 @@ fn an_unknown_solver_name_is_invalid_and_a_deforming_obstacle_names_itself() {
         "motion start NaN s: must be finite"
     );
 }
+
+#[test]
+fn the_state_is_written_through_checked_methods() {
+    let mut s = sim(Params::default());
+    let x = s.cloth.positions().to_vec();
+    let e = s.cloth.set_positions(&x[..35]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Length {
+                got: 35,
+                expected: 36,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let mut bad = x.clone();
+    bad[12].y = f64::NAN;
+    let e = s.cloth.set_positions(&bad).unwrap_err();
+    assert!(matches!(e, Error::NonFinite { index: 12, .. }), "{e:?}");
+    let e = s.cloth.set_position(36, Vector3::zeros()).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Index {
+                index: 36,
+                len: 36,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert_eq!(
+        s.cloth.positions(),
+        &x[..],
+        "a refused write changes nothing"
+    );
+    // a write that is taken is what the step starts from: a lifted cloth
+    // falls from the new height (one step of 1/120 s under gravity alone)
+    let lifted: Vec<Vector3<f64>> = x.iter().map(|p| p + Vector3::new(0.0, 0.0, 1.0)).collect();
+    s.cloth.set_positions(&lifted).unwrap();
+    s.cloth
+        .set_velocities(&vec![Vector3::new(0.0, 0.0, 0.5); 36])
+        .unwrap();
+    assert!(s.cloth.velocities().iter().all(|v| v.z == 0.5));
+    s.cloth.stop();
+    assert!(s.cloth.velocities().iter().all(|v| *v == Vector3::zeros()));
+    s.step().unwrap();
+    let z: f64 = s.cloth.positions().iter().map(|p| p.z).sum::<f64>() / 36.0;
+    let dt = s.params().dt;
+    // the implicit step of a free, flat cloth: z drops by g dt² exactly
+    // (velocity g dt after one step, the position moved by it)
+    assert!((z - (2.0 - 9.81 * dt * dt)).abs() < 1e-9, "{z}");
+    // a single piece has no seams: gains for none, and none for one
+    assert!(s.cloth.seams().is_empty());
+    s.cloth.set_seam_gains(&[]).unwrap();
+    let e = s.cloth.set_seam_gains(&[(1.0, 0.0)]).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Length {
+                got: 1,
+                expected: 0,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}
