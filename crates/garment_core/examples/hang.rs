@@ -109,7 +109,7 @@ pub fn run() -> garment_core::Result<Hang> {
     let com = |sim: &Simulation| {
         let m: f64 = sim.cloth.mass.iter().sum();
         sim.cloth
-            .x
+            .positions()
             .iter()
             .zip(&sim.cloth.mass)
             .map(|(x, &mi)| x * mi)
