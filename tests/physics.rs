@@ -172,7 +172,7 @@ fn drape(spacing: f64, dt: f64, duration: f64) -> Drape {
         duration,
         30.0,
         sc.file.settle_speed,
-        &mut |_, _| {},
+        &mut garment_sim::run::run_on,
     )
     .unwrap();
     Drape {
@@ -293,7 +293,14 @@ fn mirror_symmetric_hinges_hang_a_scene_as_its_own_mirror_image() {
         let mut sim = sc.build(&ov).unwrap();
         let hinges_of = sim.cloth.hinges.len();
         let start = sim.cloth.x.clone();
-        run::run(&mut sim, 1.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
+        run::run(
+            &mut sim,
+            1.0,
+            30.0,
+            sc.file.settle_speed,
+            &mut garment_sim::run::run_on,
+        )
+        .unwrap();
         let c = &sim.cloth;
         let (nx, ny) = (c.nx, c.ny);
         // the mirror plane: half way between the two pins' start positions

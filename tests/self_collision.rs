@@ -748,13 +748,13 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
             Some(3.0),
             &mut |st| {
                 let (s, c) = (st.sim, std::time::Instant::now());
-                let k = usize::from(st.phase != trial::Phase::Sewing);
+                let k = usize::from(st.phase != garment_sim::run::Phase::Sewing);
                 worst[k] = worst[k].max(intersections(&s.cloth.x, &tris, &sewn));
                 frames[k] += 1;
                 contacts[k] += s.last.self_contacts;
                 collisions[k] += s.last.self_collisions;
                 check_s += c.elapsed().as_secs_f64();
-                garment_sim::scene::run::Control::Continue
+                Ok(garment_sim::run::Control::Continue)
             },
         )
         .unwrap();
@@ -845,7 +845,8 @@ fn the_drape_summary_and_the_node_diagnostics_report_it() {
     for on in [false, true] {
         let mut sim = stacked(on, 1.0 / 60.0);
         let (_, summary) =
-            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
+            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut garment_sim::run::run_on)
+                .unwrap();
         let diag = publish::diagnostics(
             &sim,
             publish::header(&sim, "world"),
@@ -1066,7 +1067,7 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
         let (bx, btris) = garment_sim::trial::body_forces::world_mesh(&t.body).unwrap();
         let mut step = 0;
         let run = garment_sim::trial::run_trial(&t, &ov, &mut |s| {
-            if s.phase == garment_sim::trial::Phase::Dressing {
+            if s.phase == garment_sim::run::Phase::Dressing {
                 step += 1;
                 if step % 5 == 0 {
                     let c =
@@ -1074,7 +1075,7 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
                     worst[k] = worst[k].max(c);
                 }
             }
-            garment_sim::scene::run::Control::Continue
+            Ok(garment_sim::run::Control::Continue)
         })
         .unwrap();
         assert_eq!(run.fit.run.failure, None);

@@ -22,9 +22,7 @@ pub mod pattern;
 pub mod run;
 mod summary;
 
-pub use run::{
-    run, run_built, run_on, run_trial, sew_and_drape, Observe, Phase, Step, TrialOutcome,
-};
+pub use run::{run, run_built, run_trial, sew_and_drape, TrialOutcome};
 
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
@@ -555,7 +553,7 @@ impl Trial {
             &self.file.sewing,
             &self.file.settle,
             Some(0.0),
-            &mut run_on,
+            &mut crate::run::run_on,
         )?;
         Ok((sim, g))
     }
@@ -571,7 +569,7 @@ pub struct PhaseCost {
     /// Of which: assembly, linear solve, and contacts with the obstacles
     /// (for a moving body: its tree's refit, the contacts' detection and
     /// the swept check after the step; self-collision not included), ms.
-    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
+    pub time_split_ms_per_step: crate::run::TimeSplit,
     pub mean_solver_iterations: f64,
     /// The garment's wrench on the body after each step, ms.
     pub body_wrench_ms_per_step: f64,
@@ -596,7 +594,7 @@ pub struct RunStats {
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
-    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
+    pub time_split_ms_per_step: crate::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
     /// Time spent on the wrench on the body after each step (outside the
