@@ -117,7 +117,7 @@ fn free_fall_reaches_terminal_speed_g_over_alpha() {
 fn hanging_cloth_reaches_static_equilibrium() {
     let sc = scene("hanging_corners.yaml");
     let mut sim = sc.build(&Overrides::default()).unwrap();
-    let steps = (sc.file.duration / sim.params().dt).round() as usize;
+    let steps = (sc.file.duration() / sim.params().dt).round() as usize;
     for _ in 0..steps {
         sim.step().unwrap();
     }

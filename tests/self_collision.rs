@@ -718,7 +718,11 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
         let t = Trial::load(&root.join(format!("config/trials/{name}.yaml"))).unwrap();
         // the shipped trial at 2 cm, self-collision on (the skirt's file
         // says so; the T-shirt's not yet, docs/self_collision.md)
-        assert_eq!(t.file.self_collision, name == "skirt_on_anny", "{name}");
+        assert_eq!(
+            t.file.run.self_collision,
+            (name == "skirt_on_anny").then_some(true),
+            "{name}"
+        );
         let (mut sim, _) = t
             .build(&Overrides {
                 spacing: Some(0.02),

@@ -115,11 +115,8 @@ fn load_trial(path: &Path, text: Option<&str>) -> anyhow::Result<Trial> {
     match text {
         None => Trial::load(path),
         Some(text) => {
-            use anyhow::Context;
-            garment_sim::io::check_yaml_shape(text)
-                .with_context(|| format!("trial {}", path.display()))?;
-            let file = serde_yaml::from_str(text)
-                .with_context(|| format!("trial {}: invalid field", path.display()))?;
+            let file =
+                garment_sim::trial::TrialFile::parse(text, &format!("trial {}", path.display()))?;
             Trial::from_file(file, path)
         }
     }
@@ -353,15 +350,12 @@ fn run_scene(
         let rep = &mut rep;
         py.detach(move || {
             caught(|| {
-                use anyhow::Context;
                 ov.check()?;
                 let scene = match &text {
                     None => Scene::load(&path)?,
                     Some(text) => {
-                        garment_sim::io::check_yaml_shape(text)
-                            .with_context(|| format!("scene {}", path.display()))?;
-                        let file = serde_yaml::from_str(text)
-                            .with_context(|| format!("scene {}: invalid field", path.display()))?;
+                        let what = format!("scene {}", path.display());
+                        let file = garment_sim::scene::SceneFile::parse(text, &what)?;
                         Scene::from_file(file, &path)?
                     }
                 };
