@@ -15,6 +15,9 @@
 //! - participants without the keystore's identity (no security: RustDDS and
 //!   Cyclone DDS; an identity from another CA: RustDDS) discover no topic
 //!   of the node, receive nothing, and their obstacles never appear;
+//! - nothing in plain text crosses the wire while only permitted peers run:
+//!   no cloud field name, no topic name (a capture of the loopback, which
+//!   does see both from the unsecured node below);
 //! - with `Enforce` a keystore whose enclave lacks a file stops the node at
 //!   start with an error naming the file; `Permissive` starts it unsecured
 //!   with a warning.
@@ -31,6 +34,8 @@ use ros2_client::{
 };
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 const INNER: &str = "GARMENT_SIM_SROS_INNER";
@@ -63,15 +68,22 @@ fn dds_log() {
     }
 }
 
-/// The governance's protection of RTPS messages, submessages and payloads:
-/// NONE unless the environment says otherwise (RustDDS 0.15.1 peers do
-/// not get each other's samples with payload ENCRYPT or SIGN: docs/ros.md).
-const PROTECTION: [&str; 3] = ["RTPS_PROTECTION", "METADATA_PROTECTION", "DATA_PROTECTION"];
+/// The governance's protection of RTPS messages, submessages and payloads,
+/// unless the environment says otherwise: whole messages and submessages
+/// (payloads included) encrypted, payloads not encrypted a second time
+/// (RustDDS 0.15.1 peers do not get each other's samples with payload
+/// ENCRYPT or SIGN; with sros2's RTPS SIGN, RustDDS's DCPSTopic
+/// announcements show topic names in plain text: docs/ros.md).
+const PROTECTION: [(&str, &str); 3] = [
+    ("RTPS_PROTECTION", "ENCRYPT"),
+    ("METADATA_PROTECTION", "ENCRYPT"),
+    ("DATA_PROTECTION", "NONE"),
+];
 
 fn keystore_tool(args: &[&OsStrLike]) {
     let mut c = Command::new("bash");
-    for k in PROTECTION {
-        c.env(k, std::env::var(k).unwrap_or_else(|_| "NONE".into()));
+    for (k, default) in PROTECTION {
+        c.env(k, std::env::var(k).unwrap_or_else(|_| default.into()));
     }
     let st = c
         .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/sros2_keystore.sh"))
@@ -85,6 +97,74 @@ type OsStrLike = std::ffi::OsStr;
 
 fn os(s: &str) -> &OsStrLike {
     OsStrLike::new(s)
+}
+
+/// Plain text that must not cross the wire in the secured graph: a field
+/// name of every cloud and the cloud's DDS topic name (in discovery).
+const PLAIN: [&[u8]; 2] = [b"strain", b"rt/cloth/points"];
+
+/// Every frame crossing the namespace's loopback interface while it runs
+/// (an AF_PACKET socket): which of [`PLAIN`] appeared, and the bytes seen.
+struct Capture {
+    stop: Arc<AtomicBool>,
+    thread: std::thread::JoinHandle<([bool; 2], usize)>,
+}
+
+impl Capture {
+    fn start() -> Capture {
+        let proto = (libc::ETH_P_ALL as u16).to_be() as i32;
+        let fd = unsafe { libc::socket(libc::AF_PACKET, libc::SOCK_RAW, proto) };
+        assert!(
+            fd >= 0,
+            "AF_PACKET socket: {}",
+            std::io::Error::last_os_error()
+        );
+        let tv = libc::timeval {
+            tv_sec: 0,
+            tv_usec: 100_000,
+        };
+        unsafe {
+            libc::setsockopt(
+                fd,
+                libc::SOL_SOCKET,
+                libc::SO_RCVTIMEO,
+                &tv as *const _ as *const libc::c_void,
+                std::mem::size_of::<libc::timeval>() as u32,
+            );
+        }
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::spawn(move || {
+            let mut buf = vec![0u8; 1 << 16];
+            let (mut found, mut bytes) = ([false; 2], 0);
+            while !s.load(Ordering::Relaxed) {
+                let n = unsafe { libc::recv(fd, buf.as_mut_ptr().cast(), buf.len(), 0) };
+                if n > 0 {
+                    let frame = &buf[..n as usize];
+                    bytes += frame.len();
+                    for (f, p) in found.iter_mut().zip(PLAIN) {
+                        if !*f && frame.windows(p.len()).any(|w| w == p) {
+                            *f = true;
+                            eprintln!(
+                                "capture: {:?} in a frame of {} bytes: {}",
+                                String::from_utf8_lossy(p),
+                                frame.len(),
+                                String::from_utf8_lossy(frame).escape_debug()
+                            );
+                        }
+                    }
+                }
+            }
+            unsafe { libc::close(fd) };
+            (found, bytes)
+        });
+        Capture { stop, thread }
+    }
+
+    fn finish(self) -> ([bool; 2], usize) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.join().unwrap()
+    }
 }
 
 /// A ros2-client participant: secured with `enclave_dir`'s files if given.
@@ -266,13 +346,14 @@ fn secured_graph() {
     // the node writes into a file: nothing it writes can block it
     let node_log = dir.join("node.log");
     let f = std::fs::File::create(&node_log).unwrap();
+    let wire = Capture::start();
     let mut node = start_node(&ks, "Enforce", &[])
         .stdout(f.try_clone().unwrap())
         .stderr(f)
         .spawn()
         .unwrap();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        scenario(&dir, &ks, &foreign, &mut node)
+        scenario(&dir, &ks, &foreign, &mut node, wire)
     }));
     unsafe {
         libc::kill(node.id() as i32, libc::SIGTERM);
@@ -280,13 +361,24 @@ fn secured_graph() {
     let status = node.wait().unwrap();
     let log = std::fs::read_to_string(&node_log).unwrap();
     println!("node:\n{log}");
-    if let Err(e) = result {
-        std::panic::resume_unwind(e);
-    }
+    let (plain, bytes) = match result {
+        Ok(r) => r,
+        Err(e) => std::panic::resume_unwind(e),
+    };
     assert!(status.success(), "{log}");
     assert!(
         log.contains("DDS Security on: enclave /garment_sim"),
         "{log}"
+    );
+    // (4) encrypted: until the intruders came (their own announcements name
+    // the topics they ask for), neither a cloud's field names nor its topic
+    // name crossed the wire
+    println!("secured graph: {bytes} bytes on the loopback, plain text seen: {plain:?}");
+    assert!(bytes > 100_000, "{bytes} bytes captured");
+    assert_eq!(
+        plain,
+        [false, false],
+        "plain text on the wire of the secured graph"
     );
 
     refusals(&dir, &ks);
@@ -304,7 +396,15 @@ fn intruder(dir: &Path, secs: u32) -> Child {
         .expect("python3 with cyclonedds is needed")
 }
 
-fn scenario(dir: &Path, ks: &Path, foreign: &Path, node: &mut Child) {
+/// (1)–(3) with the permitted peers, the loopback captured (returned: what
+/// [`Capture::finish`] says), then the intruders.
+fn scenario(
+    dir: &Path,
+    ks: &Path,
+    foreign: &Path,
+    node: &mut Child,
+    wire: Capture,
+) -> ([bool; 2], usize) {
     let enclave = |name: &str| ks.join("enclaves").join(name);
     // (1) the operator adds and moves an obstacle and reads the cloud
     let mut op = Peer::new("operator", Some(&enclave("operator"))).unwrap();
@@ -374,6 +474,7 @@ fn scenario(dir: &Path, ks: &Path, foreign: &Path, node: &mut Child) {
     assert!(pinned, "the pinner's pin never took effect");
     println!("pinner: vertex 0 pinned at (-0.5, -0.5, 1.5)");
     drop(pinner);
+    let captured = wire.finish();
 
     // (2) participants without the keystore's identity
     let mut plain = Peer::new("plain_intruder", None).unwrap();
@@ -456,6 +557,7 @@ fn scenario(dir: &Path, ks: &Path, foreign: &Path, node: &mut Child) {
          security): no topic of the node discovered, no cloud received, no obstacle applied \
          ({arrays} marker arrays watched)"
     );
+    captured
 }
 
 /// Enforce with a keystore missing a file refuses to start and names the
@@ -471,6 +573,7 @@ fn refusals(dir: &Path, ks: &Path) {
         "{err}"
     );
     println!("Enforce without key.pem: {}", err.trim());
+    let wire = Capture::start();
     let mut n = start_node(ks, "Permissive", &[])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -495,6 +598,14 @@ fn refusals(dir: &Path, ks: &Path) {
         libc::kill(n.id() as i32, libc::SIGTERM);
     }
     let out = n.wait_with_output().unwrap();
+    // the capture sees plain text when there is some
+    let (plain, bytes) = wire.finish();
+    println!("unsecured node: {bytes} bytes on the loopback, plain text seen: {plain:?}");
+    assert_eq!(
+        plain,
+        [true, true],
+        "the capture missed the unsecured node's traffic"
+    );
     let log =
         String::from_utf8_lossy(&out.stdout).to_string() + &String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -18,8 +18,8 @@
 # on every topic, and protection kinds taken from the environment, sros2's
 # by default: DISCOVERY_PROTECTION=ENCRYPT, LIVELINESS_PROTECTION=ENCRYPT,
 # RTPS_PROTECTION=SIGN, METADATA_PROTECTION=ENCRYPT, DATA_PROTECTION=ENCRYPT
-# (NONE, SIGN, ENCRYPT, ..._WITH_ORIGIN_AUTHENTICATION; RustDDS 0.15.1
-# peers exchange samples only with the last three NONE: docs/ros.md). An
+# (NONE, SIGN, ENCRYPT, ..._WITH_ORIGIN_AUTHENTICATION; for RustDDS 0.15.1
+# peers: RTPS_PROTECTION=ENCRYPT DATA_PROTECTION=NONE, docs/ros.md). An
 # enclave may subscribe to every topic; it may publish on the DDS topics
 # matching PUB (a space-separated list of fnmatch patterns, default `*`:
 # all), e.g. "rt/obstacles rq/* ros_discovery_info". Its certificate's

@@ -15,7 +15,7 @@
 //! security plugins (authentication PKI-DH, access control Permissions,
 //! cryptography AES-GCM-GMAC), which authenticate every remote participant
 //! and check its permissions against the governance. Payload protection
-//! (data or metadata ENCRYPT/SIGN, RTPS SIGN) does not work between RustDDS
+//! (`data_protection_kind` ENCRYPT or SIGN) does not work between RustDDS
 //! 0.15.1 participants, and RustDDS rejects Cyclone DDS 0.10.2's handshake
 //! (docs/ros.md). Security needs the
 //! cargo feature `security`; without it `ROS_SECURITY_ENABLE=true` with
