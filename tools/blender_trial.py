@@ -24,7 +24,7 @@ garment.ply: `garment_sim compare` takes both) and OUT.json.
 3. A picture of both end states side by side (matplotlib):
 
      python3 tools/blender_trial.py picture /tmp/gs1/garment.obj /tmp/bl_skirt.ply \\
-         --body assets/bodies/anny/body.obj --out docs/img/skirt_vs_blender.png
+         --body assets/bodies/anny/body.obj --out docs/images/skirt_vs_blender.png
 
 The stitches: a stitch sews a vertex to a point of an edge of the other panel, which
 couples it with both ends of that edge in the matrix; Blender's sewing springs join two
@@ -265,14 +265,18 @@ def picture(a):
     for k, ((v, f), title) in enumerate(zip(shapes, a.titles or a.shapes)):
         ax = fig.add_subplot(1, len(shapes), k + 1, projection="3d")
         keep = np.all((bv[bf] >= lo).all(axis=2) & (bv[bf] <= hi).all(axis=2), axis=1)
+        # one collection, so that the depth sort is per triangle
+        polys, colours = [], []
         for verts, tri, col in ((bv, bf[keep], (0.85, 0.75, 0.65)), (v, f, (0.3, 0.45, 0.8))):
             p = verts[tri]
             nrm = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
             nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-30
             shade = 0.35 + 0.65 * np.abs(nrm @ light)
-            pc = Poly3DCollection(p, facecolors=np.outer(shade, col).clip(0, 1),
-                                  edgecolors="none")
-            ax.add_collection3d(pc)
+            polys.append(p)
+            colours.append(np.outer(shade, col).clip(0, 1))
+        ax.add_collection3d(Poly3DCollection(np.concatenate(polys),
+                                             facecolors=np.concatenate(colours),
+                                             edgecolors="none"))
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_zlim(lo[2], hi[2])
@@ -281,7 +285,7 @@ def picture(a):
         ax.set_axis_off()
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(a.out, dpi=110)
+    fig.savefig(a.out, dpi=90, bbox_inches="tight")
     print(f"wrote {a.out}")
 
 
