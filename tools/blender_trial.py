@@ -9,9 +9,11 @@ simulation loop. The end state goes to OUT.ply (same vertex order as the trial's
 garment.ply: `garment_sim compare` takes both) and OUT.json.
 
 1. What Blender needs, from the trial (step 0's system holds the placed positions, the
-   masses and, in its matrix's pattern, the stitches' couplings):
+   masses and, in its matrix's pattern, the stitches' couplings; the sewing and one step
+   of drape are enough):
 
-     garment_sim trial config/trials/skirt_on_anny.yaml --write-system 0 --out /tmp/gs_skirt
+     garment_sim trial config/trials/skirt_on_anny.yaml --write-system 0 --max-time 0.005 \
+         --out /tmp/gs_skirt
      python3 tools/blender_trial.py prepare /tmp/gs_skirt --out /tmp/bl_skirt.npz
 
 2. The run, one core each, in one sitting:
@@ -29,7 +31,7 @@ garment.ply: `garment_sim compare` takes both) and OUT.json.
 The stitches: a stitch sews a vertex to a point of an edge of the other panel, which
 couples it with both ends of that edge in the matrix; Blender's sewing springs join two
 vertices, so each stitched vertex is joined to the nearer of its partners in the trial's
-settled garment (where it lies on that edge). Blender's cloth has one mass per vertex
+sewn garment (where it lies on that edge). Blender's cloth has one mass per vertex
 (the trial's mean) and its own spring model, its Cotton preset as it stands
 (`--param-scale 1`; scaled to the physical vertex mass as `blender_drape.py` does, the
 skirt slides off the hips as soon as gravity is on), its frame-unit integration corrected
