@@ -30,5 +30,6 @@ pub mod live;
 pub mod msgs;
 pub mod pictures;
 pub mod ros;
+pub mod run;
 pub mod scene;
 pub mod trial;

@@ -28,7 +28,7 @@ use crate::bag::{Frame, TopicNames};
 use crate::msgs::definitions::schema_text;
 use crate::msgs::publish::{self, DiagnosticFigures, FrameClock};
 use crate::msgs::{to_cdr, Clock, DiagnosticArray, Marker, MarkerArray, PointCloud2, RosType};
-use crate::scene::run::Control;
+use crate::run::{Control, Step};
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
 use foxglove::websocket::Capability;
@@ -294,7 +294,7 @@ pub struct LiveOptions {
     pub end_time: f64,
 }
 
-/// The observer of a run shown live ([`crate::scene::run::drape_with`]): publishes
+/// The observer of a run shown live ([`crate::scene::run::drape`]): publishes
 /// a frame at the first step at or after each multiple of 1/rate of simulated
 /// time (as the node and the bags), the final state, and the state at which
 /// `stop` ends the run; holds the run to its pace.
@@ -342,7 +342,8 @@ impl<'a> LiveRun<'a> {
     }
 
     /// Called before the first step and after each step.
-    pub fn observe(&mut self, s: &Simulation) -> Result<Control> {
+    pub fn observe(&mut self, step: &Step) -> Result<Control> {
+        let s = step.sim;
         let now = Instant::now();
         let (t0_wall, t0) = *self.origin.get_or_insert((now, s.time));
         if self.opts.pace > 0.0 {

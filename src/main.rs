@@ -66,6 +66,46 @@ fn main() {
     }
 }
 
+/// A run's progress on stderr, as its observer sees it: a bar (on a
+/// terminal) or a line every tenth of the way per phase, named by the
+/// phase or, for a run of one phase, by `label`.
+pub(crate) struct PhaseProgress {
+    label: Option<String>,
+    bars: Vec<(garment_sim::run::Phase, Bar)>,
+}
+
+/// A phase's progress: `bar(done, of)`.
+type Bar = Box<dyn FnMut(f64, f64)>;
+
+impl PhaseProgress {
+    pub(crate) fn new(label: Option<String>) -> PhaseProgress {
+        PhaseProgress {
+            label,
+            bars: Vec::new(),
+        }
+    }
+
+    /// Shows a step (a new phase ends the one before).
+    pub(crate) fn show(&mut self, s: &garment_sim::run::Step) {
+        if self.bars.last().is_none_or(|b| b.0 != s.phase) {
+            self.finish();
+            let name = self.label.clone();
+            let name = name.unwrap_or_else(|| s.phase.name().into());
+            self.bars.push((s.phase, Box::new(progress_printer(name))));
+        }
+        if let Some((_, bar)) = self.bars.last_mut() {
+            bar(s.done, s.of);
+        }
+    }
+
+    /// The run is over: its last phase's bar is full.
+    pub(crate) fn finish(&mut self) {
+        if let Some((_, bar)) = self.bars.last_mut() {
+            bar(1.0, 1.0);
+        }
+    }
+}
+
 pub(crate) fn progress_printer(label: String) -> impl FnMut(f64, f64) {
     let tty = std::io::stderr().is_terminal();
     let bar = if tty {

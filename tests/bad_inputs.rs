@@ -512,6 +512,7 @@ fn a_failed_step_names_the_spring_and_the_strain() {
 /// writes nothing, still returns the failure as an error.
 #[test]
 fn a_drape_whose_step_fails_writes_the_steps_before_it() {
+    use garment_sim::run::run_on;
     use garment_sim::scene::run;
     use garment_sim::scene::{Overrides, Scene};
     let sc = Scene::load(Path::new("config/scenes/free_fall.yaml")).unwrap();
@@ -523,10 +524,9 @@ fn a_drape_whose_step_fails_writes_the_steps_before_it() {
     let mut sim = sc.build(&ov).unwrap();
     support::pin_failing_at_step_6(&mut sim, 0);
     let dt = sim.params().dt;
-    let (sim, s) = run::drape_with(&sc, &ov, sim, &out, &mut |_, _| {}, &mut |_| {
-        Ok(run::Control::Continue)
-    })
-    .unwrap();
+    let o = run::drape_built(&sc, &ov, sim, &mut run_on).unwrap();
+    o.write(&out).unwrap();
+    let (sim, s) = (o.sim, o.summary);
     let failure = s.failure.as_deref().expect("the run failed");
     // the sixth step ends past the last waypoint, where the target is not
     // finite: it fails, and the five steps before it are kept
@@ -560,11 +560,11 @@ fn a_drape_whose_step_fails_writes_the_steps_before_it() {
     // without outputs to keep, the failure is an error
     let mut sim = sc.build(&ov).unwrap();
     support::pin_failing_at_step_6(&mut sim, 0);
-    let e = run::run(&mut sim, 0.02, 120.0, 0.005, &mut |_, _| {}).unwrap_err();
+    let e = run::run(&mut sim, 0.02, 120.0, 0.005, &mut run_on).unwrap_err();
     assert!(format!("{e:#}").starts_with("step 6 (t = "), "{e:#}");
     // a run that goes to its end has no failure in its summary
     let mut sim = sc.build(&ov).unwrap();
-    let (_, ok) = run::run(&mut sim, 0.02, 120.0, 0.005, &mut |_, _| {}).unwrap();
+    let (_, ok) = run::run(&mut sim, 0.02, 120.0, 0.005, &mut run_on).unwrap();
     assert!(ok.failure.is_none());
 }
 

@@ -193,7 +193,7 @@ fn a_trial_takes_the_solver_and_tolerance_overrides() {
     let (sim, _) = t.build(&coarse).unwrap();
     assert_eq!(
         sim.params().linear_solver,
-        t.file.linear_solver.unwrap_or_default()
+        t.file.run.solver.unwrap_or_default()
     );
     assert_eq!(sim.params().cg_tolerance, 1e-6);
     let (sim, _) = t

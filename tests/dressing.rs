@@ -3,12 +3,12 @@
 
 mod support;
 use garment_sim::garment::Garment;
-use garment_sim::scene::run::Control;
+use garment_sim::run::{Control, Phase};
 use garment_sim::solver::Simulation;
 use garment_sim::trial::dressing::{
     self, project_on_polyline, Dressing, DressingReport, DressingRow,
 };
-use garment_sim::trial::{Overrides, Phase, Trial};
+use garment_sim::trial::{Overrides, Trial};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -195,7 +195,7 @@ fn dress(t: &Trial, ov: &Overrides, on_step: &mut dyn FnMut(&Simulation)) -> Dre
         if s.phase == Phase::Dressing {
             on_step(s.sim);
         }
-        Control::Continue
+        Ok(Control::Continue)
     })
     .unwrap();
     assert_eq!(out.fit.run.failure, None);

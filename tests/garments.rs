@@ -70,7 +70,7 @@ fn sew_and_drape(sim: &mut Simulation) -> anyhow::Result<trial::RunStats> {
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut trial::run_on,
+        &mut garment_sim::run::run_on,
     )
 }
 
@@ -149,7 +149,7 @@ fn a_trial_whose_step_fails_ends_with_the_steps_before_it() {
         &SewingFile::default(),
         &SettleFile::default(),
         None,
-        &mut trial::run_on,
+        &mut garment_sim::run::run_on,
     )
     .unwrap();
     let failure = st.failure.as_deref().expect("the trial failed");
@@ -1406,7 +1406,7 @@ fn a_garment_too_small_for_the_body_is_reported_not_silent() {
 /// pattern itself ends settled with no reason.
 #[test]
 fn a_pattern_shrunk_20_percent_is_named_too_small_not_settled() {
-    use garment_sim::scene::run::Control;
+    use garment_sim::run::Control;
     use garment_sim::trial::outcome::Status;
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config/trials/skirt_on_anny.yaml");
@@ -1416,7 +1416,7 @@ fn a_pattern_shrunk_20_percent_is_named_too_small_not_settled() {
     };
     let t = Trial::load(&path).unwrap();
     let run = |t: &Trial| {
-        let out = trial::run_trial(t, &ov, &mut |_| Control::Continue).unwrap();
+        let out = trial::run_trial(t, &ov, &mut |_| Ok(Control::Continue)).unwrap();
         let o = out.fit.outcome.clone().expect("an outcome");
         eprintln!("{}", o.line());
         (o, out.warnings())

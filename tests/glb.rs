@@ -11,7 +11,8 @@
 mod support;
 use garment_sim::pictures::glb::{write_glb, GlbScene};
 use garment_sim::pictures::render::{full_scale, Surface};
-use garment_sim::scene::run::{self, Control};
+use garment_sim::run::Control;
+use garment_sim::scene::run;
 use garment_sim::scene::{Overrides, Scene};
 use std::path::Path;
 use std::process::Command;
@@ -34,7 +35,8 @@ fn drape() -> Drape {
     let every = (0.025 / dt).round() as u64;
     let mut frames = Vec::new();
     let mut step = 0u64;
-    run::run_to_failure(&mut sim, 0.3, 30.0, 0.0, &mut |_, _| {}, &mut |s| {
+    run::run_to_failure(&mut sim, 0.3, 30.0, 0.0, &mut |s| {
+        let s = s.sim;
         if step.is_multiple_of(every) {
             let x = s
                 .cloth

@@ -8,7 +8,7 @@ use garment_sim::cloth::{Cloth, GridSpec, Stitch};
 use garment_sim::collision::{Obstacle, ShapeSpec};
 use garment_sim::deforming::{Keyframes, Motion};
 use garment_sim::fabric::Fabric;
-use garment_sim::scene::run::Control;
+use garment_sim::run::{Control, Phase};
 use garment_sim::solver::{Params, Simulation};
 use nalgebra::{Isometry3, Matrix4, Rotation3, Translation3, UnitQuaternion, Vector3};
 use std::f64::consts::PI;
@@ -952,7 +952,7 @@ fn run_quietly(
         &t.file.sewing,
         &t.file.settle,
         None,
-        &mut garment_sim::trial::run_on,
+        &mut garment_sim::run::run_on,
     )
     .unwrap()
 }
@@ -1457,8 +1457,8 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
     let mut bin: Option<(Unwrap, Unwrap, f64)> = None;
     let st = trial::run(&mut sim, &t.file.sewing, &t.file.settle, None, &mut |st| {
         let (s, at) = (st.sim, st.done);
-        if st.phase != trial::Phase::Motion {
-            return Control::Continue;
+        if st.phase != Phase::Motion {
+            return Ok(Control::Continue);
         }
         let b = s.obstacles()[0].deforming().unwrap().positions();
         let x = s.cloth.positions();
@@ -1488,7 +1488,7 @@ fn skirt_on_the_turn(alpha: Option<f64>, window: (f64, f64)) -> TurnRun {
             }
             None => bin = Some((Unwrap::new(x), Unwrap::new(b), at)),
         }
-        Control::Continue
+        Ok(Control::Continue)
     })
     .unwrap();
     assert!(

@@ -117,7 +117,7 @@ fn free_fall_reaches_terminal_speed_g_over_alpha() {
 fn hanging_cloth_reaches_static_equilibrium() {
     let sc = scene("hanging_corners.yaml");
     let mut sim = sc.build(&Overrides::default()).unwrap();
-    let steps = (sc.file.duration / sim.params().dt).round() as usize;
+    let steps = (sc.file.duration() / sim.params().dt).round() as usize;
     for _ in 0..steps {
         sim.step().unwrap();
     }
@@ -172,7 +172,7 @@ fn drape(spacing: f64, dt: f64, duration: f64) -> Drape {
         duration,
         30.0,
         sc.file.settle_speed,
-        &mut |_, _| {},
+        &mut garment_sim::run::run_on,
     )
     .unwrap();
     Drape {
@@ -293,7 +293,14 @@ fn mirror_symmetric_hinges_hang_a_scene_as_its_own_mirror_image() {
         let mut sim = sc.build(&ov).unwrap();
         let hinges_of = sim.cloth.hinges.len();
         let start = sim.cloth.positions().to_vec();
-        run::run(&mut sim, 1.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
+        run::run(
+            &mut sim,
+            1.0,
+            30.0,
+            sc.file.settle_speed,
+            &mut garment_sim::run::run_on,
+        )
+        .unwrap();
         let c = &sim.cloth;
         let (nx, ny) = (c.nx, c.ny);
         // the mirror plane: half way between the two pins' start positions

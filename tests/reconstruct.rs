@@ -35,7 +35,14 @@ fn table_drape(spacing: f64) -> (Shape, Vec<KnownPoint>) {
         ..Default::default()
     };
     let mut sim = sc.build(&ov).unwrap();
-    run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut |_, _| {}).unwrap();
+    run::run(
+        &mut sim,
+        3.0,
+        30.0,
+        sc.file.settle_speed,
+        &mut garment_sim::run::run_on,
+    )
+    .unwrap();
     (
         Shape::from_cloth(&sim.cloth),
         obstacle_corners(&sim.obstacles()[0]),

@@ -7,9 +7,13 @@
 # rclpy on Fast DDS from PyPI in a venv with garment_sim_msgs built for it),
 # builds the physics core on its own (the garment_core crate must build
 # without ROS, bags, the command line and PNG), then runs every test of the
-# workspace.
+# workspace, and the node's DDS Security test with the feature `security` on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# OpenSSL for the node's DDS Security (cargo feature `security`, tests/ros_security.rs)
+if ! pkg-config --exists openssl 2>/dev/null; then
+    apt-get update -qq && apt-get install -y libssl-dev pkg-config
+fi
 python3 -m pip install --quiet --disable-pip-version-check -r tests/requirements.txt
 # GarmentCode's pygarment, without the meshing and GUI stack it pins
 python3 -m pip install --quiet --disable-pip-version-check --no-deps pygarment==2.0.2
@@ -29,3 +33,5 @@ if [ -n "$forbidden" ]; then
     exit 1
 fi
 cargo test --release --workspace --no-fail-fast
+# the node with DDS Security (SROS2), a feature off in the default build
+cargo test --release --features security --test ros_security

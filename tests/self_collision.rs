@@ -724,7 +724,11 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
         let t = Trial::load(&root.join(format!("config/trials/{name}.yaml"))).unwrap();
         // the shipped trial at 2 cm, self-collision on (the skirt's file
         // says so; the T-shirt's not yet, docs/self_collision.md)
-        assert_eq!(t.file.self_collision, name == "skirt_on_anny", "{name}");
+        assert_eq!(
+            t.file.run.self_collision,
+            (name == "skirt_on_anny").then_some(true),
+            "{name}"
+        );
         let (mut sim, _) = t
             .build(&Overrides {
                 spacing: Some(0.02),
@@ -754,13 +758,13 @@ fn the_shipped_garment_trials_never_pass_through_themselves_in_any_step() {
             Some(3.0),
             &mut |st| {
                 let (s, c) = (st.sim, std::time::Instant::now());
-                let k = usize::from(st.phase != trial::Phase::Sewing);
+                let k = usize::from(st.phase != garment_sim::run::Phase::Sewing);
                 worst[k] = worst[k].max(intersections(s.cloth.positions(), &tris, &sewn));
                 frames[k] += 1;
                 contacts[k] += s.last.self_contacts;
                 collisions[k] += s.last.self_collisions;
                 check_s += c.elapsed().as_secs_f64();
-                garment_sim::scene::run::Control::Continue
+                Ok(garment_sim::run::Control::Continue)
             },
         )
         .unwrap();
@@ -855,7 +859,8 @@ fn the_drape_summary_and_the_node_diagnostics_report_it() {
     for on in [false, true] {
         let mut sim = stacked(on, 1.0 / 60.0);
         let (_, summary) =
-            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut |_, _| {}).unwrap();
+            garment_sim::scene::run::run(&mut sim, 0.3, 30.0, 0.005, &mut garment_sim::run::run_on)
+                .unwrap();
         let diag = publish::diagnostics(
             &sim,
             publish::header(&sim, "world"),
@@ -1081,7 +1086,7 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
         let (bx, btris) = garment_sim::trial::body_forces::world_mesh(&t.body).unwrap();
         let mut step = 0;
         let run = garment_sim::trial::run_trial(&t, &ov, &mut |s| {
-            if s.phase == garment_sim::trial::Phase::Dressing {
+            if s.phase == garment_sim::run::Phase::Dressing {
                 step += 1;
                 if step % 5 == 0 {
                     let c = cloth_body_crossings(
@@ -1093,7 +1098,7 @@ fn with_the_bodys_edges_the_hand_never_passes_through_the_dressing_sleeve() {
                     worst[k] = worst[k].max(c);
                 }
             }
-            garment_sim::scene::run::Control::Continue
+            Ok(garment_sim::run::Control::Continue)
         })
         .unwrap();
         assert_eq!(run.fit.run.failure, None);

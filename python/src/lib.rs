@@ -6,11 +6,11 @@
 //! GIL is taken again only to call the progress callback and check for
 //! signals, at most [`CADENCE_S`] apart (and at each new phase).
 
-use garment_sim::scene::run::Control;
+use garment_sim::run::{Control, Step};
+use garment_sim::scene::HingesFile;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
-use garment_sim::scene::HingesFile;
-use garment_sim::trial::{Step, Trial, TrialOutcome};
+use garment_sim::trial::{Trial, TrialOutcome};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
@@ -115,11 +115,8 @@ fn load_trial(path: &Path, text: Option<&str>) -> anyhow::Result<Trial> {
     match text {
         None => Trial::load(path),
         Some(text) => {
-            use anyhow::Context;
-            garment_sim::io::check_yaml_shape(text)
-                .with_context(|| format!("trial {}", path.display()))?;
-            let file = serde_yaml::from_str(text)
-                .with_context(|| format!("trial {}: invalid field", path.display()))?;
+            let file =
+                garment_sim::trial::TrialFile::parse(text, &format!("trial {}", path.display()))?;
             Trial::from_file(file, path)
         }
     }
@@ -244,7 +241,7 @@ fn run_trial(
             caught(|| {
                 let t = load_trial(&path, text.as_deref())?;
                 let outcome = garment_sim::trial::run_trial(&t, &ov, &mut |s: &Step| {
-                    rep.observe(s.phase.name(), s.done, s.of)
+                    Ok(rep.observe(s.phase.name(), s.done, s.of))
                 })?;
                 Ok((t, outcome))
             })
@@ -353,31 +350,26 @@ fn run_scene(
         let rep = &mut rep;
         py.detach(move || {
             caught(|| {
-                use anyhow::Context;
                 ov.check()?;
                 let scene = match &text {
                     None => Scene::load(&path)?,
                     Some(text) => {
-                        garment_sim::io::check_yaml_shape(text)
-                            .with_context(|| format!("scene {}", path.display()))?;
-                        let file = serde_yaml::from_str(text)
-                            .with_context(|| format!("scene {}: invalid field", path.display()))?;
+                        let what = format!("scene {}", path.display());
+                        let file = garment_sim::scene::SceneFile::parse(text, &what)?;
                         Scene::from_file(file, &path)?
                     }
                 };
-                let sim = scene.build(&ov)?;
-                let duration = scene.duration(&ov);
-                let t0 = sim.time;
-                let (sim, summary) = garment_sim::scene::run::drape_with(
-                    &scene,
-                    &ov,
-                    sim,
-                    &out,
-                    &mut |_, _| {},
-                    &mut |s| Ok(rep.observe("drape", s.time - t0, duration)),
-                )?;
-                let positions: Vec<[f64; 3]> =
-                    sim.cloth.positions().iter().map(|p| [p.x, p.y, p.z]).collect();
+                let o = garment_sim::scene::run::drape(&scene, &ov, &mut |s| {
+                    Ok(rep.observe(s.phase.name(), s.done, s.of))
+                })?;
+                o.write(&out)?;
+                let (sim, summary) = (o.sim, o.summary);
+                let positions: Vec<[f64; 3]> = sim
+                    .cloth
+                    .positions()
+                    .iter()
+                    .map(|p| [p.x, p.y, p.z])
+                    .collect();
                 let faces = sim.cloth.triangles.clone();
                 anyhow::Ok(NativeScene {
                     summary: serde_json::to_string_pretty(&summary)?,

@@ -39,7 +39,8 @@ pub use tools::{
 pub use writer::{BagOptions, BagSummary, Compression, Writer};
 
 use crate::msgs::publish::{DiagnosticFigures, FrameClock};
-use crate::scene::run::{self, Control, Progress};
+use crate::run::{Control, Observe, Step};
+use crate::scene::run;
 use crate::scene::{Overrides, Scene};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
@@ -73,7 +74,6 @@ impl DrapeBag {
 /// What a recorded drape did.
 #[derive(Debug, Clone)]
 pub struct DrapeRecorded {
-    pub summary: run::Summary,
     /// The finished bag; `None` if writing it failed (see `bag_error`).
     pub bag: Option<BagSummary>,
     /// Why the recording stopped before the end (a full disk), naming the
@@ -87,36 +87,20 @@ pub struct DrapeRecorded {
     pub record_s: f64,
 }
 
-/// Runs a scene headless as [`run::drape`] does (writing `out`) while
-/// recording it into a bag: a frame before the first step and every
-/// [`steps_per_frame`] steps. Stops stepping when `stop` is set, then
-/// finishes the bag and the outputs.
+/// Runs a scene headless as [`run::drape`] does while recording it into
+/// a bag: a frame before the first step and at `bag.rate_hz` in simulated
+/// time. `also` (e.g. a live view, a progress line) sees each step after
+/// the recorder; the run stops when it says so or when `stop` is set, then
+/// the bag is finished. `sim` is the scene built with `ov`. The caller
+/// writes the drape's outputs ([`run::DrapeOutcome::write`]).
 pub fn drape_recorded(
     scene: &Scene,
     ov: &Overrides,
-    out: &Path,
-    progress: Progress,
+    sim: crate::solver::Simulation,
     bag: &DrapeBag,
     stop: &AtomicBool,
-) -> Result<DrapeRecorded> {
-    drape_recorded_with(scene, ov, out, progress, bag, stop, &mut |_| {
-        Ok(Control::Continue)
-    })
-}
-
-/// As [`drape_recorded`], calling `also` (e.g. a live view) after the
-/// recorder before the first step and after each step; the run stops when
-/// either says so.
-pub fn drape_recorded_with(
-    scene: &Scene,
-    ov: &Overrides,
-    out: &Path,
-    progress: Progress,
-    bag: &DrapeBag,
-    stop: &AtomicBool,
-    also: run::Observer,
-) -> Result<DrapeRecorded> {
-    let sim = scene.build(ov)?;
+    also: Observe,
+) -> Result<(run::DrapeOutcome, DrapeRecorded)> {
     if !(bag.rate_hz.is_finite() && bag.rate_hz > 0.0) {
         bail!("bag rate {} Hz: must be a finite number > 0", bag.rate_hz);
     }
@@ -134,7 +118,8 @@ pub fn drape_recorded_with(
     let mut last_recorded = None;
     let mut stopped = false;
     let mut record_s = 0.0;
-    let mut observer = |s: &crate::solver::Simulation| -> Result<Control> {
+    let mut observer = |step: &Step| -> Result<Control> {
+        let s = step.sim;
         if clock.due(s.time, bag.rate_hz) {
             let now = Instant::now();
             let (n, t) = (s.steps - last.1, s.time - last.2);
@@ -158,21 +143,22 @@ pub fn drape_recorded_with(
             last = (Instant::now(), s.steps, s.time);
             last_recorded = Some(s.time);
         }
-        let next = also(s)?;
+        let next = also(step)?;
         if stop.load(Ordering::Relaxed) {
             stopped = true;
             return Ok(Control::Stop);
         }
         Ok(next)
     };
-    let (sim, summary) = run::drape_with(scene, ov, sim, out, progress, &mut observer)?;
+    let outcome = run::drape_built(scene, ov, sim, &mut observer)?;
+    let sim = &outcome.sim;
     let t_rec = Instant::now();
     let mut frames = frames_before_failure;
     let mut finished = None;
     if let Some(mut r) = rec.take() {
         // the final state, as the node records it when it stops
         let last = match last_recorded != Some(sim.time) {
-            true => r.record(&sim, &bag.frame_id, &DiagnosticFigures::default()),
+            true => r.record(sim, &bag.frame_id, &DiagnosticFigures::default()),
             false => Ok(()),
         };
         frames = r.frames();
@@ -192,14 +178,14 @@ pub fn drape_recorded_with(
         }
     }
     record_s += t_rec.elapsed().as_secs_f64();
-    Ok(DrapeRecorded {
-        summary,
+    let recorded = DrapeRecorded {
         bag: finished,
         bag_error,
         frames,
         stopped,
         record_s,
-    })
+    };
+    Ok((outcome, recorded))
 }
 
 /// The recording of `dir` failed at simulated time `t` with `e`: closes

@@ -2,6 +2,7 @@
 //! grids, steps and solvers.
 
 use anyhow::{Context, Result};
+use garment_sim::run::Run;
 use garment_sim::scene::{Overrides, Scene};
 use garment_sim::solver::LinearSolverKind;
 use std::path::PathBuf;
@@ -110,33 +111,25 @@ fn measure(
             Some(sim) => sim,
             None => sc.build(ov)?,
         };
+        let mut warm = Run::new();
         for _ in 0..wsteps {
-            sim.step()?;
+            warm.step(&mut sim)?;
         }
-        let t = std::time::Instant::now();
-        let mut iters = 0;
-        let mut phase = [0.0; 4];
-        let mut pairs = [0usize; 2];
+        let mut run = Run::new();
         for _ in 0..steps {
-            let st = sim.step()?;
-            iters += st.iterations;
-            phase[0] += st.assemble_s;
-            phase[1] += st.solve_s;
-            phase[2] += st.collide_s;
-            phase[3] += st.self_s;
-            pairs[0] += st.self_contacts;
-            pairs[1] += st.self_collisions;
+            run.step(&mut sim)?;
         }
-        own = pairs.map(|p| p as f64 / steps as f64);
+        let (wall, sp) = (run.wall_s(), &run.spent);
+        own = [sp.self_contacts, sp.self_collisions].map(|p| p as f64 / steps as f64);
         let per = |x: f64| 1e3 * x / steps as f64;
         ms.push([
-            per(t.elapsed().as_secs_f64()),
-            per(phase[0]),
-            per(phase[1]),
-            per(phase[2]),
-            per(phase[3]),
+            per(wall),
+            per(sp.split.assemble),
+            per(sp.split.solve),
+            per(sp.split.collide),
+            per(sp.self_s),
         ]);
-        it = iters as f64 / steps as f64;
+        it = sp.iterations as f64 / steps as f64;
         if peak.is_nan() {
             peak = peak_rss_mb();
         }

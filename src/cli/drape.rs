@@ -1,8 +1,8 @@
 //! `garment_sim drape`: a scene run headless, its outputs and figures, with
 //! an optional rosbag2 bag and a live view in Foxglove.
 
-use crate::progress_printer;
 use anyhow::Result;
+use garment_sim::run::{Control, Step};
 use garment_sim::scene::run;
 use garment_sim::scene::system_file::SystemWriter;
 use garment_sim::scene::{Overrides, Scene};
@@ -285,33 +285,32 @@ pub fn drape(a: DrapeArgs) -> Result<()> {
         None => None,
     };
     let mut systems = SystemWriter::new(&out, &write_system);
-    let mut also = |s: &garment_sim::solver::Simulation| {
-        systems.observe(s);
+    let mut progress = crate::PhaseProgress::new(Some(format!("drape {}", scene.display())));
+    let mut also = |s: &Step| {
+        systems.observe(s.sim);
+        progress.show(s);
         match live_run.as_mut() {
             Some(r) => r.observe(s),
-            None => Ok(run::Control::Continue),
+            None => Ok(Control::Continue),
         }
     };
-    let mut pr = progress_printer(format!("drape {}", scene.display()));
-    let (s, recorded) = match &bag.bag {
-        None => {
-            let mut sim = sc.build(&ov)?;
-            sim.capture_systems(&write_system);
-            (
-                run::drape_with(&sc, &ov, sim, &out, &mut pr, &mut also)?.1,
-                None,
-            )
-        }
+    let mut sim = sc.build(&ov)?;
+    sim.capture_systems(&write_system);
+    let (outcome, recorded) = match &bag.bag {
+        None => (run::drape_built(&sc, &ov, sim, &mut also)?, None),
         Some(dir) => {
             use garment_sim::bag as gb;
             let mut rec = gb::DrapeBag::new(dir);
             rec.rate_hz = bag.bag_rate;
             rec.options.compression = bag.bag_compression;
             rec.options.chunk_size = bag.bag_chunk_size;
-            let r = gb::drape_recorded_with(&sc, &ov, &out, &mut pr, &rec, stop_ref, &mut also)?;
-            (r.summary.clone(), Some(r))
+            let (o, r) = gb::drape_recorded(&sc, &ov, sim, &rec, stop_ref, &mut also)?;
+            (o, Some(r))
         }
     };
+    progress.finish();
+    outcome.write(&out)?;
+    let s = outcome.summary;
     let written = systems.finish(s.steps);
     print_summary(&s, &out);
     let bag_error = recorded.and_then(|r| report_bag(r, &s));

@@ -53,8 +53,13 @@ fn default_model(scene: &Path) -> Result<Shape> {
         ..Default::default()
     };
     let mut sim = sc.build(&ov)?;
-    let mut pr = crate::progress_printer(format!("model: drape {} at 1 cm", scene.display()));
-    garment_sim::scene::run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut pr)?;
+    let mut pr =
+        crate::PhaseProgress::new(Some(format!("model: drape {} at 1 cm", scene.display())));
+    garment_sim::scene::run::run(&mut sim, 3.0, 30.0, sc.file.settle_speed, &mut |s| {
+        pr.show(s);
+        Ok(garment_sim::run::Control::Continue)
+    })?;
+    pr.finish();
     Ok(Shape::from_cloth(&sim.cloth))
 }
 

@@ -1,9 +1,9 @@
 //! `garment_sim trial`: a virtual garment trial from the command line.
 
 use anyhow::Result;
-use garment_sim::scene::run::Control;
+use garment_sim::run::Control;
 use garment_sim::scene::system_file::SystemWriter;
-use garment_sim::trial::{self, Overrides, Phase, Trial};
+use garment_sim::trial::{self, Overrides, Trial};
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
@@ -22,9 +22,6 @@ pub struct TrialArgs {
     write_system: Vec<u64>,
 }
 
-/// A phase's progress bar.
-type Bar = Box<dyn FnMut(f64, f64)>;
-
 pub fn trial(a: TrialArgs) -> Result<()> {
     let t = Trial::load(&a.trial)?;
     let ov = &a.ov;
@@ -34,31 +31,16 @@ pub fn trial(a: TrialArgs) -> Result<()> {
     eprintln!("{}", t.headline(&sim, &g));
     std::fs::create_dir_all(&a.out)?;
     let stop = garment_sim::scene::run::stop_flag()?;
-    let mut bars: Vec<(Phase, Bar)> = Vec::new();
+    let mut progress = crate::PhaseProgress::new(None);
     let outcome = trial::run_built(&t, ov, sim, g, &mut |s| {
         systems.observe(s.sim);
-        if bars.last().is_none_or(|b| b.0 != s.phase) {
-            // the phase before is over
-            if let Some((_, bar)) = bars.last_mut() {
-                bar(1.0, 1.0);
-            }
-            bars.push((
-                s.phase,
-                Box::new(crate::progress_printer(s.phase.name().into())),
-            ));
-        }
-        if let Some((_, bar)) = bars.last_mut() {
-            bar(s.done, s.of);
-        }
-        if stop.load(Ordering::Relaxed) {
-            Control::Stop
-        } else {
-            Control::Continue
-        }
+        progress.show(s);
+        Ok(match stop.load(Ordering::Relaxed) {
+            true => Control::Stop,
+            false => Control::Continue,
+        })
     })?;
-    if let Some((_, bar)) = bars.last_mut() {
-        bar(1.0, 1.0);
-    }
+    progress.finish();
     let written = systems.finish(outcome.sim.steps);
     let wrote = outcome.write(&t, &a.out);
     for line in outcome.summary(&t) {

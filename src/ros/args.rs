@@ -54,6 +54,8 @@ pub struct RosArgs {
     pub namespace: Option<String>,
     pub node_name: Option<String>,
     pub log_level: Option<String>,
+    /// `-e/--enclave`: the SROS2 enclave (see [`super::security`]).
+    pub enclave: Option<String>,
 }
 
 fn split_assign<'a>(flag: &str, s: &'a str) -> Result<(&'a str, &'a str)> {
@@ -114,7 +116,10 @@ pub fn parse(args: &[String]) -> Result<(Vec<String>, RosArgs)> {
                 ra.log_level = Some(next(i)?.to_string());
                 i += 1;
             }
-            "-e" | "--enclave" => i += 1,
+            "-e" | "--enclave" => {
+                ra.enclave = Some(next(i)?.to_string());
+                i += 1;
+            }
             "--disable-rosout-logs"
             | "--disable-stdout-logs"
             | "--enable-rosout-logs"

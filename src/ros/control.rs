@@ -525,12 +525,15 @@ pub fn apply_pin(
 /// does again): the last good state is the state the simulation is in. [`Recovery::step`]
 /// retries from it, first without the pins and obstacles changed since the
 /// last good step (the messages that drove the failure), then with the
-/// velocities set to zero (the cloth at rest where it is).
+/// velocities set to zero (the cloth at rest where it is). Every try steps
+/// through the run interface ([`Recovery::run`]).
 #[derive(Debug, Default)]
 pub struct Recovery {
     inputs: Option<(Set<Pin>, Set<Obstacle>, ObstacleRegistry)>,
     /// Steps that failed and were recovered.
     pub recovered: u64,
+    /// The node's steps and their costs.
+    pub run: crate::run::Run,
 }
 
 /// A step taken by [`Recovery::step`].
@@ -570,12 +573,12 @@ impl Recovery {
         sim: &mut Simulation,
         registry: &mut ObstacleRegistry,
     ) -> Result<Stepped, String> {
-        let first = match sim.step() {
+        let first = match self.run.step(sim) {
             Ok(st) => {
                 self.inputs = None;
                 return Ok(Stepped::Ok(st));
             }
-            Err(e) => format!("{e:#}"),
+            Err(e) => e.error,
         };
         let mut last = first.clone();
         if let Some((pins, obstacles, reg)) = self.inputs.take() {
@@ -591,19 +594,20 @@ impl Recovery {
                 .map_err(|e| format!("{first}; {e:#}"))?;
             sim.set_obstacles(obstacles);
             *registry = reg;
-            match sim.step() {
+            match self.run.step(sim) {
                 Ok(stats) => return Ok(self.recovered(stats, first, what)),
-                Err(e) => last = format!("{e:#}"),
+                Err(e) => last = e.error,
             }
         }
         sim.cloth.stop();
-        match sim.step() {
+        match self.run.step(sim) {
             Ok(stats) => {
                 let what = "set every velocity to zero (the cloth at rest where it was)";
                 Ok(self.recovered(stats, first, what.into()))
             }
             Err(e) => Err(format!(
-                "{first}; not recovered: {last}; with the velocities set to zero: {e:#}"
+                "{first}; not recovered: {last}; with the velocities set to zero: {}",
+                e.error
             )),
         }
     }

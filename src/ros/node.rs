@@ -38,8 +38,8 @@ use crate::scene::Scene;
 use crate::solver::Simulation;
 use anyhow::{anyhow, bail, Context as _, Result};
 use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, ParameterValue,
-    QosProfile, ServiceMapping, ServiceTypeName,
+    MessageTypeName, Name, NodeName, NodeOptions, ParameterValue, QosProfile, ServiceMapping,
+    ServiceTypeName,
 };
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -292,7 +292,7 @@ pub fn run(ros_args: &[String]) -> Result<()> {
     let fq = args::expand("~", &names.namespace, &names.node);
     let settings = params::settings_from_args(&ra, &fq)?;
     let loaded = load(&settings).context("loading the scene")?;
-    Node::start(names, fq, settings, loaded)?.run()
+    Node::start(names, fq, settings, loaded, ra.enclave.as_deref())?.run()
 }
 
 /// The node's publishers, subscriptions and services.
@@ -513,15 +513,20 @@ struct Node {
 impl Node {
     /// Starts DDS, declares the parameters (from [`PARAMETERS`]), creates
     /// the endpoints and the bag, and spins ros2-client on its own thread.
-    fn start(names: Names, fq: String, settings: Settings, loaded: Loaded) -> Result<Node> {
+    fn start(
+        names: Names,
+        fq: String,
+        settings: Settings,
+        loaded: Loaded,
+        enclave: Option<&str>,
+    ) -> Result<Node> {
         let domain: u16 = match std::env::var("ROS_DOMAIN_ID") {
             Ok(v) if !v.is_empty() => v
                 .parse()
                 .map_err(|_| anyhow!("ROS_DOMAIN_ID = {v:?}: not a number 0–232"))?,
             _ => 0,
         };
-        let context = Context::with_options(ContextOptions::new().domain_id(domain))
-            .map_err(|e| anyhow!("cannot start DDS: {e:?}"))?;
+        let (context, security_notes) = super::security::context(domain, enclave)?;
         let mut opts = NodeOptions::new()
             .enable_rosout(true)
             .start_parameter_services(true);
@@ -584,6 +589,13 @@ impl Node {
             })?;
         let stop = crate::scene::run::stop_flag()?;
         let log = Log::new(Some(ros.logging_handle()));
+        for (warning, line) in security_notes {
+            if warning {
+                log.warn(&line);
+            } else {
+                log.info(&line);
+            }
+        }
         let topic_logs = [&names.obstacles, &names.pins, &names.body, &names.body_mesh]
             .map(|t| TopicLog::new(t))
             .to_vec();

@@ -8,7 +8,7 @@ pub mod run;
 pub mod shape;
 pub mod system_file;
 
-pub use overrides::Overrides;
+pub use overrides::{read_file, Overrides};
 
 use crate::cloth::HingeLayout;
 use crate::cloth::{Cloth, GridSpec, PanelSpec};
@@ -17,7 +17,7 @@ use crate::collision::{
 };
 use crate::fabric::Fabric;
 use crate::limits::{self, MAX_ANGULAR_SPEED, MAX_OBSTACLE_SPEED, MAX_PIN_SPEED};
-use crate::solver::{LinearSolverKind, Params, Pin, PinPath, Simulation};
+use crate::solver::{Params, Pin, PinPath, Simulation};
 use anyhow::{bail, Context, Result};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -331,8 +331,12 @@ pub struct PinSpec {
     pub release_at: Option<f64>,
 }
 
+/// A scene file. Its run's settings (`dt`, `duration`, `solver`,
+/// `cg_tolerance`, `threads`, `self_collision`, `obstacle_edges`,
+/// `cell_shear`) are an [`Overrides`] flattened into it, the command line's
+/// over them; `dt` and `duration` are required. Read with
+/// [`SceneFile::parse`], which refuses an unknown key.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct SceneFile {
     #[serde(default)]
     pub name: String,
@@ -345,34 +349,64 @@ pub struct SceneFile {
     pub pins: Vec<PinSpec>,
     #[serde(default = "default_gravity")]
     pub gravity: [f64; 3],
-    /// Fixed time step, s.
-    pub dt: f64,
-    /// Simulated duration, s.
-    pub duration: f64,
     /// Rate of energy rows and recorded frames, Hz.
     #[serde(default = "default_output_rate")]
     pub output_rate: f64,
-    #[serde(default)]
-    pub solver: Option<LinearSolverKind>,
-    /// The PCG's relative tolerance, in (0, 1) (default 1e-6; docs/benchmarks.md,
-    /// "The stopping test and the final shape").
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub cg_tolerance: Option<f64>,
     /// A run counts as settled once the rms speed stays below this, m/s.
     #[serde(default = "default_settle_speed")]
     pub settle_speed: f64,
-    /// Keep the cloth from passing through itself (docs/self_collision.md).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub self_collision: bool,
-    /// Triangle-mesh obstacles' vertices and edges meet the cloth's
-    /// triangles and edges too (docs/self_collision.md: an obstacle thinner
-    /// than the cloth's spacing cannot pass between its vertices).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub obstacle_edges: bool,
-    /// Each cell's shear from both its diagonals, with the egg-crate guards
-    /// (docs/lab.md); off: each diagonal alone (thesis eq. 4.34).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub cell_shear: bool,
+    /// The run's settings: the fixed time step `dt` (s) and the simulated
+    /// `duration` (s); the linear `solver` and its `cg_tolerance` (in
+    /// (0, 1), default 1e-6: docs/benchmarks.md, "The stopping test and the
+    /// final shape"); `threads`; `self_collision` (the cloth kept from
+    /// passing through itself), `obstacle_edges` (triangle-mesh obstacles'
+    /// vertices and edges meet the cloth's triangles and edges too:
+    /// docs/self_collision.md) and `cell_shear` (each cell's shear from both
+    /// its diagonals, with the egg-crate guards: docs/lab.md; off: each
+    /// diagonal alone, thesis eq. 4.34). At the file's top level, read by
+    /// [`SceneFile::parse`].
+    #[serde(skip)]
+    pub run: Overrides,
+}
+
+impl SceneFile {
+    /// The file's own keys (besides its settings').
+    const KEYS: [&'static str; 8] = [
+        "name",
+        "description",
+        "cloth",
+        "obstacles",
+        "pins",
+        "gravity",
+        "output_rate",
+        "settle_speed",
+    ];
+
+    /// Reads a scene file's text (`what` names it in the errors).
+    pub fn parse(text: &str, what: &str) -> Result<SceneFile> {
+        let (file, run) = overrides::read_file(
+            text,
+            what,
+            &SceneFile::KEYS,
+            &[
+                ("spacing", "a scene's grid spacing is `cloth.spacing`"),
+                ("hinges", "a scene's hinges are `cloth.hinges`"),
+                ("hysteresis", "a scene's hysteresis is `cloth.hysteresis`"),
+                ("max_time", "not for a scene (a scene runs for `duration`)"),
+            ],
+        )?;
+        Ok(SceneFile { run, ..file })
+    }
+
+    /// The fixed time step, s (0 when absent: refused by [`Scene::from_file`]).
+    pub fn dt(&self) -> f64 {
+        self.run.dt.unwrap_or(0.0)
+    }
+
+    /// The simulated duration, s (0 when absent: refused by [`Scene::from_file`]).
+    pub fn duration(&self) -> f64 {
+        self.run.duration.unwrap_or(0.0)
+    }
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -397,10 +431,7 @@ impl Scene {
     pub fn load(path: &Path) -> Result<Scene> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read scene file {}", path.display()))?;
-        crate::io::check_yaml_shape(&text)
-            .with_context(|| format!("scene file {}", path.display()))?;
-        let file: SceneFile = serde_yaml::from_str(&text)
-            .with_context(|| format!("scene file {}: invalid YAML or field", path.display()))?;
+        let file = SceneFile::parse(&text, &format!("scene file {}", path.display()))?;
         Scene::from_file(file, path)
     }
 
@@ -439,13 +470,19 @@ impl Scene {
             }
             Ok(())
         };
-        pos("dt", f.dt)?;
-        limits::check_dt("dt", f.dt)?;
-        if let Some(t) = f.cg_tolerance {
+        let Some(dt) = f.run.dt else {
+            bail!("dt: missing (the fixed time step, s)");
+        };
+        pos("dt", dt)?;
+        limits::check_dt("dt", dt)?;
+        if let Some(t) = f.run.cg_tolerance {
             limits::check_cg_tolerance("cg_tolerance", t)?;
         }
-        if !(f.duration.is_finite() && f.duration >= 0.0) {
-            bail!("duration = {}: must be ≥ 0 s", f.duration);
+        let Some(duration) = f.run.duration else {
+            bail!("duration: missing (the simulated time, s)");
+        };
+        if !(duration.is_finite() && duration >= 0.0) {
+            bail!("duration = {duration}: must be ≥ 0 s");
         }
         pos("output_rate", f.output_rate)?;
         pos("settle_speed", f.settle_speed)?;
@@ -749,17 +786,10 @@ impl Scene {
                 .with_context(|| format!("obstacles[{k}]"))
                 .with_context(ctx)?;
         }
-        let params = ov.apply(Params {
-            dt: f.dt,
+        let params = ov.or(&f.run).apply(Params {
             gravity: Vector3::from(f.gravity),
-            linear_solver: f.solver.unwrap_or_default(),
             cloth_thickness: f.cloth.thickness,
             hysteresis: f.cloth.hysteresis,
-            self_collision: f.self_collision,
-            obstacle_edges: f.obstacle_edges,
-            cell_shear: f.cell_shear,
-            cg_tolerance: f.cg_tolerance.unwrap_or(Params::default().cg_tolerance),
-            threads: 0,
             ..Params::default()
         });
         let pins = self.build_pins(&cloth)?;
@@ -770,7 +800,7 @@ impl Scene {
     }
 
     pub fn duration(&self, ov: &Overrides) -> f64 {
-        ov.duration.unwrap_or(self.file.duration)
+        ov.duration.unwrap_or(self.file.duration())
     }
 
     /// The hinge layout of a run with `ov`.

@@ -1,7 +1,9 @@
-//! The settings a run takes from outside its file: written once, flattened
-//! into the command line's `drape` and `trial` arguments, read from a file
-//! or a dict (serde) and built from the node's parameters; applied to the
-//! step's [`Params`] in one place ([`Overrides::apply`]). SI units: m, s.
+//! The settings of a run: written once, flattened into the command line's
+//! `drape` and `trial` arguments and into the scene and trial files (their
+//! top-level `dt`, `solver`, `self_collision`, …: [`read_file`]), read from
+//! a dict (serde) and built from the node's parameters; the command line's
+//! over the file's ([`Overrides::or`]), applied to the step's [`Params`] in
+//! one place ([`Overrides::apply`]). SI units: m, s.
 
 use super::HingesFile;
 use crate::limits;
@@ -27,6 +29,7 @@ pub struct Overrides {
     /// Gauss–Seidel), amg (PCG with smoothed-aggregation multigrid) or cholesky (exact,
     /// double precision) (default: the file's, auto when absent).
     #[arg(long)]
+    #[serde(alias = "linear_solver")]
     pub solver: Option<LinearSolverKind>,
     /// Turn the hysteretic parts of the laws off (`--no-hysteresis`).
     #[arg(
@@ -73,6 +76,43 @@ pub struct Overrides {
 }
 
 impl Overrides {
+    /// The keys a file's settings take (the fields' names; `solver` is also
+    /// read as `linear_solver`).
+    pub const KEYS: [&'static str; 13] = [
+        "spacing",
+        "dt",
+        "duration",
+        "solver",
+        "linear_solver",
+        "hysteresis",
+        "cg_tolerance",
+        "threads",
+        "self_collision",
+        "obstacle_edges",
+        "cell_shear",
+        "hinges",
+        "max_time",
+    ];
+
+    /// Each value given here, else `file`'s (the command line's over the
+    /// file's).
+    pub fn or(&self, file: &Overrides) -> Overrides {
+        Overrides {
+            spacing: self.spacing.or(file.spacing),
+            dt: self.dt.or(file.dt),
+            duration: self.duration.or(file.duration),
+            solver: self.solver.or(file.solver),
+            hysteresis: self.hysteresis.or(file.hysteresis),
+            cg_tolerance: self.cg_tolerance.or(file.cg_tolerance),
+            threads: self.threads.or(file.threads),
+            self_collision: self.self_collision.or(file.self_collision),
+            obstacle_edges: self.obstacle_edges.or(file.obstacle_edges),
+            cell_shear: self.cell_shear.or(file.cell_shear),
+            hinges: self.hinges.or(file.hinges),
+            max_time: self.max_time.or(file.max_time),
+        }
+    }
+
     /// Each value checked as the file's field it replaces (the command
     /// line's `--spacing`, `--dt`, `--duration`, `--cg-tolerance`; a
     /// trial's `--max-time` is checked as its `settle.max_time`).
@@ -128,5 +168,198 @@ impl Overrides {
             bail!("--hinges: not for a trial (its panels' hinges are the garment file's `hinges`)");
         }
         Ok(())
+    }
+}
+
+/// Reads a scene or trial file (`what`, for the errors) whose settings are
+/// an [`Overrides`] at its top level: each top-level key must be one of the
+/// file's own (`own`) or a setting not `elsewhere` (a setting the file
+/// takes in another place or not at all, with where it goes), so a
+/// misspelt key is refused as serde's `deny_unknown_fields` would. Returns
+/// the file's own fields (`T`, which skips its settings) and its settings,
+/// each read from the text itself so that an error names its key, line and
+/// column.
+pub fn read_file<T: serde::de::DeserializeOwned>(
+    text: &str,
+    what: &str,
+    own: &[&str],
+    elsewhere: &[(&str, &str)],
+) -> Result<(T, Overrides)> {
+    use anyhow::Context;
+    crate::io::check_yaml_shape(text).with_context(|| what.to_string())?;
+    let doc: serde_yaml::Value =
+        serde_yaml::from_str(text).with_context(|| format!("{what}: invalid YAML"))?;
+    if let serde_yaml::Value::Mapping(m) = &doc {
+        for k in m.keys() {
+            let key = match k {
+                serde_yaml::Value::String(s) => s.as_str(),
+                other => bail!("{what}: key {other:?}: keys are names"),
+            };
+            if let Some((_, why)) = elsewhere.iter().find(|(e, _)| *e == key) {
+                bail!("{what}: `{key}`: {why}");
+            }
+            if !own.contains(&key) && !Overrides::KEYS.contains(&key) {
+                let mut known: Vec<&str> = own.to_vec();
+                known.extend(
+                    (Overrides::KEYS.iter()).filter(|k| !elsewhere.iter().any(|(e, _)| e == *k)),
+                );
+                let known: Vec<String> = known.iter().map(|k| format!("`{k}`")).collect();
+                bail!(
+                    "{what}: unknown field `{key}`, expected one of {}",
+                    known.join(", ")
+                );
+            }
+        }
+    }
+    let file: T = serde_yaml::from_str(text).with_context(|| format!("{what}: invalid field"))?;
+    let settings: Overrides =
+        serde_yaml::from_str(text).with_context(|| format!("{what}: invalid setting"))?;
+    Ok((file, settings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file with no fields of its own.
+    #[derive(Debug, Deserialize)]
+    struct Nothing {}
+
+    #[test]
+    fn a_bad_setting_is_named_with_its_line() {
+        let e = read_file::<Nothing>("dt: 0.01\nthreads: many\n", "f.yaml", &[], &[]).unwrap_err();
+        let m = format!("{e:#}");
+        assert!(
+            m.starts_with("f.yaml: invalid setting: threads: invalid"),
+            "{m}"
+        );
+        assert!(m.contains("line 2"), "{m}");
+    }
+
+    /// `KEYS` names every field an `Overrides` reads: a file with all of
+    /// them set reads back whole.
+    #[test]
+    fn the_keys_are_the_fields() {
+        let all = Overrides {
+            spacing: Some(0.01),
+            dt: Some(0.002),
+            duration: Some(1.0),
+            solver: Some(LinearSolverKind::Pcg),
+            hysteresis: Some(false),
+            cg_tolerance: Some(1e-7),
+            threads: Some(2),
+            self_collision: Some(true),
+            obstacle_edges: Some(true),
+            cell_shear: Some(true),
+            hinges: Some(HingesFile::MirrorSymmetric),
+            max_time: Some(3.0),
+        };
+        let v = serde_yaml::to_value(&all).unwrap();
+        let keys: Vec<String> = v
+            .as_mapping()
+            .unwrap()
+            .keys()
+            .map(|k| k.as_str().unwrap().to_string())
+            .collect();
+        assert_eq!(keys.len(), 12);
+        for k in &keys {
+            assert!(Overrides::KEYS.contains(&k.as_str()), "{k}");
+        }
+        let (_, back) =
+            read_file::<Nothing>(&serde_yaml::to_string(&all).unwrap(), "f", &[], &[]).unwrap();
+        assert_eq!(back, all);
+        let (_, alias) = read_file::<Nothing>("linear_solver: sgs\n", "f", &[], &[]).unwrap();
+        assert_eq!(alias.solver, Some(LinearSolverKind::Sgs));
+    }
+
+    #[test]
+    fn a_file_key_is_its_own_a_setting_or_refused_by_name() {
+        let e = read_file::<Nothing>("dt: 0.01\ncolour: red\n", "f.yaml", &[], &[]).unwrap_err();
+        assert!(
+            format!("{e:#}").contains("f.yaml: unknown field `colour`"),
+            "{e:#}"
+        );
+        let e = read_file::<Nothing>(
+            "max_time: 3\n",
+            "f.yaml",
+            &[],
+            &[("max_time", "give settle.max_time")],
+        )
+        .unwrap_err();
+        assert_eq!(format!("{e:#}"), "f.yaml: `max_time`: give settle.max_time");
+        let cli = Overrides {
+            dt: Some(0.001),
+            ..Overrides::default()
+        };
+        let (_, file) = read_file::<Nothing>("dt: 0.01\nthreads: 2\n", "f", &[], &[]).unwrap();
+        let both = cli.or(&file);
+        assert_eq!(
+            (both.dt, both.threads, both.spacing),
+            (Some(0.001), Some(2), None)
+        );
+    }
+
+    fn shipped(rel: &str) -> String {
+        std::fs::read_to_string(format!("{}/{rel}", env!("CARGO_MANIFEST_DIR"))).unwrap()
+    }
+
+    /// The shipped files' settings are read as the command line's are, and
+    /// a setting a file takes elsewhere is refused saying where.
+    #[test]
+    fn scene_and_trial_files_take_their_settings_as_overrides() {
+        use crate::scene::{Scene, SceneFile};
+        use crate::trial::TrialFile;
+        let text = shipped("config/scenes/free_fall.yaml") + "threads: 1\nsolver: sgs\n";
+        let f = SceneFile::parse(&text, "free_fall").unwrap();
+        assert_eq!(
+            (f.run.threads, f.run.solver),
+            (Some(1), Some(LinearSolverKind::Sgs))
+        );
+        assert!(f.dt() > 0.0 && f.duration() > 0.0);
+        let path = format!(
+            "{}/config/scenes/free_fall.yaml",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let sc = Scene::from_file(f, path.as_ref()).unwrap();
+        let cli = Overrides {
+            solver: Some(LinearSolverKind::Pcg),
+            ..Overrides::default()
+        };
+        let sim = sc.build(&cli).unwrap();
+        assert_eq!(sim.params().threads, 1);
+        assert_eq!(sim.params().linear_solver, LinearSolverKind::Pcg);
+        let e = SceneFile::parse(
+            &(shipped("config/scenes/free_fall.yaml") + "spacing: 0.01\n"),
+            "s",
+        )
+        .unwrap_err();
+        assert_eq!(
+            format!("{e:#}"),
+            "s: `spacing`: a scene's grid spacing is `cloth.spacing`"
+        );
+        let no_dt: String = (shipped("config/scenes/free_fall.yaml").lines())
+            .filter(|l| !l.starts_with("dt:"))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let f = SceneFile::parse(&no_dt, "s").unwrap();
+        let e = Scene::from_file(f, path.as_ref()).unwrap_err();
+        assert!(format!("{e:#}").contains("dt: missing"), "{e:#}");
+        let skirt = shipped("config/trials/skirt_on_anny.yaml");
+        let t = TrialFile::parse(&(skirt.clone() + "linear_solver: sgs\n"), "t").unwrap();
+        assert_eq!(t.run.solver, Some(LinearSolverKind::Sgs));
+        assert_eq!(t.settings(&cli).solver, Some(LinearSolverKind::Pcg));
+        for (key, says) in [
+            ("max_time: 3", "`settle.max_time`"),
+            ("duration: 3", "not for a trial"),
+            ("hinges: skewed", "not for a trial"),
+        ] {
+            let e = TrialFile::parse(&format!("{skirt}{key}\n"), "t").unwrap_err();
+            let m = format!("{e:#}");
+            assert!(
+                m.starts_with(&format!("t: `{}`", key.split(':').next().unwrap())),
+                "{m}"
+            );
+            assert!(m.contains(says), "{m}");
+        }
     }
 }

@@ -2,14 +2,14 @@
 //! settling, and write `final.ply`, `final.png` (a picture of the end
 //! state), `energy.csv` and `summary.json`.
 
+use crate::run::{Control, Observe, Phase, Run, SolvedSteps, Step, TimeSplit};
 use crate::scene::{Overrides, Scene};
-use crate::solver::{Simulation, SolvedBy};
+use crate::solver::Simulation;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
 
 /// One row of `energy.csv`.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -79,30 +79,6 @@ pub struct Summary {
     pub failure: Option<String>,
 }
 
-/// Steps by the linear solve that gave their answer.
-#[derive(Debug, Clone, Copy, Serialize, Default)]
-pub struct SolvedSteps {
-    /// The block-Jacobi PCG.
-    pub pcg: u64,
-    /// The PCG preconditioned by symmetric block Gauss–Seidel (`sgs`).
-    pub sgs: u64,
-    /// The multigrid PCG.
-    pub amg: u64,
-    /// The Cholesky factor.
-    pub cholesky: u64,
-}
-
-impl SolvedSteps {
-    fn count(&mut self, by: SolvedBy) {
-        match by {
-            SolvedBy::Pcg => self.pcg += 1,
-            SolvedBy::Sgs => self.sgs += 1,
-            SolvedBy::Amg => self.amg += 1,
-            SolvedBy::Cholesky => self.cholesky += 1,
-        }
-    }
-}
-
 /// What the self-collision pass did over a run.
 #[derive(Debug, Clone, Copy, Serialize, Default)]
 pub struct SelfSummary {
@@ -120,28 +96,6 @@ pub struct SelfSummary {
     pub zones: usize,
 }
 
-#[derive(Debug, Clone, Copy, Serialize, Default)]
-pub struct TimeSplit {
-    pub assemble: f64,
-    pub solve: f64,
-    pub collide: f64,
-}
-
-/// Progress callback: (simulated time, duration).
-pub type Progress<'a> = &'a mut dyn FnMut(f64, f64);
-
-/// What an [`Observer`] tells the run to do next.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Control {
-    Continue,
-    /// End the run now (the summary covers the steps done).
-    Stop,
-}
-
-/// Called with the state before the first step and after every step (to
-/// record it, or to stop the run).
-pub type Observer<'a> = &'a mut dyn FnMut(&Simulation) -> Result<Control>;
-
 /// Runs a built simulation for `duration` seconds, sampling energies at
 /// `rate` Hz; a step that fails is an error.
 pub fn run(
@@ -149,11 +103,9 @@ pub fn run(
     duration: f64,
     rate: f64,
     settle_speed: f64,
-    progress: Progress,
+    observe: Observe,
 ) -> Result<(Vec<EnergyRow>, Summary)> {
-    let (rows, summary) = run_to_failure(sim, duration, rate, settle_speed, progress, &mut |_| {
-        Ok(Control::Continue)
-    })?;
+    let (rows, summary) = run_to_failure(sim, duration, rate, settle_speed, observe)?;
     failed(summary.failure.clone())?;
     Ok((rows, summary))
 }
@@ -175,95 +127,90 @@ pub fn written_before_failure(failure: &str, t: f64, steps: u64, out: &Path) -> 
     )
 }
 
-/// As [`run`], calling `observer` before the first step and after each
-/// step, and a step that fails ends the run with what was done before it:
-/// the energies sampled so far (and the state the failed step left
-/// unchanged) are returned, and `Summary::failure` says which step failed
-/// and why. An observer's error is still an error.
+/// As [`run`], through the run interface ([`crate::run`]): `observe` sees
+/// the state before the first step and after each step (phase
+/// [`Phase::Drape`], `done` of `duration`), and a step that fails ends the
+/// run with what was done before it: the energies sampled so far (and the
+/// state the failed step left unchanged) are returned, and
+/// `Summary::failure` says which step failed and why. An observer's error
+/// is still an error.
 pub fn run_to_failure(
     sim: &mut Simulation,
     duration: f64,
     rate: f64,
     settle_speed: f64,
-    progress: Progress,
-    observer: Observer,
+    observe: Observe,
 ) -> Result<(Vec<EnergyRow>, Summary)> {
-    let mut steps = (duration / sim.params().dt).round() as u64;
+    let planned = (duration / sim.params().dt).round() as u64;
     let every = ((1.0 / rate) / sim.params().dt).round().max(1.0) as u64;
     let mut rows = vec![row(sim)];
     let e0 = sim.energies().total();
+    let t0 = sim.time;
     let mut last_fast: Option<f64> = if sim.rms_speed() >= settle_speed {
         Some(0.0)
     } else {
         None
     };
-    let mut iters = 0usize;
-    let mut max_iters = 0usize;
-    let mut solved_by = SolvedSteps::default();
-    let mut split = TimeSplit::default();
-    let mut own = SelfSummary::default();
-    let mut own_s = 0.0;
-    let mut total_s = 0.0;
-    let start = Instant::now();
-    let mut stop = observer(sim)? == Control::Stop;
-    if stop {
-        steps = 0;
+    let mut run = Run::new();
+    fn step(sim: &Simulation, t0: f64, duration: f64) -> Step<'_> {
+        Step {
+            sim,
+            phase: Phase::Drape,
+            done: sim.time - t0,
+            of: duration,
+        }
     }
+    let mut stop = observe(&step(sim, t0, duration))? == Control::Stop;
     // an energy row with the energy lost since the start
     let sample = |sim: &Simulation| EnergyRow {
         lost: e0 - sim.energies().total(),
         ..row(sim)
     };
     let mut failure = None;
-    // the steps done: all those planned unless the run stops or fails
-    let planned = steps;
     for k in 1..=planned {
-        let st = match sim.step() {
-            Ok(st) => st,
-            Err(e) => {
-                failure = Some(format!("step {k} (t = {:.4} s): {e:#}", sim.time));
-                steps = k - 1;
-                if rows.last().is_some_and(|r| r.time != sim.time) {
-                    rows.push(sample(sim));
-                }
-                break;
+        if stop {
+            break;
+        }
+        if let Err(e) = run.step(sim) {
+            failure = Some(e.to_string());
+            if rows.last().is_some_and(|r| r.time != sim.time) {
+                rows.push(sample(sim));
             }
-        };
-        iters += st.iterations;
-        max_iters = max_iters.max(st.iterations);
-        solved_by.count(st.solved_by);
-        split.assemble += st.assemble_s;
-        split.solve += st.solve_s;
-        split.collide += st.collide_s;
-        own_s += st.self_s;
-        total_s += st.total_s;
-        own.mean_contacts += st.self_contacts as f64;
-        own.max_contacts = own.max_contacts.max(st.self_contacts);
-        own.collisions += st.self_collisions;
-        own.zones += st.self_zones;
+            break;
+        }
         if sim.rms_speed() >= settle_speed {
             last_fast = Some(sim.time);
         }
-        if observer(sim)? == Control::Stop {
-            stop = true;
-        }
+        stop = observe(&step(sim, t0, duration))? == Control::Stop;
         if k % every == 0 || k == planned || stop {
             rows.push(sample(sim));
-            progress(sim.time, duration);
-        }
-        if stop {
-            steps = k;
-            break;
         }
     }
-    let wall = start.elapsed().as_secs_f64();
-    let n = steps.max(1) as f64;
     let settle = match last_fast {
         None => Some(0.0),
         Some(t) if t < sim.time - 1e-12 => Some(t),
         _ => None,
     };
-    let summary = Summary {
+    let last = *rows.last().expect("at least one row");
+    Ok((
+        rows,
+        summarize(sim, &run, settle_speed, settle, last, failure),
+    ))
+}
+
+/// The summary of `run`'s steps on `sim`.
+fn summarize(
+    sim: &Simulation,
+    run: &Run,
+    settle_speed: f64,
+    settle: Option<f64>,
+    last: EnergyRow,
+    failure: Option<String>,
+) -> Summary {
+    let wall = run.wall_s();
+    let (steps, sp) = (run.steps, &run.spent);
+    let n = steps.max(1) as f64;
+    Summary {
         scene: String::new(),
         fabric: sim.fabric.name.clone(),
         vertices: sim.cloth.len(),
@@ -287,29 +234,30 @@ pub fn run_to_failure(
         } else {
             f64::INFINITY
         },
-        mean_solver_iterations: iters as f64 / n,
-        max_solver_iterations: max_iters,
-        steps_solved_by: solved_by,
+        mean_solver_iterations: sp.iterations as f64 / n,
+        max_solver_iterations: sp.max_iterations,
+        steps_solved_by: sp.solved_by,
         settle_time_s: settle,
         settle_speed_m_s: settle_speed,
-        final_energies: *rows.last().expect("at least one row"),
-        time_split_ms_per_step: TimeSplit {
-            assemble: 1e3 * split.assemble / n,
-            solve: 1e3 * split.solve / n,
-            collide: 1e3 * split.collide / n,
-        },
+        final_energies: last,
+        time_split_ms_per_step: sp.split_ms_per_step(steps),
         final_contacts: sim.last.contacts,
         final_contacts_held: sim.last.stuck,
         self_collision: sim.params().self_collision.then_some(SelfSummary {
-            ms_per_step: 1e3 * own_s / n,
-            share_of_step: if total_s > 0.0 { own_s / total_s } else { 0.0 },
-            mean_contacts: own.mean_contacts / n,
+            ms_per_step: 1e3 * sp.self_s / n,
+            share_of_step: if sp.total_s > 0.0 {
+                sp.self_s / sp.total_s
+            } else {
+                0.0
+            },
+            mean_contacts: sp.self_contacts as f64 / n,
+            max_contacts: sp.self_max_contacts,
             final_contacts: sim.last.self_contacts,
-            ..own
+            collisions: sp.self_collisions,
+            zones: sp.self_zones,
         }),
         failure,
-    };
-    Ok((rows, summary))
+    }
 }
 
 pub fn row(sim: &Simulation) -> EnergyRow {
@@ -327,45 +275,41 @@ pub fn row(sim: &Simulation) -> EnergyRow {
     }
 }
 
-/// Runs a scene file headless and writes its outputs into `out`. A step
-/// that fails ends the run, and the outputs of the steps before it are
-/// written all the same: `Summary::failure` (also in `summary.json`) says
-/// which step failed and why, for the caller to report.
-pub fn drape(
-    scene: &Scene,
-    ov: &Overrides,
-    out: &Path,
-    progress: Progress,
-) -> Result<(Simulation, Summary)> {
-    let sim = scene.build(ov)?;
-    drape_with(scene, ov, sim, out, progress, &mut |_| {
-        Ok(Control::Continue)
-    })
+/// A scene's drape as it ended: the simulation, its energies over the run
+/// and its summary; [`DrapeOutcome::write`] writes them.
+pub struct DrapeOutcome {
+    pub sim: Simulation,
+    pub rows: Vec<EnergyRow>,
+    pub summary: Summary,
+    /// The scene's name (its file's `name`, else its file name).
+    pub name: String,
 }
 
-/// As [`drape`], for a simulation already built from `scene` and `ov`, with
-/// an [`Observer`] called before the first step and after each step.
-pub fn drape_with(
+/// Builds a scene and runs it through the run interface ([`run_to_failure`]):
+/// a step that fails ends the run with what was done before it
+/// (`Summary::failure` says which step failed and why, for the caller to
+/// report); a bad file or setting is an error at once.
+pub fn drape(scene: &Scene, ov: &Overrides, observe: Observe) -> Result<DrapeOutcome> {
+    let sim = scene.build(ov)?;
+    drape_built(scene, ov, sim, observe)
+}
+
+/// [`drape`] on a simulation already built from `scene` and `ov`.
+pub fn drape_built(
     scene: &Scene,
     ov: &Overrides,
     mut sim: Simulation,
-    out: &Path,
-    progress: Progress,
-    observer: Observer,
-) -> Result<(Simulation, Summary)> {
+    observe: Observe,
+) -> Result<DrapeOutcome> {
     let (rows, mut summary) = run_to_failure(
         &mut sim,
         scene.duration(ov),
         scene.file.output_rate,
         scene.file.settle_speed,
-        progress,
-        observer,
+        observe,
     )?;
     summary.scene = scene.path.display().to_string();
     summary.hinges = Some(scene.hinges(ov).name());
-    std::fs::create_dir_all(out)
-        .with_context(|| format!("cannot create output directory {}", out.display()))?;
-    write_ply(&sim, &out.join("final.ply"))?;
     let name = match scene.file.name.as_str() {
         "" => scene
             .path
@@ -374,12 +318,35 @@ pub fn drape_with(
             .unwrap_or_default(),
         n => n.to_string(),
     };
-    crate::pictures::render::Picture::from_simulation(&sim, &name)
-        .save_png(&out.join("final.png"))?;
-    write_energy_csv(&rows, &out.join("energy.csv"))?;
-    let js = serde_json::to_string_pretty(&summary)?;
-    crate::io::write_atomic(&out.join("summary.json"), |w| w.write_all(js.as_bytes()))?;
-    Ok((sim, summary))
+    Ok(DrapeOutcome {
+        sim,
+        rows,
+        summary,
+        name,
+    })
+}
+
+impl DrapeOutcome {
+    /// Writes `final.ply`, `final.png` (a picture of the end state),
+    /// `energy.csv` and `summary.json` into `out` (made if need be).
+    pub fn write(&self, out: &Path) -> Result<()> {
+        std::fs::create_dir_all(out)
+            .with_context(|| format!("cannot create output directory {}", out.display()))?;
+        write_ply(&self.sim, &out.join("final.ply"))?;
+        crate::pictures::render::Picture::from_simulation(&self.sim, &self.name)
+            .save_png(&out.join("final.png"))?;
+        write_energy_csv(&self.rows, &out.join("energy.csv"))?;
+        let js = serde_json::to_string_pretty(&self.summary)?;
+        crate::io::write_atomic(&out.join("summary.json"), |w| w.write_all(js.as_bytes()))
+    }
+
+    /// The error of the step that ended the run early, if one failed.
+    pub fn error(&self) -> Option<anyhow::Error> {
+        self.summary
+            .failure
+            .as_ref()
+            .map(|f| anyhow::anyhow!("{f}"))
+    }
 }
 
 /// ASCII PLY: vertices in grid order (x y z, u v material coordinates), faces.

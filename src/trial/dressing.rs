@@ -31,6 +31,7 @@
 
 use crate::collision::Obstacle;
 use crate::garment::Garment;
+use crate::run::{Control, Run};
 use crate::set::Handle;
 use crate::solver::{Pin, PinPath, Simulation};
 use crate::trial::body_forces;
@@ -1727,8 +1728,9 @@ impl Dressing {
         }
     }
 
-    /// Runs the dressing to its end; `on_step(sim, self, row)` after every step,
-    /// `stop()` ends it early. The rows, one per step.
+    /// Runs the dressing to its end, each step through `run` (the run
+    /// interface); `on_step(sim, self, row)` after every step, whose
+    /// [`Control::Stop`] ends it early. The rows, one per step.
     /// With a `force_limit`, the gripper stops where it is at the first
     /// step the limit is passed ([`Dressing::safety_stop`]) and the run
     /// ends `hold` s later.
@@ -1736,14 +1738,14 @@ impl Dressing {
         &self,
         sim: &mut Simulation,
         d: &DressingFile,
-        on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow),
-        stop: &dyn Fn() -> bool,
+        run: &mut Run,
+        on_step: &mut dyn FnMut(&Simulation, &Dressing, &DressingRow) -> Result<Control>,
     ) -> Result<Vec<DressingRow>> {
         let mut rows = Vec::new();
         let mut t_end = self.t_end;
         let mut stopped = false;
         let mut released = false;
-        while sim.time < t_end - 1e-9 && !stop() {
+        while sim.time < t_end - 1e-9 {
             if let Some((t, ends)) = &self.release {
                 if !released && sim.time >= t - 1e-9 {
                     let kept: Vec<Pin> = sim
@@ -1757,11 +1759,15 @@ impl Dressing {
                     released = true;
                 }
             }
-            sim.step()
-                .with_context(|| format!("dressing, t = {:.4} s", sim.time))?;
+            let t = sim.time;
+            run.step(sim)
+                .map_err(|e| anyhow::anyhow!("dressing, t = {t:.4} s: {}", e.error))?;
             let r = self.row(sim);
-            on_step(sim, self, &r);
+            let next = on_step(sim, self, &r)?;
             rows.push(r);
+            if next == Control::Stop {
+                break;
+            }
             if !stopped && self.over_limit(d, &r) {
                 // every pin holds where its path is now
                 let now = sim.time;

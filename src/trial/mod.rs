@@ -22,9 +22,7 @@ pub mod pattern;
 pub mod run;
 mod summary;
 
-pub use run::{
-    run, run_built, run_on, run_trial, sew_and_drape, Observe, Phase, Step, TrialOutcome,
-};
+pub use run::{run, run_built, run_trial, sew_and_drape, TrialOutcome};
 
 use crate::collision::{Obstacle, ShapeSpec};
 use crate::fabric::Fabric;
@@ -32,7 +30,7 @@ use crate::garment::Garment;
 pub use crate::scene::Overrides;
 use crate::scene::PoseSpec;
 use crate::set::Handle;
-use crate::solver::{LinearSolverKind, Params, Simulation};
+use crate::solver::{Params, Simulation};
 use crate::trial::pattern::GarmentDef;
 use anyhow::{bail, Context, Result};
 use body_forces::{BodyPressure, Wrench};
@@ -179,8 +177,12 @@ impl Default for SettleFile {
     }
 }
 
+/// A trial file. Its run's settings (`spacing`, default 1 cm; `dt`,
+/// default 5 ms; `linear_solver` (or `solver`), `cg_tolerance`, `threads`,
+/// `hysteresis`, `self_collision`, `obstacle_edges`, `cell_shear`) are an
+/// [`Overrides`] flattened into it, the command line's over them. Read with
+/// [`TrialFile::parse`], which refuses an unknown key.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
 pub struct TrialFile {
     /// Garment file, relative to the trial file.
     pub garment: PathBuf,
@@ -188,39 +190,57 @@ pub struct TrialFile {
     /// Overrides the garment's fabric.
     #[serde(default)]
     pub fabric: Option<PathBuf>,
-    #[serde(default = "d_spacing")]
-    pub spacing: f64,
-    #[serde(default = "d_dt")]
-    pub dt: f64,
     #[serde(default)]
     pub sewing: SewingFile,
     #[serde(default)]
     pub settle: SettleFile,
-    #[serde(default)]
-    pub linear_solver: Option<LinearSolverKind>,
-    /// The PCG's relative tolerance, in (0, 1) (default 1e-6).
-    #[serde(default)]
-    pub cg_tolerance: Option<f64>,
-    #[serde(default)]
-    pub threads: Option<usize>,
-    /// Keep the garment from passing through itself (docs/self_collision.md;
-    /// off when absent, on in the shipped skirt trial).
-    #[serde(default)]
-    pub self_collision: bool,
-    /// The body's vertices and edges meet the garment's triangles and edges
-    /// too, in every phase (docs/self_collision.md: a body part thinner
-    /// than the cloth's spacing, fingers, cannot pass between the cloth's
-    /// vertices; off when absent).
-    #[serde(default)]
-    pub obstacle_edges: bool,
-    /// Each cell's shear from both its diagonals, with the egg-crate guards
-    /// (docs/lab.md; off when absent: each diagonal alone, thesis eq. 4.34).
-    #[serde(default)]
-    pub cell_shear: bool,
     /// A gripper pulls a sleeve over an arm after sewing, in place of the
     /// drape (docs/bodies.md, [`crate::trial::dressing`]).
     #[serde(default)]
     pub dressing: Option<crate::trial::dressing::DressingFile>,
+    /// The run's settings: `self_collision` keeps the garment from passing
+    /// through itself (docs/self_collision.md; off when absent, on in the
+    /// shipped skirt trial); `obstacle_edges`: the body's vertices and edges
+    /// meet the garment's triangles and edges too, in every phase (a body
+    /// part thinner than the cloth's spacing, fingers, cannot pass between
+    /// the cloth's vertices); `cell_shear`: each cell's shear from both its
+    /// diagonals, with the egg-crate guards (docs/lab.md; off: each diagonal
+    /// alone, thesis eq. 4.34); `cg_tolerance` in (0, 1) (default 1e-6). At
+    /// the file's top level, read by [`TrialFile::parse`].
+    #[serde(skip)]
+    pub run: Overrides,
+}
+
+impl TrialFile {
+    /// The file's own keys (besides its settings').
+    const KEYS: [&'static str; 6] = ["garment", "body", "fabric", "sewing", "settle", "dressing"];
+
+    /// Reads a trial file's text (`what` names it in the errors).
+    pub fn parse(text: &str, what: &str) -> Result<TrialFile> {
+        let (file, run) = crate::scene::read_file(
+            text,
+            what,
+            &TrialFile::KEYS,
+            &[
+                (
+                    "duration",
+                    "not for a trial (a trial drapes until it settles or for \
+                     `settle.max_time` after sewing)",
+                ),
+                (
+                    "hinges",
+                    "not for a trial (its panels' hinges are the garment file's `hinges`)",
+                ),
+                ("max_time", "a trial's longest drape is `settle.max_time`"),
+            ],
+        )?;
+        Ok(TrialFile { run, ..file })
+    }
+
+    /// The settings with the command line's `ov` over them.
+    pub fn settings(&self, ov: &Overrides) -> Overrides {
+        ov.or(&self.run)
+    }
 }
 
 /// A trial as read, with its files resolved.
@@ -341,10 +361,7 @@ impl Trial {
     pub fn load(path: &Path) -> Result<Trial> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read trial file {}", path.display()))?;
-        crate::io::check_yaml_shape(&text)
-            .with_context(|| format!("trial file {}", path.display()))?;
-        let file: TrialFile = serde_yaml::from_str(&text)
-            .with_context(|| format!("trial file {}: invalid YAML or field", path.display()))?;
+        let file = TrialFile::parse(&text, &format!("trial file {}", path.display()))?;
         Trial::from_file(file, path)
     }
 
@@ -429,7 +446,8 @@ impl Trial {
     /// Cuts and sews the garment and places it with the body.
     pub fn build(&self, ov: &Overrides) -> Result<(Simulation, Garment)> {
         ov.check_for_trial()?;
-        let spacing = ov.spacing.unwrap_or(self.file.spacing);
+        let run = self.file.settings(ov);
+        let spacing = run.spacing.unwrap_or(d_spacing());
         crate::limits::check_range(
             "spacing",
             spacing,
@@ -438,16 +456,10 @@ impl Trial {
             "m",
             "a garment grid of 2 mm to 10 cm",
         )?;
-        let params = ov.apply(Params {
-            dt: self.file.dt,
-            linear_solver: self.file.linear_solver.unwrap_or_default(),
-            threads: self.file.threads.unwrap_or(0),
+        let params = run.apply(Params {
+            dt: d_dt(),
             cloth_thickness: crate::collision::DEFAULT_CLOTH_THICKNESS,
             friction_bound_now: true,
-            self_collision: self.file.self_collision,
-            obstacle_edges: self.file.obstacle_edges,
-            cell_shear: self.file.cell_shear,
-            cg_tolerance: (self.file.cg_tolerance).unwrap_or(Params::default().cg_tolerance),
             ..Params::default()
         });
         crate::limits::check_dt("dt", params.dt)?;
@@ -555,7 +567,7 @@ impl Trial {
             &self.file.sewing,
             &self.file.settle,
             Some(0.0),
-            &mut run_on,
+            &mut crate::run::run_on,
         )?;
         Ok((sim, g))
     }
@@ -571,7 +583,7 @@ pub struct PhaseCost {
     /// Of which: assembly, linear solve, and contacts with the obstacles
     /// (for a moving body: its tree's refit, the contacts' detection and
     /// the swept check after the step; self-collision not included), ms.
-    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
+    pub time_split_ms_per_step: crate::run::TimeSplit,
     pub mean_solver_iterations: f64,
     /// The garment's wrench on the body after each step, ms.
     pub body_wrench_ms_per_step: f64,
@@ -596,7 +608,7 @@ pub struct RunStats {
     pub steps: u64,
     pub wall_s: f64,
     pub ms_per_step: f64,
-    pub time_split_ms_per_step: crate::scene::run::TimeSplit,
+    pub time_split_ms_per_step: crate::run::TimeSplit,
     pub final_rms_speed_m_s: f64,
     pub mean_solver_iterations: f64,
     /// Time spent on the wrench on the body after each step (outside the

@@ -15,58 +15,13 @@ use crate::collision::Obstacle;
 use crate::garment::Garment;
 use crate::pictures::glb::{write_glb, GlbScene};
 use crate::pictures::render::{full_scale, FieldPicture, Picture, Surface};
-use crate::scene::run::Control;
+use crate::run::{Control, Observe, Phase, Run, Spent, Step};
 use crate::set::Handle;
 use crate::solver::{Params, Simulation};
 use anyhow::{Context, Result};
 use nalgebra::Vector3;
-use std::cell::Cell;
 use std::path::Path;
 use std::time::Instant;
-
-/// The phases of a trial, in the order they run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Phase {
-    /// Gravity off, the seams pull the panels together on the body.
-    Sewing,
-    /// Gravity on until the garment settles (or `settle.max_time`).
-    Drape,
-    /// A body with a `motion` plays it.
-    Motion,
-    /// A gripper pulls a sleeve over the arm (a trial with `dressing`).
-    Dressing,
-}
-
-impl Phase {
-    /// The phase's name as the progress lines and `fit.json` say it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Phase::Sewing => "sewing",
-            Phase::Drape => "drape",
-            Phase::Motion => "motion",
-            Phase::Dressing => "dressing",
-        }
-    }
-}
-
-/// What an observer sees after each step: the state as it is then, the
-/// phase, and how far the phase has gone (`done` of `of`, simulated
-/// seconds; `of` is the phase's longest duration).
-pub struct Step<'a> {
-    pub sim: &'a Simulation,
-    pub phase: Phase,
-    pub done: f64,
-    pub of: f64,
-}
-
-/// Called after every step of every phase; [`Control::Stop`] ends the run
-/// before the next step (its outcome covers the steps taken).
-pub type Observe<'a> = &'a mut dyn FnMut(&Step) -> Control;
-
-/// An observer that lets the run go to its end.
-pub fn run_on(_: &Step) -> Control {
-    Control::Continue
-}
 
 /// Sews and drapes (and plays the body's motion), the phases of the
 /// module's documentation; a step that fails is an error.
@@ -98,28 +53,37 @@ pub fn sew_and_drape(
     let max_time = max_time.unwrap_or(st.max_time);
     check_phases(sew, st, max_time)?;
     let mut r = Recorder::new(sim, body);
-    let mut stopped = false;
-    let sewing_s = sewing(sim, sew, &mut r, observe, &mut stopped)?;
+    let first = Step {
+        sim,
+        phase: Phase::Sewing,
+        done: 0.0,
+        of: sew.duration,
+    };
+    let mut stopped = observe(&first)? == Control::Stop;
+    let mut sewing_s = sim.time;
+    if !stopped {
+        sewing_s = sewing(sim, sew, &mut r, observe, &mut stopped)?;
+    }
     let mut settle = None;
     if r.failure.is_none() && !stopped {
-        settle = drape(sim, st, sewing_s, max_time, &mut r, observe, &mut stopped);
+        settle = drape(sim, st, sewing_s, max_time, &mut r, observe, &mut stopped)?;
     }
     let (mut motion_s, mut motion) = (None, None);
     if r.failure.is_none() && !stopped {
-        if let Some((s, cost)) = play_motion(sim, &mut r, observe) {
+        if let Some((s, cost)) = play_motion(sim, &mut r, observe, &mut stopped)? {
             motion_s = Some(s);
             motion = Some(cost);
         }
     }
-    let wall = r.start.elapsed().as_secs_f64();
-    let all = r.acc.per_step(r.steps, wall);
+    let wall = r.run.wall_s();
+    let all = r.cost((&Spent::default(), 0.0), r.run.steps, wall);
     Ok(RunStats {
         sewing_s,
         settle_time_s: settle,
         simulated_s: sim.time,
         motion_s,
         dressing_s: None,
-        steps: r.steps,
+        steps: r.run.steps,
         wall_s: wall,
         ms_per_step: all.ms_per_step,
         time_split_ms_per_step: all.time_split_ms_per_step,
@@ -210,12 +174,12 @@ fn check_phases(sew: &SewingFile, st: &SettleFile, max_time: f64) -> Result<()> 
     )?)
 }
 
-/// Steps the simulation and keeps the run's figures: time and solver work,
-/// the trace every 0.05 s, the wrench on the body, the first failure.
+/// Steps the simulation through the run interface and keeps the trial's
+/// figures: the steps' costs ([`Run`]), the trace every 0.05 s, the wrench
+/// on the body, the first failure.
 struct Recorder {
-    start: Instant,
-    acc: Spent,
-    steps: u64,
+    run: Run,
+    wrench_s: f64,
     every: u64,
     body: Option<Handle<Obstacle>>,
     trace: Vec<[f64; 4]>,
@@ -226,9 +190,8 @@ struct Recorder {
 impl Recorder {
     fn new(sim: &Simulation, body: Option<Handle<Obstacle>>) -> Recorder {
         Recorder {
-            start: Instant::now(),
-            acc: Spent::default(),
-            steps: 0,
+            run: Run::new(),
+            wrench_s: 0.0,
             every: ((0.05 / sim.params().dt).round() as u64).max(1),
             body,
             trace: Vec::new(),
@@ -239,28 +202,19 @@ impl Recorder {
 
     /// One step; false (and the failure kept) if it failed.
     fn step(&mut self, sim: &mut Simulation) -> bool {
-        let s = match sim.step() {
+        let s = match self.run.step(sim) {
             Ok(s) => s,
             Err(e) => {
-                self.failure = Some(format!(
-                    "step {} (t = {:.4} s): {e:#}",
-                    self.steps + 1,
-                    sim.time
-                ));
+                self.failure = Some(e.to_string());
                 return false;
             }
         };
-        self.acc.split.assemble += s.assemble_s;
-        self.acc.split.solve += s.solve_s;
-        self.acc.split.collide += s.collide_s;
-        self.acc.iterations += s.iterations;
-        self.steps += 1;
         let t_w = Instant::now();
         if let Some(w) = self.body.and_then(|b| body_forces::wrench(sim, b)) {
             self.wrench.push((sim.time, w));
         }
-        self.acc.wrench_s += t_w.elapsed().as_secs_f64();
-        if self.steps.is_multiple_of(self.every) {
+        self.wrench_s += t_w.elapsed().as_secs_f64();
+        if self.run.steps.is_multiple_of(self.every) {
             self.trace.push([
                 sim.time,
                 sim.rms_speed(),
@@ -269,6 +223,20 @@ impl Recorder {
             ]);
         }
         true
+    }
+
+    /// What the steps since `(spent, wrench_s)` cost, per step.
+    fn cost(&self, before: (&Spent, f64), steps: u64, wall_s: f64) -> PhaseCost {
+        let spent = self.run.spent.since(before.0);
+        let n = steps.max(1) as f64;
+        PhaseCost {
+            steps,
+            wall_s,
+            ms_per_step: 1e3 * wall_s / n,
+            time_split_ms_per_step: spent.split_ms_per_step(steps),
+            mean_solver_iterations: spent.iterations as f64 / n,
+            body_wrench_ms_per_step: 1e3 * (self.wrench_s - before.1) / n,
+        }
     }
 }
 
@@ -326,7 +294,7 @@ fn sewing(
             done: sim.time,
             of: sew.duration,
         };
-        if observe(&step) == Control::Stop {
+        if observe(&step)? == Control::Stop {
             *stopped = true;
             break;
         }
@@ -361,11 +329,11 @@ fn drape(
     r: &mut Recorder,
     observe: Observe,
     stopped: &mut bool,
-) -> Option<f64> {
+) -> Result<Option<f64>> {
     let mut calm_since: Option<f64> = None;
     while sim.time - sewing_s < max_time - 1e-12 {
         if !r.step(sim) {
-            return None;
+            return Ok(None);
         }
         let step = Step {
             sim,
@@ -373,21 +341,21 @@ fn drape(
             done: sim.time - sewing_s,
             of: max_time,
         };
-        let go_on = observe(&step) == Control::Continue;
+        let go_on = observe(&step)? == Control::Continue;
         if sim.rms_speed() < st.speed {
             let since = *calm_since.get_or_insert(sim.time);
             if sim.time - since >= st.hold - 1e-12 {
-                return Some(since - sewing_s);
+                return Ok(Some(since - sewing_s));
             }
         } else {
             calm_since = None;
         }
         if !go_on {
             *stopped = true;
-            return None;
+            return Ok(None);
         }
     }
-    None
+    Ok(None)
 }
 
 /// Phase 3: a body held in its first pose while the garment was sewn and
@@ -397,7 +365,8 @@ fn play_motion(
     sim: &mut Simulation,
     r: &mut Recorder,
     observe: Observe,
-) -> Option<(f64, PhaseCost)> {
+    stopped: &mut bool,
+) -> Result<Option<(f64, PhaseCost)>> {
     let held: Vec<_> = sim
         .obstacles()
         .with_handles()
@@ -405,7 +374,7 @@ fn play_motion(
         .map(|(h, _)| h)
         .collect();
     if held.is_empty() {
-        return None;
+        return Ok(None);
     }
     let mut play: f64 = 0.0;
     for h in held {
@@ -415,7 +384,7 @@ fn play_motion(
         }
     }
     let t0 = sim.time;
-    let (wall0, steps0, acc0) = (Instant::now(), r.steps, r.acc);
+    let (wall0, steps0, spent0, wrench0) = (Instant::now(), r.run.steps, r.run.spent, r.wrench_s);
     while sim.time - t0 < play - 1e-12 {
         if !r.step(sim) {
             break;
@@ -426,15 +395,14 @@ fn play_motion(
             done: sim.time - t0,
             of: play,
         };
-        if observe(&step) == Control::Stop {
+        if observe(&step)? == Control::Stop {
+            *stopped = true;
             break;
         }
     }
-    let cost = r
-        .acc
-        .since(&acc0)
-        .per_step(r.steps - steps0, wall0.elapsed().as_secs_f64());
-    Some((sim.time - t0, cost))
+    let wall = wall0.elapsed().as_secs_f64();
+    let cost = r.cost((&spent0, wrench0), r.run.steps - steps0, wall);
+    Ok(Some((sim.time - t0, cost)))
 }
 
 /// Sets the stitches' stiffness for the next sewing step: `factor` times
@@ -458,44 +426,6 @@ fn largest_gap(sim: &Simulation) -> f64 {
     (sim.cloth.seams().iter())
         .map(|s| s.gap(sim.cloth.positions()).norm())
         .fold(0.0, f64::max)
-}
-
-/// Time and solver work summed over steps (seconds, iterations).
-#[derive(Debug, Clone, Copy, Default)]
-struct Spent {
-    split: crate::scene::run::TimeSplit,
-    iterations: usize,
-    wrench_s: f64,
-}
-
-impl Spent {
-    fn since(&self, before: &Spent) -> Spent {
-        Spent {
-            split: crate::scene::run::TimeSplit {
-                assemble: self.split.assemble - before.split.assemble,
-                solve: self.split.solve - before.split.solve,
-                collide: self.split.collide - before.split.collide,
-            },
-            iterations: self.iterations - before.iterations,
-            wrench_s: self.wrench_s - before.wrench_s,
-        }
-    }
-
-    fn per_step(&self, steps: u64, wall_s: f64) -> PhaseCost {
-        let n = steps.max(1) as f64;
-        PhaseCost {
-            steps,
-            wall_s,
-            ms_per_step: 1e3 * wall_s / n,
-            time_split_ms_per_step: crate::scene::run::TimeSplit {
-                assemble: 1e3 * self.split.assemble / n,
-                solve: 1e3 * self.split.solve / n,
-                collide: 1e3 * self.split.collide / n,
-            },
-            mean_solver_iterations: self.iterations as f64 / n,
-            body_wrench_ms_per_step: 1e3 * self.wrench_s / n,
-        }
-    }
 }
 
 /// The garment as it moved: at most this many frames, evenly spaced in
@@ -672,14 +602,13 @@ fn dress(
     }
     let t0 = sim.time;
     let limit = ov.max_time.map(|m| stats.sewing_s + m);
-    let (stopped, timed_out) = (Cell::new(stats.stopped), Cell::new(false));
+    let (mut stopped, mut timed_out) = (stats.stopped, false);
     let mut pictures = Vec::new();
     let mut so_far: Vec<DressingRow> = Vec::new();
     let walk = Instant::now();
-    let ran = dressing.run(
-        sim,
-        d,
-        &mut |sim, dr, row| {
+    let mut run = Run::new();
+    let ran = {
+        let mut on_step = |sim: &Simulation, dr: &Dressing, row: &DressingRow| -> Result<Control> {
             so_far.push(*row);
             // pictures at the first step and as the gripper passes each
             // quarter of its path
@@ -705,15 +634,23 @@ fn dress(
                 done: sim.time - t0,
                 of: dr.t_end - t0,
             };
-            if observe(&step) == Control::Stop {
-                stopped.set(true);
+            if observe(&step)? == Control::Stop {
+                stopped = true;
             }
             if limit.is_some_and(|l| sim.time >= l - 1e-9) {
-                timed_out.set(true);
+                timed_out = true;
             }
-        },
-        &|| stopped.get() || timed_out.get(),
-    );
+            Ok(if stopped || timed_out {
+                Control::Stop
+            } else {
+                Control::Continue
+            })
+        };
+        match stats.stopped {
+            true => Ok(Vec::new()),
+            false => dressing.run(sim, d, &mut run, &mut on_step),
+        }
+    };
     // a failed step ends the dressing with the rows recorded before it
     let rows = match ran {
         Ok(rows) => rows,
@@ -726,17 +663,17 @@ fn dress(
     let mut report = dressing.report(d, &rows, walk.elapsed().as_secs_f64());
     report.final_distance_to_shoulder_m =
         (dressing.cuff_centroid(sim) - dressing.arm.shoulder()).norm();
-    report.stopped_early = stopped.get();
-    report.time_limit_s = ov.max_time.filter(|_| timed_out.get());
+    report.stopped_early = stopped;
+    report.time_limit_s = ov.max_time.filter(|_| timed_out);
     let wall_s = wall.elapsed().as_secs_f64();
-    let n = stats.steps + rows.len() as u64;
+    let n = stats.steps + run.steps;
     stats.dressing_s = Some(sim.time - stats.sewing_s);
     stats.simulated_s = sim.time;
     stats.steps = n;
     stats.wall_s = wall_s;
     stats.ms_per_step = 1e3 * wall_s / n.max(1) as f64;
     stats.final_rms_speed_m_s = sim.rms_speed();
-    stats.stopped = stopped.get();
+    stats.stopped = stopped;
     let outcome = DressingOutcome {
         dressing,
         rows,
