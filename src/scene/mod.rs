@@ -395,6 +395,14 @@ impl SceneFile {
                 ("max_time", "not for a scene (a scene runs for `duration`)"),
             ],
         )?;
+        for (key, v, what_it_is) in [
+            ("dt", run.dt, "the fixed time step, s"),
+            ("duration", run.duration, "the simulated time, s"),
+        ] {
+            if v.is_none() {
+                bail!("{what}: {key}: missing ({what_it_is})");
+            }
+        }
         Ok(SceneFile { run, ..file })
     }
 
