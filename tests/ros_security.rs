@@ -40,34 +40,6 @@ use std::time::{Duration, Instant};
 
 const INNER: &str = "GARMENT_SIM_SROS_INNER";
 
-/// `GARMENT_SIM_DDS_LOG=LEVEL`: RustDDS's log lines of the test's own
-/// participants on stderr (the node prints its own, src/ros/security.rs).
-struct DdsLog;
-
-impl log::Log for DdsLog {
-    fn enabled(&self, m: &log::Metadata) -> bool {
-        m.level() <= log::max_level()
-    }
-    fn log(&self, r: &log::Record) {
-        if self.enabled(r.metadata()) {
-            eprintln!("[test dds {} {}] {}", r.level(), r.target(), r.args());
-        }
-    }
-    fn flush(&self) {}
-}
-
-fn dds_log() {
-    static LOGGER: DdsLog = DdsLog;
-    if let Some(l) = std::env::var("GARMENT_SIM_DDS_LOG")
-        .ok()
-        .and_then(|l| l.parse::<log::LevelFilter>().ok())
-    {
-        if log::set_logger(&LOGGER).is_ok() {
-            log::set_max_level(l);
-        }
-    }
-}
-
 /// The governance's protection of RTPS messages, submessages and payloads,
 /// unless the environment says otherwise: whole messages and submessages
 /// (payloads included) encrypted, payloads not encrypted a second time
@@ -342,7 +314,8 @@ fn secured_graph() {
     // another CA: the same enclave name, every right, not the keystore's identity
     keystore_tool(&[foreign.as_os_str(), os("/operator")]);
 
-    dds_log();
+    // RustDDS's log lines of the test's own participants, as the node's
+    garment_sim::ros::security::dds_log();
     // the node writes into a file: nothing it writes can block it
     let node_log = dir.join("node.log");
     let f = std::fs::File::create(&node_log).unwrap();

@@ -144,7 +144,9 @@ impl log::Log for DdsLog {
     fn flush(&self) {}
 }
 
-fn dds_log() {
+/// Turns RustDDS's log lines on as `GARMENT_SIM_DDS_LOG` asks (the node
+/// does at start; a client of its own, e.g. a test's, may too).
+pub fn dds_log() {
     static LOGGER: DdsLog = DdsLog;
     let Ok(level) = std::env::var("GARMENT_SIM_DDS_LOG") else {
         return;

@@ -147,6 +147,26 @@ pub enum Error {
     },
 }
 
+/// `$body` with `$m` bound to the message of a kind whose message is a
+/// field of its own, else `$other`.
+macro_rules! with_message {
+    ($e:expr, $m:ident => $body:expr, $other:expr) => {
+        match $e {
+            Error::Factorization { message: $m }
+            | Error::OutOfBound { message: $m, .. }
+            | Error::NonFinite { message: $m, .. }
+            | Error::Length { message: $m, .. }
+            | Error::Index { message: $m, .. }
+            | Error::Mesh { message: $m }
+            | Error::Placement { message: $m }
+            | Error::TooLarge { message: $m }
+            | Error::Fabric { message: $m }
+            | Error::Invalid { message: $m } => $body,
+            _ => $other,
+        }
+    };
+}
+
 impl Error {
     /// The error under every [`Error::Context`] and [`Error::StepFailed`]:
     /// the kind of the failure itself.
@@ -169,21 +189,13 @@ impl Error {
     /// kind whose message is not a field of its own: [`Error::Invalid`]).
     pub(crate) fn prefixed(self, prefix: &str) -> Error {
         let mut e = self;
-        match &mut e {
-            Error::Factorization { message }
-            | Error::OutOfBound { message, .. }
-            | Error::NonFinite { message, .. }
-            | Error::Length { message, .. }
-            | Error::Index { message, .. }
-            | Error::Mesh { message }
-            | Error::Placement { message }
-            | Error::TooLarge { message }
-            | Error::Fabric { message }
-            | Error::Invalid { message } => {
-                message.insert_str(0, prefix);
-                e
-            }
-            _ => Error::invalid(format!("{prefix}{e}")),
+        let own = with_message!(&mut e, message => {
+            message.insert_str(0, prefix);
+            true
+        }, false);
+        match own {
+            true => e,
+            false => Error::invalid(format!("{prefix}{e}")),
         }
     }
 
@@ -321,16 +333,11 @@ impl fmt::Display for Error {
             ),
             Error::Breakdown { reason } => write!(f, "PCG breakdown: {reason}"),
             Error::Context { context, .. } | Error::External { context, .. } => f.write_str(context),
-            Error::Factorization { message }
-            | Error::OutOfBound { message, .. }
-            | Error::NonFinite { message, .. }
-            | Error::Length { message, .. }
-            | Error::Index { message, .. }
-            | Error::Mesh { message }
-            | Error::Placement { message }
-            | Error::TooLarge { message }
-            | Error::Fabric { message }
-            | Error::Invalid { message } => f.write_str(message),
+            e => with_message!(
+                e,
+                message => f.write_str(message),
+                unreachable!("each kind without a message field is written above")
+            ),
         }
     }
 }
