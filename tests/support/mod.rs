@@ -172,6 +172,13 @@ pub fn pytest_in(python: &str, file: &str, netns: bool, envs: &[(&str, &OsStr)],
         .env_remove("ROS_DOMAIN_ID")
         .output()
         .expect("python3 (and for network tests unshare and ip) are needed");
+    let text = succeeded(&out, expect);
+    assert!(!text.contains("skipped"), "{text}");
+}
+
+/// A finished command's stdout and stderr together, printed; the test
+/// fails unless the command succeeded and said `expect`.
+pub fn succeeded(out: &std::process::Output, expect: &str) -> String {
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
@@ -179,7 +186,8 @@ pub fn pytest_in(python: &str, file: &str, netns: bool, envs: &[(&str, &OsStr)],
     );
     println!("{text}");
     assert!(out.status.success(), "{text}");
-    assert!(text.contains(expect) && !text.contains("skipped"), "{text}");
+    assert!(text.contains(expect), "{text}");
+    text
 }
 
 /// The shipped fabric files (`config/fabrics/*.yaml`), sorted; there are at
