@@ -56,9 +56,10 @@ pub enum Control {
     Stop,
 }
 
-/// Called with the state before a run's first step and after each of its
-/// steps, in every phase; [`Control::Stop`] ends the run. An observer's
-/// error (a recording that cannot be written) ends the run as an error.
+/// Called after each step of a run, in every phase (a scene's drape also
+/// shows it the state before its first step, for a recording's first
+/// frame); [`Control::Stop`] ends the run. An observer's error (a recording
+/// that cannot be written) ends the run as an error.
 pub type Observe<'a> = &'a mut dyn FnMut(&Step) -> Result<Control>;
 
 /// An observer that lets the run go to its end.

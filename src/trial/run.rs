@@ -53,17 +53,8 @@ pub fn sew_and_drape(
     let max_time = max_time.unwrap_or(st.max_time);
     check_phases(sew, st, max_time)?;
     let mut r = Recorder::new(sim, body);
-    let first = Step {
-        sim,
-        phase: Phase::Sewing,
-        done: 0.0,
-        of: sew.duration,
-    };
-    let mut stopped = observe(&first)? == Control::Stop;
-    let mut sewing_s = sim.time;
-    if !stopped {
-        sewing_s = sewing(sim, sew, &mut r, observe, &mut stopped)?;
-    }
+    let mut stopped = false;
+    let sewing_s = sewing(sim, sew, &mut r, observe, &mut stopped)?;
     let mut settle = None;
     if r.failure.is_none() && !stopped {
         settle = drape(sim, st, sewing_s, max_time, &mut r, observe, &mut stopped)?;
