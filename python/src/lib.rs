@@ -74,6 +74,8 @@ impl Reporter {
             py.check_signals()?;
             if let Some(p) = &self.progress {
                 p.call1(py, (phase, done, of))?;
+                // a signal the callback raised (or received) is seen now
+                py.check_signals()?;
             }
             Ok(())
         });
