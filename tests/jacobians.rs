@@ -76,29 +76,11 @@ fn check_with(fam: Family, seed: u64, scale: f64, cell_shear: bool) {
     for j in 0..n {
         for q in 0..3 {
             let x0 = sim.cloth.positions()[j][q];
-            sim.cloth
-                .set_position(j, {
-                    let mut p = sim.cloth.positions()[j];
-                    p[q] = x0 + h;
-                    p
-                })
-                .unwrap();
+            set_coordinate(&mut sim, j, q, x0 + h);
             let fp = sim.family_forces(fam);
-            sim.cloth
-                .set_position(j, {
-                    let mut p = sim.cloth.positions()[j];
-                    p[q] = x0 - h;
-                    p
-                })
-                .unwrap();
+            set_coordinate(&mut sim, j, q, x0 - h);
             let fm = sim.family_forces(fam);
-            sim.cloth
-                .set_position(j, {
-                    let mut p = sim.cloth.positions()[j];
-                    p[q] = x0;
-                    p
-                })
-                .unwrap();
+            set_coordinate(&mut sim, j, q, x0);
             for i in 0..n {
                 let fd = (fp[i] - fm[i]) / (2.0 * h);
                 let an = match k.col[k.row_ptr[i]..k.row_ptr[i + 1]].binary_search(&(j as u32)) {
@@ -244,29 +226,11 @@ fn forces_are_energy_gradients_with(cell_shear: bool) {
         for j in 0..n {
             for q in 0..3 {
                 let x0 = sim.cloth.positions()[j][q];
-                sim.cloth
-                    .set_position(j, {
-                        let mut p = sim.cloth.positions()[j];
-                        p[q] = x0 + h;
-                        p
-                    })
-                    .unwrap();
+                set_coordinate(&mut sim, j, q, x0 + h);
                 let ep = fam_e(&sim, fam);
-                sim.cloth
-                    .set_position(j, {
-                        let mut p = sim.cloth.positions()[j];
-                        p[q] = x0 - h;
-                        p
-                    })
-                    .unwrap();
+                set_coordinate(&mut sim, j, q, x0 - h);
                 let em = fam_e(&sim, fam);
-                sim.cloth
-                    .set_position(j, {
-                        let mut p = sim.cloth.positions()[j];
-                        p[q] = x0;
-                        p
-                    })
-                    .unwrap();
+                set_coordinate(&mut sim, j, q, x0);
                 let fd = -(ep - em) / (2.0 * h);
                 max_err = max_err.max((fd - force[j][q]).abs());
                 max_val = max_val.max(force[j][q].abs());
@@ -370,4 +334,11 @@ fn threaded_assembly_equals_serial() {
         db / bmax
     );
     assert!(da <= 1e-12 * amax && db <= 1e-12 * bmax);
+}
+
+/// Sets coordinate `q` of vertex `j` (a finite-difference probe).
+fn set_coordinate(sim: &mut Simulation, j: usize, q: usize, value: f64) {
+    let mut p = sim.cloth.positions()[j];
+    p[q] = value;
+    sim.cloth.set_position(j, p).unwrap();
 }
