@@ -9,7 +9,7 @@
 
 use super::cpu::has_fma;
 use super::sparse::{BlockMatrix, LowerCsc, Triangles};
-use super::team::{Barrier, Team};
+use super::team::{Stages, Team};
 use crate::error::{Error, Result};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -20,7 +20,8 @@ use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::cell::UnsafeCell;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -198,13 +199,14 @@ impl Pcg {
     /// solution. Returns the iteration count; an error when `cap` stops it
     /// (see [`Cap`]) or the matrix is not positive definite.
     ///
-    /// The solve runs on every thread of `team` (the simulation's, started
-    /// once; see [`super::team::threads_for`]): each owns a contiguous range
-    /// of rows and does the product (or its sweeps), the vector updates and
-    /// its part of the dot products on it; three barriers per iteration,
-    /// partial sums added in a fixed order (so every thread takes the same
-    /// branches and the result depends on the number of threads, never on
-    /// scheduling).
+    /// The solve runs in stages on the threads of `team` (the
+    /// simulation's, started once; see [`super::team::threads_for`]): the
+    /// rows are cut into one contiguous range per thread, and a stage's
+    /// part on a range (the product or its sweeps, the vector updates, the
+    /// range's share of the dot products) runs on whichever thread takes
+    /// it ([`Team::run_stages`]); three stages per iteration, partial sums
+    /// added in range order, so the result depends on the number of
+    /// ranges (the team's size), never on which thread ran what.
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
         &mut self,
@@ -252,9 +254,7 @@ impl Pcg {
             lval: Ptr(self.lval.as_mut_ptr()),
             uval: Ptr(self.uval.as_mut_ptr()),
             partial: (0..SLOTS * nt).map(|_| AtomicU64::new(0)).collect(),
-            barrier: Barrier::new(nt),
             nt,
-            iters: AtomicUsize::new(0),
         };
         let args = PcgArgs {
             early,
@@ -267,16 +267,12 @@ impl Pcg {
             scale: &self.scale,
             tri,
         };
-        // every thread takes the same branches: thread 0's result is the solve's
-        let mut results: Vec<Result<usize>> = (0..nt).map(|_| Ok(0)).collect();
-        team.run_each(&mut results, |t, r| {
-            *r = match precond {
-                Preconditioner::BlockJacobi => pcg_rows::<JacobiRows>(&args, &sh, t),
-                Preconditioner::Sgs => pcg_rows::<SgsRows>(&args, &sh, t),
-            }
-        });
-        self.spent = sh.iters.load(Ordering::Relaxed);
-        results.swap_remove(0)
+        let (it, result) = match precond {
+            Preconditioner::BlockJacobi => Solve::<JacobiRows>::new(&args, &sh).run(team),
+            Preconditioner::Sgs => Solve::<SgsRows>::new(&args, &sh).run(team),
+        };
+        self.spent = it;
+        result
     }
 
     /// The filtered PCG preconditioned by the Cholesky factor `P = L Lᵀ` held
@@ -504,7 +500,7 @@ struct PcgArgs<'a> {
     tri: Option<&'a Triangles>,
 }
 
-/// Partial sums a thread of a PCG solve keeps ([`Shared::put`]).
+/// Partial sums a range of a PCG solve keeps ([`Shared::put`]).
 const SLOTS: usize = 4;
 
 #[derive(Clone, Copy)]
@@ -512,8 +508,8 @@ struct Ptr<T>(*mut T);
 unsafe impl<T> Send for Ptr<T> {}
 unsafe impl<T> Sync for Ptr<T> {}
 
-/// The PCG vectors, written by row ranges (each thread only its own rows;
-/// `c` is read whole by the product, between barriers).
+/// The PCG vectors, written by row ranges (a stage's part only its own
+/// rows; `c` is read whole by the product, a stage after it is written).
 struct Shared {
     r: Ptr<Vector3<f64>>,
     c: Ptr<Vector3<f64>>,
@@ -526,19 +522,18 @@ struct Shared {
     split: Ptr<[u32; 2]>,
     lval: Ptr<Matrix3<f64>>,
     uval: Ptr<Matrix3<f64>>,
-    /// Per-thread partial sums, [`SLOTS`] per thread.
+    /// Per-range partial sums, [`SLOTS`] per range.
     partial: Vec<AtomicU64>,
-    barrier: Barrier,
+    /// Row ranges.
     nt: usize,
-    /// Iterations run so far (kept by thread 0).
-    iters: AtomicUsize,
 }
 
 impl Shared {
     fn put(&self, t: usize, slot: usize, v: f64) {
         self.partial[SLOTS * t + slot].store(v.to_bits(), Ordering::Relaxed);
     }
-    /// Sum of every thread's partial in `slot` (after a barrier), in thread order.
+    /// Sum of every range's partial in `slot` (once the stage that wrote
+    /// them is over), in range order.
     fn sum(&self, slot: usize) -> f64 {
         (0..self.nt)
             .map(|t| f64::from_bits(self.partial[SLOTS * t + slot].load(Ordering::Relaxed)))
@@ -546,33 +541,341 @@ impl Shared {
     }
 }
 
-/// One thread's part of the filtered PCG preconditioned by `P` (rows
-/// `lo..hi` of thread `t`, see [`pcg_rows_impl`]): where the CPU has AVX2
-/// and FMA, the block products use them (four-wide fused multiply-adds on
-/// the 3 × 3 blocks, [`row_mul_fma`]); the portable build otherwise. Which
-/// one runs depends on the CPU only, so a run on one machine is
-/// reproducible bit for bit.
-fn pcg_rows<'a, P: RowPrecond<'a>>(
-    args: &'a PcgArgs<'a>,
-    sh: &'a Shared,
-    t: usize,
-) -> Result<usize> {
-    #[cfg(target_arch = "x86_64")]
-    if has_fma() {
-        // SAFETY: the CPU has AVX2 and FMA (checked just above).
-        return unsafe { pcg_rows_fma::<P>(args, sh, t) };
-    }
-    pcg_rows_impl::<false, P>(args, sh, t)
+/// What the parts of a stage of a PCG solve do ([`Solve`]), each on its
+/// range of rows.
+#[derive(Clone, Copy)]
+enum Work {
+    /// The preconditioner's rows, the reference's terms, the first guess.
+    Setup,
+    /// The first residual, search direction and norms.
+    Start,
+    /// The test's norm of the true residual (the tracked norm has reached
+    /// its target, [`RowPrecond::CONFIRMS`]).
+    Confirm,
+    /// `c = S (s + β c)` (none: the first direction, made by `Start`), then
+    /// the product's first part ([`RowPrecond::product_first`]).
+    Direction(Option<f64>),
+    /// `q` = the operator times `c`, and `cᵀ q`.
+    Product,
+    /// `Δv += α c`, `r −= α q`, `s` from `r`, and `rᵀ s` (the new `δ`).
+    Update(f64),
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn pcg_rows_fma<'a, P: RowPrecond<'a>>(
+/// What comes after a stage: another, or the end (iterations run).
+enum Flow {
+    Go(Work),
+    Done(usize),
+}
+
+/// The scalars of a solve, kept by the thread that closes each stage.
+#[derive(Default)]
+struct Lead {
+    delta0: f64,
+    eps2: f64,
+    dnew: f64,
+    dold: f64,
+    target: f64,
+    beta: Option<f64>,
+    it: usize,
+}
+
+impl Lead {
+    /// After every range has done `done`: what comes next.
+    fn next<'a, P: RowPrecond<'a>>(
+        &mut self,
+        sh: &Shared,
+        args: &PcgArgs,
+        done: Work,
+    ) -> Result<Flow> {
+        match done {
+            Work::Setup => {
+                // the reference: the right-hand side, or gravity's impulse
+                // if larger
+                self.delta0 = sh.sum(0).max(sh.sum(2));
+                Ok(Flow::Go(Work::Start))
+            }
+            Work::Start => self.started::<P>(sh, args),
+            Work::Confirm => {
+                let rho = sh.sum(3);
+                if !rho.is_finite() {
+                    return Err(Error::breakdown(format!(
+                        "non-finite residual after {} iterations",
+                        self.it
+                    )));
+                }
+                match P::confirmed(rho, self.dnew, self.eps2) {
+                    None => Ok(Flow::Done(self.it)),
+                    Some(target) => {
+                        self.target = target;
+                        self.go_on::<P>(args)
+                    }
+                }
+            }
+            Work::Direction(_) => Ok(Flow::Go(Work::Product)),
+            Work::Product => {
+                let cq = sh.sum(2);
+                if cq <= 0.0 || !cq.is_finite() {
+                    return Err(Error::breakdown(format!(
+                        "the system matrix is not positive definite (cᵀAc = {cq:e})"
+                    )));
+                }
+                self.dold = self.dnew;
+                Ok(Flow::Go(Work::Update(self.dnew / cq)))
+            }
+            Work::Update(_) => {
+                self.dnew = sh.sum(1);
+                if !self.dnew.is_finite() {
+                    return Err(Error::breakdown(format!(
+                        "non-finite residual after {} iterations",
+                        self.it + 1
+                    )));
+                }
+                self.beta = Some(self.dnew / self.dold);
+                self.it += 1;
+                self.head::<P>(args)
+            }
+        }
+    }
+
+    /// After the first residual: the test's terms, then the first iteration.
+    fn started<'a, P: RowPrecond<'a>>(&mut self, sh: &Shared, args: &PcgArgs) -> Result<Flow> {
+        let (delta0, dnew) = (self.delta0, sh.sum(1));
+        let rho = P::CONFIRMS.then(|| sh.sum(3));
+        // a non-finite reference or residual would end the loop at once
+        // (NaN compares false) and pass the first guess off as the solution
+        if !(delta0.is_finite() && dnew.is_finite() && rho.is_none_or(f64::is_finite)) {
+            return Err(Error::breakdown(format!(
+                "non-finite right-hand side or residual (δ0 = {delta0:e}, \
+                 rᵀM⁻¹r = {dnew:e}{})",
+                rho.map_or(String::new(), |rho| format!(", rᵀD⁻¹r = {rho:e}"))
+            )));
+        }
+        if delta0 <= 0.0 {
+            // nothing to solve only if the right-hand side is zero: a
+            // non-zero one whose norm underflows (a system scaled out of
+            // range, a cloth stretched by orders of magnitude) is not a
+            // converged solve
+            return match zero_rhs(args.b, args.filter) {
+                true => Ok(Flow::Done(0)),
+                false => Err(Error::breakdown(
+                    "the right-hand side's norm underflows (the system is scaled \
+                     out of range)",
+                )),
+            };
+        }
+        self.eps2 = args.tol * args.tol * delta0;
+        self.dnew = dnew;
+        let Some(target) = P::first_target(self.eps2, dnew, rho) else {
+            return Ok(Flow::Done(0));
+        };
+        self.target = target;
+        self.head::<P>(args)
+    }
+
+    /// At the top of an iteration: the test, else the caps, else the
+    /// iteration.
+    fn head<'a, P: RowPrecond<'a>>(&mut self, args: &PcgArgs) -> Result<Flow> {
+        if self.dnew <= self.target {
+            return Ok(match P::CONFIRMS {
+                true => Flow::Go(Work::Confirm),
+                false => Flow::Done(self.it),
+            });
+        }
+        self.go_on::<P>(args)
+    }
+
+    fn go_on<'a, P: RowPrecond<'a>>(&mut self, args: &PcgArgs) -> Result<Flow> {
+        let ratio = P::ratio(self.dnew, self.target, self.delta0, args.tol);
+        capped(self.it, ratio, args.tol, args.max_iter, args.early)?;
+        Ok(Flow::Go(Work::Direction(self.beta)))
+    }
+}
+
+/// A filtered PCG solve preconditioned by `P`, in stages ([`Stages`]) whose
+/// parts are the row ranges ([`Rows`]): each part keeps its range's
+/// preconditioner, and the thread that closes a stage decides the next from
+/// the ranges' partial sums ([`Lead`]).
+struct Solve<'a, P> {
     args: &'a PcgArgs<'a>,
     sh: &'a Shared,
-    t: usize,
-) -> Result<usize> {
-    pcg_rows_impl::<true, P>(args, sh, t)
+    fma: bool,
+    parts: Vec<UnsafeCell<(Rows<'a>, P)>>,
+    /// The open stage's work: written by the thread that closes a stage,
+    /// read by the next stage's parts.
+    work: UnsafeCell<Work>,
+    lead: UnsafeCell<Lead>,
+    result: UnsafeCell<Result<usize>>,
+}
+
+// SAFETY: a part's cell is used by the one thread that took the part, `work`
+// written and `lead` and `result` used only by the thread closing a stage,
+// when no part runs (see `Team::run_stages`); the preconditioners move
+// between threads (`P: Send`).
+unsafe impl<P: Send> Sync for Solve<'_, P> {}
+
+impl<'a, P: RowPrecond<'a> + Send> Solve<'a, P> {
+    fn new(args: &'a PcgArgs<'a>, sh: &'a Shared) -> Self {
+        let n = args.a.n;
+        let parts = (0..sh.nt)
+            .map(|t| {
+                let (lo, hi) = (t * n / sh.nt, (t + 1) * n / sh.nt);
+                let rows = Rows {
+                    args,
+                    sh,
+                    t,
+                    lo,
+                    len: hi - lo,
+                    f: &args.filter[lo..hi],
+                    b: &args.b[lo..hi],
+                };
+                let p = P::new(&rows);
+                UnsafeCell::new((rows, p))
+            })
+            .collect();
+        Solve {
+            args,
+            sh,
+            fma: has_fma(),
+            parts,
+            work: UnsafeCell::new(Work::Setup),
+            lead: UnsafeCell::new(Lead::default()),
+            result: UnsafeCell::new(Ok(0)),
+        }
+    }
+
+    /// Runs the solve on `team`: the iterations, and the result.
+    fn run(self, team: &mut Team) -> (usize, Result<usize>) {
+        team.run_stages(self.sh.nt, &self);
+        (self.lead.into_inner().it, self.result.into_inner())
+    }
+}
+
+impl<'a, P: RowPrecond<'a> + Send> Stages for Solve<'a, P> {
+    fn part(&self, p: usize) {
+        // SAFETY: this thread took part p of the open stage (see the Sync
+        // impl); `work` was written before the stage opened
+        let (rows, pc) = unsafe { &mut *self.parts[p].get() };
+        let work = unsafe { *self.work.get() };
+        #[cfg(target_arch = "x86_64")]
+        if self.fma {
+            // SAFETY: the CPU has AVX2 and FMA (`has_fma`)
+            return unsafe { range_part_fma(rows, pc, work) };
+        }
+        range_part::<false, P>(rows, pc, work)
+    }
+
+    fn next(&self) -> bool {
+        // SAFETY: the thread closing a stage, no part running (Sync impl)
+        let (lead, work, result) = unsafe {
+            (
+                &mut *self.lead.get(),
+                &mut *self.work.get(),
+                &mut *self.result.get(),
+            )
+        };
+        match lead.next::<P>(self.sh, self.args, *work) {
+            Ok(Flow::Go(w)) => {
+                *work = w;
+                true
+            }
+            Ok(Flow::Done(it)) => {
+                *result = Ok(it);
+                false
+            }
+            Err(e) => {
+                *result = Err(e);
+                false
+            }
+        }
+    }
+}
+
+/// [`range_part`] with the block products on AVX2 and FMA (four-wide fused
+/// multiply-adds on the 3 × 3 blocks, [`row_mul_fma`]): which one runs
+/// depends on the CPU only, so a run on one machine is reproducible bit for
+/// bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn range_part_fma<'a, P: RowPrecond<'a>>(rows: &Rows<'a>, p: &mut P, work: Work) {
+    range_part::<true, P>(rows, p, work)
+}
+
+/// One range's part of a stage of the filtered PCG preconditioned by `P`:
+/// the vector updates and the products on the range's rows, and its share
+/// of the dot products ([`Shared::put`]).
+#[inline(always)]
+fn range_part<'a, const FMA: bool, P: RowPrecond<'a>>(rows: &Rows<'a>, p: &mut P, work: Work) {
+    let (sh, t) = (rows.sh, rows.t);
+    // SAFETY: a range's rows of r, q, s, dv and c are written only by its
+    // part; the whole of dv is read only by the stages after the setup and
+    // the updates, the whole of c only by the product, a stage after the
+    // direction
+    let (r, q, s, dv, c) = unsafe {
+        (
+            rows.own(sh.r),
+            rows.own(sh.q),
+            rows.own(sh.s),
+            rows.own(sh.dv),
+            rows.own(sh.c),
+        )
+    };
+    match work {
+        Work::Setup => {
+            let (f, bb, zz) = (rows.f, rows.b, &rows.args.z[rows.lo..rows.lo + rows.len]);
+            let (mut delta0, mut floor) = (0.0, 0.0);
+            for k in 0..rows.len {
+                let dinv = p.setup_row(rows, k);
+                // the convergence test's reference: (S b)ᵀ D⁻¹ (S b),
+                // floored by gravity's impulse in the same norm
+                let (d, g) =
+                    reference_terms(&f[k], &bb[k], rows.args.scale.get(rows.lo + k), &dinv);
+                delta0 += d;
+                floor += g;
+                // start from the caller's guess in dv (the last step's Δv:
+                // at small steps Δv changes little from step to step), made
+                // to obey the filter
+                let g = if dv[k].iter().all(|c| c.is_finite()) {
+                    f[k].apply(&dv[k])
+                } else {
+                    Vector3::zeros()
+                };
+                dv[k] = g + zz[k];
+            }
+            sh.put(t, 0, delta0);
+            sh.put(t, 2, floor);
+        }
+        Work::Start => {
+            // SAFETY: every range's rows of dv are set up (the stage before)
+            let x = unsafe { rows.whole(sh.dv) };
+            for k in 0..rows.len {
+                r[k] = rows.residual::<FMA>(x, k);
+            }
+            let (dnew, rho) = p.start::<FMA>(rows, r, s, c);
+            sh.put(t, 1, dnew);
+            if let Some(rho) = rho {
+                sh.put(t, 3, rho);
+            }
+        }
+        Work::Confirm => sh.put(t, 3, p.confirm_part::<FMA>(rows)),
+        Work::Direction(beta) => {
+            if let Some(beta) = beta {
+                p.next_direction(rows, s, c, beta);
+            }
+            p.product_first::<FMA>(rows, c);
+        }
+        Work::Product => sh.put(t, 2, p.product::<FMA>(rows, c, q)),
+        Work::Update(alpha) => {
+            let mut dn = 0.0;
+            let along = p.along(c);
+            for k in 0..rows.len {
+                dv[k] += along[k] * alpha;
+                r[k] -= q[k] * alpha;
+                s[k] = p.precondition(k, &r[k]);
+                dn += r[k].dot(&s[k]);
+            }
+            sh.put(t, 1, dn);
+        }
+    }
 }
 
 /// What one thread of a PCG solve works on: the solve's inputs, the shared
@@ -588,11 +891,11 @@ struct Rows<'a> {
 }
 
 impl<'a> Rows<'a> {
-    /// This thread's rows of the shared vector `p`.
+    /// This range's rows of the shared vector `p`.
     ///
     /// # Safety
-    /// Only this thread may write them while the slice lives, and no other
-    /// thread may read them then (see the barriers of [`pcg_rows_impl`]).
+    /// Only this range's part may write them while the slice lives, and no
+    /// other part may read them then (see the stages of [`range_part`]).
     #[inline(always)]
     #[allow(clippy::mut_from_ref)]
     unsafe fn own<T>(&self, p: Ptr<T>) -> &'a mut [T] {
@@ -602,7 +905,7 @@ impl<'a> Rows<'a> {
     /// The whole of the shared vector `p`, to read.
     ///
     /// # Safety
-    /// Every thread's rows must be written (a barrier since), and none
+    /// Every range's rows must be written (in a stage before), and none
     /// written while the slice lives.
     #[inline(always)]
     unsafe fn whole<T>(&self, p: Ptr<T>) -> &'a [T] {
@@ -617,14 +920,19 @@ impl<'a> Rows<'a> {
     }
 }
 
-/// A preconditioner of the threaded PCG ([`pcg_rows_impl`]): its part on one
-/// thread's rows. The PCG iterates on the vectors `r` (residual, filtered),
+/// A preconditioner of the PCG in stages ([`Solve`]): its part on one
+/// range of rows. The PCG iterates on the vectors `r` (residual, filtered),
 /// `c` (search direction, read whole by the product), `q` (the operator
 /// times `c`), `s` (the preconditioned residual) and the iterate `Δv`; the
 /// preconditioner says how `c` and `s` are made from `r`, what the operator
 /// is, and when the tracked norm `δ = rᵀ s` meets the convergence test,
 /// Baraff–Witkin's on the true residual, `rᵀ D⁻¹ r ≤ tol² δ0`.
 trait RowPrecond<'a>: Sized {
+    /// `δ` is not the test's norm: [`RowPrecond::start`] returns that norm
+    /// too, and a `δ` that reaches its target is confirmed on the true
+    /// residual ([`Work::Confirm`]).
+    const CONFIRMS: bool;
+
     /// Its state on `rows`.
     fn new(rows: &Rows<'a>) -> Self;
 
@@ -632,7 +940,7 @@ trait RowPrecond<'a>: Sized {
     /// the diagonal block the convergence test's norm uses.
     fn setup_row(&mut self, rows: &Rows, k: usize) -> Matrix3<f64>;
 
-    /// After every thread's setup: from this thread's rows of the residual
+    /// After every range's setup: from this range's rows of the residual
     /// `r`, sets the first `s` and `c` (`r` may change into the
     /// preconditioner's form); returns `δ = rᵀ s` and, where `δ` is not the
     /// test's norm, `rᵀ D⁻¹ r`.
@@ -647,21 +955,23 @@ trait RowPrecond<'a>: Sized {
     /// The first target of `δ` for the test's `ε² = tol² δ0`; none: converged.
     fn first_target(eps2: f64, dnew: f64, rho: Option<f64>) -> Option<f64>;
 
-    /// `δ` has reached its target: none if the solve has converged (after
-    /// `it` iterations), else the next target.
-    fn confirm<const FMA: bool>(
-        &mut self,
-        rows: &Rows,
-        dnew: f64,
-        eps2: f64,
-        it: usize,
-    ) -> Result<Option<f64>>;
+    /// `δ` has reached its target ([`RowPrecond::CONFIRMS`]): this range's
+    /// share of the test's norm of the true residual.
+    fn confirm_part<const FMA: bool>(&mut self, rows: &Rows) -> f64;
+
+    /// With the test's norm of the true residual `rho`: none if the solve
+    /// has converged, else the next target of `δ`.
+    fn confirmed(rho: f64, dnew: f64, eps2: f64) -> Option<f64>;
 
     /// The squared residual ratio the caps judge ([`capped`]).
     fn ratio(dnew: f64, target: f64, delta0: f64, tol: f64) -> f64;
 
-    /// This thread's rows of `q` = the operator times `c` (`c` complete on
-    /// every thread); returns their part of `cᵀ q`.
+    /// The part of the product that needs only this range's rows of `c`
+    /// (a stage before the rest).
+    fn product_first<const FMA: bool>(&mut self, rows: &Rows, c: &[Vector3<f64>]);
+
+    /// This range's rows of `q` = the operator times `c` (`c` complete in
+    /// every range); returns their part of `cᵀ q`.
     fn product<const FMA: bool>(
         &mut self,
         rows: &Rows,
@@ -676,157 +986,8 @@ trait RowPrecond<'a>: Sized {
     /// Row k of `s` for the residual row `r`.
     fn precondition(&self, k: usize, r: &Vector3<f64>) -> Vector3<f64>;
 
-    /// `c = s + β c`, ready for the next product.
+    /// `c = s + β c` on this range's rows.
     fn next_direction(&self, rows: &Rows, s: &[Vector3<f64>], c: &mut [Vector3<f64>], beta: f64);
-}
-
-/// One thread's part of the filtered PCG preconditioned by `P` (rows
-/// `lo..hi` of thread `t`): each thread does the product (or its sweeps),
-/// the vector updates and its part of the dot products on its rows;
-/// partial sums are added in a fixed order ([`Shared::sum`]), so every
-/// thread takes the same branches.
-#[inline(always)]
-fn pcg_rows_impl<'a, const FMA: bool, P: RowPrecond<'a>>(
-    args: &'a PcgArgs<'a>,
-    sh: &'a Shared,
-    t: usize,
-) -> Result<usize> {
-    let (a, b, filter, z) = (args.a, args.b, args.filter, args.z);
-    let n = a.n;
-    let lo = t * n / sh.nt;
-    let hi = (t + 1) * n / sh.nt;
-    let rows = Rows {
-        args,
-        sh,
-        t,
-        lo,
-        len: hi - lo,
-        f: &filter[lo..hi],
-        b: &b[lo..hi],
-    };
-    let (f, bb, zz) = (rows.f, rows.b, &z[lo..hi]);
-    // SAFETY: thread t writes only rows lo..hi of r, q, s, dv and c; the
-    // whole of dv is read only between the barriers that follow its start,
-    // the whole of c only between the barrier after its update and the
-    // barrier before the next one
-    let (r, q, s, dv, c) = unsafe {
-        (
-            rows.own(sh.r),
-            rows.own(sh.q),
-            rows.own(sh.s),
-            rows.own(sh.dv),
-            rows.own(sh.c),
-        )
-    };
-    let mut p = P::new(&rows);
-    let (mut delta0, mut floor) = (0.0, 0.0);
-    for k in 0..rows.len {
-        let dinv = p.setup_row(&rows, k);
-        // the convergence test's reference: (S b)ᵀ D⁻¹ (S b), floored by
-        // gravity's impulse in the same norm
-        let (d, g) = reference_terms(&f[k], &bb[k], args.scale.get(lo + k), &dinv);
-        delta0 += d;
-        floor += g;
-        // start from the caller's guess in dv (the last step's Δv: at small
-        // steps Δv changes little from step to step), made to obey the filter
-        let g = if dv[k].iter().all(|c| c.is_finite()) {
-            f[k].apply(&dv[k])
-        } else {
-            Vector3::zeros()
-        };
-        dv[k] = g + zz[k];
-    }
-    sh.put(t, 0, delta0);
-    sh.put(t, 2, floor);
-    sh.barrier.wait();
-    // the reference: the right-hand side, or gravity's impulse if larger
-    // (slot 2 is next written after the second barrier below)
-    let delta0 = sh.sum(0).max(sh.sum(2));
-    // SAFETY: every thread's rows of dv are written (the barrier above)
-    let x = unsafe { rows.whole(sh.dv) };
-    for k in 0..rows.len {
-        r[k] = rows.residual::<FMA>(x, k);
-    }
-    let (dnew, rho) = p.start::<FMA>(&rows, r, s, c);
-    sh.put(t, 1, dnew);
-    if let Some(rho) = rho {
-        sh.put(t, 3, rho);
-    }
-    sh.barrier.wait();
-    // slots 1 and 2 are written again only after the loop's first barrier
-    let mut dnew = sh.sum(1);
-    let rho = rho.map(|_| sh.sum(3));
-    // a non-finite reference or residual would end the loop below at once
-    // (NaN compares false) and pass the first guess off as the solution
-    if !(delta0.is_finite() && dnew.is_finite() && rho.is_none_or(f64::is_finite)) {
-        return Err(Error::breakdown(format!(
-            "non-finite right-hand side or residual (δ0 = {delta0:e}, \
-             rᵀM⁻¹r = {dnew:e}{})",
-            rho.map_or(String::new(), |rho| format!(", rᵀD⁻¹r = {rho:e}"))
-        )));
-    }
-    if delta0 <= 0.0 {
-        // nothing to solve only if the right-hand side is zero: a non-zero
-        // one whose norm underflows (a system scaled out of range, a cloth
-        // stretched by orders of magnitude) is not a converged solve
-        return match zero_rhs(b, filter) {
-            true => Ok(0),
-            false => Err(Error::breakdown(
-                "the right-hand side's norm underflows (the system is scaled \
-                 out of range)",
-            )),
-        };
-    }
-    let eps2 = args.tol * args.tol * delta0;
-    let Some(mut target) = P::first_target(eps2, dnew, rho) else {
-        return Ok(0);
-    };
-    let mut it = 0;
-    loop {
-        if dnew <= target {
-            match p.confirm::<FMA>(&rows, dnew, eps2, it)? {
-                None => return Ok(it),
-                Some(next) => target = next,
-            }
-        }
-        let ratio = P::ratio(dnew, target, delta0, args.tol);
-        capped(it, ratio, args.tol, args.max_iter, args.early)?;
-        let cq = p.product::<FMA>(&rows, c, q);
-        sh.put(t, 2, cq);
-        sh.barrier.wait();
-        let cq = sh.sum(2);
-        if cq <= 0.0 || !cq.is_finite() {
-            return Err(Error::breakdown(format!(
-                "the system matrix is not positive definite (cᵀAc = {cq:e})"
-            )));
-        }
-        let alpha = dnew / cq;
-        let dold = dnew;
-        let mut dn = 0.0;
-        let along = p.along(c);
-        for k in 0..rows.len {
-            dv[k] += along[k] * alpha;
-            r[k] -= q[k] * alpha;
-            s[k] = p.precondition(k, &r[k]);
-            dn += r[k].dot(&s[k]);
-        }
-        // slot 1 was last read before the barrier above
-        sh.put(t, 1, dn);
-        sh.barrier.wait();
-        dnew = sh.sum(1);
-        if !dnew.is_finite() {
-            return Err(Error::breakdown(format!(
-                "non-finite residual after {} iterations",
-                it + 1
-            )));
-        }
-        let beta = dnew / dold;
-        p.next_direction(&rows, s, c, beta);
-        it += 1;
-        if t == 0 {
-            sh.iters.store(it, Ordering::Relaxed);
-        }
-    }
 }
 
 /// The block-Jacobi preconditioner ([`Preconditioner::BlockJacobi`]) on one
@@ -837,6 +998,8 @@ struct JacobiRows<'a> {
 }
 
 impl<'a> RowPrecond<'a> for JacobiRows<'a> {
+    const CONFIRMS: bool = false;
+
     #[inline(always)]
     fn new(rows: &Rows<'a>) -> Self {
         // SAFETY: rows lo..hi of pinv are this thread's
@@ -873,22 +1036,24 @@ impl<'a> RowPrecond<'a> for JacobiRows<'a> {
         Some(eps2)
     }
 
-    /// `δ` is the test's norm: converged.
+    /// `δ` is the test's norm: never asked.
     #[inline(always)]
-    fn confirm<const FMA: bool>(
-        &mut self,
-        _: &Rows,
-        _: f64,
-        _: f64,
-        _: usize,
-    ) -> Result<Option<f64>> {
-        Ok(None)
+    fn confirm_part<const FMA: bool>(&mut self, _: &Rows) -> f64 {
+        0.0
+    }
+
+    #[inline(always)]
+    fn confirmed(_: f64, _: f64, _: f64) -> Option<f64> {
+        None
     }
 
     #[inline(always)]
     fn ratio(dnew: f64, _: f64, delta0: f64, _: f64) -> f64 {
         dnew / delta0
     }
+
+    #[inline(always)]
+    fn product_first<const FMA: bool>(&mut self, _: &Rows, _: &[Vector3<f64>]) {}
 
     /// `q = S A c`.
     #[inline(always)]
@@ -898,8 +1063,8 @@ impl<'a> RowPrecond<'a> for JacobiRows<'a> {
         _: &[Vector3<f64>],
         q: &mut [Vector3<f64>],
     ) -> f64 {
-        // SAFETY: c is complete (the barrier after its update) and written
-        // again only after the next barrier
+        // SAFETY: c is complete (the stage before) and written again only
+        // in a later stage
         let c = unsafe { rows.whole(rows.sh.c) };
         let mut cq = 0.0;
         for k in 0..q.len() {
@@ -920,14 +1085,13 @@ impl<'a> RowPrecond<'a> for JacobiRows<'a> {
         self.pinv[k] * r
     }
 
-    /// `c = S (s + β c)`; every thread's `c` is complete after the barrier
-    /// this ends with, before the next product reads it whole.
+    /// `c = S (s + β c)`; every range's `c` is complete when the stage
+    /// ends, before the next product reads it whole.
     #[inline(always)]
     fn next_direction(&self, rows: &Rows, s: &[Vector3<f64>], c: &mut [Vector3<f64>], beta: f64) {
         for k in 0..c.len() {
             c[k] = rows.f[k].apply(&(s[k] + c[k] * beta));
         }
-        rows.sh.barrier.wait();
     }
 }
 
@@ -964,7 +1128,7 @@ struct SgsRows<'a> {
 }
 
 /// The sweeps of `rows` over the copies of the triangles `tri` (complete
-/// on every thread: read only after the barrier that follows the setup).
+/// in every range: read only in the stages after the setup).
 #[inline(always)]
 fn sweeps<'s>(
     rows: &'s Rows,
@@ -972,8 +1136,8 @@ fn sweeps<'s>(
     dinv: &'s [Matrix3<f64>],
     split: &'s [[u32; 2]],
 ) -> Sweeps<'s> {
-    // SAFETY: every thread's rows of the copies are written (the barrier
-    // after the setup) and only read from there on
+    // SAFETY: every range's rows of the copies are written (the setup's
+    // stage) and only read from there on
     let (lval, uval) = unsafe {
         (
             std::slice::from_raw_parts(rows.sh.lval.0, tri.lcol.len()),
@@ -995,6 +1159,8 @@ fn sweeps<'s>(
 }
 
 impl<'a> RowPrecond<'a> for SgsRows<'a> {
+    const CONFIRMS: bool = true;
+
     #[inline(always)]
     fn new(rows: &Rows<'a>) -> Self {
         let sh = rows.sh;
@@ -1084,37 +1250,25 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
         (rho > eps2).then(|| eps2 * dnew / rho)
     }
 
-    /// The true residual's test, `rᵀ D⁻¹ r ≤ ε²` (one product); failing
-    /// it, what is left to gain, with a margin.
+    /// The true residual's test, `rᵀ D⁻¹ r ≤ ε²` (one product): this
+    /// range's share.
     #[inline(always)]
-    fn confirm<const FMA: bool>(
-        &mut self,
-        rows: &Rows,
-        dnew: f64,
-        eps2: f64,
-        it: usize,
-    ) -> Result<Option<f64>> {
-        let sh = rows.sh;
+    fn confirm_part<const FMA: bool>(&mut self, rows: &Rows) -> f64 {
         let mut rho = 0.0;
-        // SAFETY: dv is complete (it was last written before the barrier
-        // of dnew) and written again only after the next barrier
-        let x = unsafe { rows.whole(sh.dv) };
+        // SAFETY: dv is complete (last written in the stage of δ) and
+        // written again only in a later stage
+        let x = unsafe { rows.whole(rows.sh.dv) };
         for k in 0..rows.len {
             let rk = rows.residual::<FMA>(x, k);
             rho += rk.dot(&(self.dinv[k] * rk));
         }
-        sh.put(rows.t, 3, rho);
-        sh.barrier.wait();
-        let rho = sh.sum(3);
-        if !rho.is_finite() {
-            return Err(Error::breakdown(format!(
-                "non-finite residual after {it} iterations"
-            )));
-        }
-        if rho <= eps2 {
-            return Ok(None);
-        }
-        Ok(Some(dnew * (0.5 * eps2 / rho)))
+        rho
+    }
+
+    /// Failing the test, what is left to gain, with a margin.
+    #[inline(always)]
+    fn confirmed(rho: f64, dnew: f64, eps2: f64) -> Option<f64> {
+        (rho > eps2).then(|| dnew * (0.5 * eps2 / rho))
     }
 
     #[inline(always)]
@@ -1122,7 +1276,14 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
         dnew / target * tol * tol
     }
 
-    /// `t = (D + U)⁻¹ p`, then `q = (D + L)⁻¹ (p − D t + O t) + t`.
+    /// `t = (D + U)⁻¹ p` on this range's rows.
+    #[inline(always)]
+    fn product_first<const FMA: bool>(&mut self, rows: &Rows, p: &[Vector3<f64>]) {
+        sweeps(rows, self.tri, self.dinv, self.split).backward::<FMA>(p, self.tt);
+    }
+
+    /// `q = (D + L)⁻¹ (p − D t + O t) + t`, `t` swept by every range (the
+    /// stage before).
     #[inline(always)]
     fn product<const FMA: bool>(
         &mut self,
@@ -1132,11 +1293,9 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
     ) -> f64 {
         let (tri, lo) = (self.tri, rows.lo);
         let sw = sweeps(rows, tri, self.dinv, self.split);
-        sw.backward::<FMA>(p, self.tt);
-        rows.sh.barrier.wait();
         {
-            // SAFETY: every thread's rows of t are swept (the barrier
-            // above); the next sweep comes after the caller's barrier
+            // SAFETY: every range's rows of t are swept (the stage before);
+            // the next sweep comes in a later stage
             let tall = unsafe { rows.whole(rows.sh.t) };
             for k in 0..q.len() {
                 let i = lo + k;
@@ -1170,8 +1329,8 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
         self.dblk[k] * r
     }
 
-    /// `p = s + β p`: read by this thread only (its sweeps, and `O t` reads
-    /// `t`), so no barrier.
+    /// `p = s + β p`: read by this range only (its sweeps, and `O t` reads
+    /// `t`), so in the stage of the sweep.
     #[inline(always)]
     fn next_direction(&self, _: &Rows, s: &[Vector3<f64>], c: &mut [Vector3<f64>], beta: f64) {
         for k in 0..c.len() {
@@ -1327,7 +1486,7 @@ fn row_mul_k<const FMA: bool>(a: &BlockMatrix, i: usize, x: &[Vector3<f64>]) -> 
     #[cfg(target_arch = "x86_64")]
     if FMA {
         // SAFETY: FMA is only set where the CPU has AVX2 and FMA (see
-        // `pcg_rows` and `row_mul_best`)
+        // `Solve`'s parts and `row_mul_best`)
         return unsafe { row_mul_fma(a, i, x) };
     }
     row_mul(a, i, x)

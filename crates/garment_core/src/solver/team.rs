@@ -3,24 +3,27 @@
 //! after the solve).
 //!
 //! This is the solver's only threading mechanism: [`Team::run_each`] hands
-//! item t of a phase to thread t, and a phase whose threads must meet inside
-//! it (the PCG, three times per iteration) uses a [`Barrier`].
+//! item t of a phase to thread t, and work whose threads must meet inside
+//! it (the PCG, three times per iteration) runs in stages whose parts any
+//! thread may take ([`Team::run_stages`]).
 //!
 //! The threads are not started per phase (`std::thread::scope`): the kernel
 //! places each new thread anew and may put two of them on one core. A worker
 //! that lives for the whole run and waits between phases stays on its own
 //! core.
 //!
-//! Every wait (a worker's for the next phase, the caller's for the workers,
-//! a thread's at a barrier) spins for [`SPIN_ALONE`], then spins and yields
+//! Every wait (a worker's for the next phase, the caller's for the workers
+//! or for a stage's parts) spins for [`SPIN_ALONE`], then spins and yields
 //! its core between looks, then sleeps on a condition variable ([`SPIN`]
 //! between phases, [`PATIENCE`] inside them) until the thread it waits for
 //! wakes it. So a thread whose partner is descheduled (another process has
 //! its core) gives its own core away instead of spinning out the time slice,
 //! and an idle node does not burn a core. An item of a phase whose worker has
 //! not started it by the time the caller has finished its own runs on the
-//! caller's thread: a phase without barriers goes on at one core's speed
-//! while another process has the worker's core. What each item computes does
+//! caller's thread, and so do the parts of staged work a worker away from
+//! its core cannot take (a worker that would wait long for a stage leaves
+//! the rest to the caller): with another process on the worker's core the
+//! work goes on at one core's speed. What an item or a part computes does
 //! not depend on the thread that runs it, so results do not change.
 
 use std::cell::{Cell, UnsafeCell};
@@ -73,7 +76,7 @@ impl Seen {
 }
 
 /// Vertices from which a simulation uses every core. With threads started
-/// once ([`super::team::Team`]) a PCG barrier costs well under a
+/// once ([`super::team::Team`]) a PCG stage's hand-over costs well under a
 /// microsecond, and two threads paid on every grid measured down to 11 × 11
 /// (121 vertices: 0.088 → 0.058 ms per step); below a few hundred vertices
 /// a step takes tens of microseconds, and a second busy thread is not worth
@@ -101,7 +104,7 @@ pub fn threads_for_cores(n: usize, cores: usize) -> usize {
 
 /// Fewest vertices per thread: on a many-core machine a small cloth gets a
 /// few threads, not one per core (each thread's rows must outweigh its share
-/// of the barriers).
+/// of the stages' hand-overs).
 pub const VERTICES_PER_THREAD: usize = 250;
 
 /// How long an idle worker waits for the next phase before it sleeps:
@@ -110,8 +113,9 @@ pub const VERTICES_PER_THREAD: usize = 250;
 /// to sleep.
 pub const SPIN: Duration = Duration::from_millis(1);
 
-/// How long a thread waits at a [`Barrier`], or the caller for the workers
-/// to finish a phase, before it sleeps: a partner that has not arrived by
+/// How long the caller waits for the workers to finish a phase, or for a
+/// stage's parts in flight ([`Team::run_stages`]), before it sleeps (a
+/// worker waiting for a stage leaves instead): a partner that has not arrived by
 /// then is not running (another process has its core, for a time slice or
 /// more). Past [`SPIN_ALONE`] the waiter yields its core between looks, so
 /// up to then it takes only time nothing else on its core wants; sleeping
@@ -208,6 +212,61 @@ impl Parking {
 pub struct Team {
     shared: Arc<Shared>,
     workers: Vec<JoinHandle<()>>,
+    alone: Alone,
+}
+
+/// How long the caller runs every phase alone after a worker was found late
+/// (away from its core in the middle of a phase, [`LATE`]), the first time:
+/// the worker's core is likely taken for a while (a process sharing the
+/// machine), and a phase that waits for it waits out a time slice.
+pub const ALONE_FIRST: Duration = Duration::from_millis(5);
+
+/// The longest a caller runs alone: a worker found late again soon after it
+/// came back doubles the time, up to this; the next phase after it tries
+/// the workers again.
+pub const ALONE_MAX: Duration = Duration::from_millis(320);
+
+/// When the caller runs the phases alone ([`ALONE_FIRST`]). Which thread runs
+/// an item changes no result, so neither does this.
+#[derive(Debug)]
+struct Alone {
+    first: Duration,
+    until: Option<Instant>,
+    length: Duration,
+    last_late: Option<Instant>,
+}
+
+impl Alone {
+    fn new(first: Duration) -> Alone {
+        Alone {
+            first,
+            until: None,
+            length: first,
+            last_late: None,
+        }
+    }
+
+    fn now(&self) -> bool {
+        self.until.is_some_and(|u| Instant::now() < u)
+    }
+
+    /// A worker was found late: alone for [`ALONE_FIRST`], or twice as long
+    /// as the last time if that ended a short while ago.
+    fn found_late(&mut self) {
+        let now = Instant::now();
+        if self.until.is_some_and(|u| now < u) {
+            return;
+        }
+        let again = self
+            .last_late
+            .is_some_and(|l| now.duration_since(l) < 4 * self.length);
+        self.length = match again {
+            true => (2 * self.length).min(ALONE_MAX),
+            false => self.first,
+        };
+        self.until = Some(now + self.length);
+        self.last_late = Some(now);
+    }
 }
 
 /// A phase's closure, type-erased: its address and the function that calls it.
@@ -270,6 +329,15 @@ impl Team {
         Team::with_waits(size, spin, PATIENCE)
     }
 
+    /// [`Team::new`] with the caller running every phase alone for `first`
+    /// after a worker was found late ([`ALONE_FIRST`]; zero: never).
+    #[cfg(test)]
+    pub fn with_alone(size: usize, first: Duration) -> Team {
+        let mut team = Team::new(size);
+        team.alone = Alone::new(first);
+        team
+    }
+
     /// [`Team::new`] with idle workers waiting for `spin` before they sleep,
     /// and the caller `patience` for the workers to finish a phase.
     pub fn with_waits(size: usize, spin: Duration, patience: Duration) -> Team {
@@ -298,7 +366,11 @@ impl Team {
                     .expect("cannot start a worker thread")
             })
             .collect();
-        Team { shared, workers }
+        Team {
+            shared,
+            workers,
+            alone: Alone::new(ALONE_FIRST),
+        }
     }
 
     /// Threads in the team, the caller's included.
@@ -335,12 +407,13 @@ impl Team {
     }
 
     /// Runs `f(t)` for every t in `0..size()`, t = 0 on the caller's thread,
-    /// and returns when all have returned. A panic in a worker is raised
-    /// here, after every thread has finished.
+    /// and returns when all have returned (all of them on the caller's
+    /// thread for a while after a worker was found late, [`ALONE_FIRST`]). A
+    /// panic in a worker is raised here, after every thread has finished.
     pub fn run<F: Fn(usize) + Sync>(&mut self, f: F) {
         let sh = &*self.shared;
-        if sh.size == 1 {
-            f(0);
+        if sh.size == 1 || self.alone.now() {
+            (0..sh.size).for_each(f);
             return;
         }
         // SAFETY: every worker finished the previous phase (waited for
@@ -358,24 +431,28 @@ impl Team {
         sh.rest.store(false, Ordering::SeqCst);
         let epoch = sh.epoch.fetch_add(1, Ordering::SeqCst) + 1;
         sh.idle.wake();
-        struct Wait<'a>(&'a Shared, Option<u32>);
+        // the caller waits only for items in flight on workers (it runs the
+        // others): one it waits for past LATE was taken off its core
+        struct Wait<'a>(&'a Shared, Option<u32>, &'a Cell<bool>);
         impl Drop for Wait<'_> {
             fn drop(&mut self) {
                 let sh = self.0;
+                let start = Instant::now();
                 // a worker on this CPU runs only once the caller gives it up
                 sh.finish.wait(
                     || sh.done.load(Ordering::SeqCst) + 1 >= sh.size,
                     sh.patience,
                     || sh.seen.shares(0, self.1, 1..sh.size),
                 );
+                self.2.set(start.elapsed() >= LATE);
             }
         }
-        let wait = Wait(sh, cpu);
+        let late = Cell::new(false);
+        let wait = Wait(sh, cpu, &late);
         f(0);
         // items no worker has taken yet (their workers are not running:
-        // another process has their cores) run here; an item that waits at
-        // a barrier for the others is always taken by its worker before
-        // f(0) returns
+        // another process has their cores) run here (a worker's share of
+        // staged work is over when the caller's is)
         for t in 1..sh.size {
             if sh.claim[t].fetch_max(epoch, Ordering::SeqCst) < epoch {
                 sh.run_item(t);
@@ -383,8 +460,198 @@ impl Team {
             }
         }
         drop(wait);
+        if late.get() {
+            self.alone.found_late();
+        }
         if sh.panicked.swap(false, Ordering::Relaxed) {
             panic!("a worker thread of the simulation panicked");
+        }
+    }
+}
+
+/// Work done in stages, each split into the same number of parts: the
+/// parts of a stage may run on any thread of a team and at the same time,
+/// each exactly once; a stage starts once every part of the one before has
+/// finished ([`Team::run_stages`]).
+pub trait Stages: Sync {
+    /// Runs part `p` of the stage open now.
+    fn part(&self, p: usize);
+
+    /// Called once every part of the stage has finished, on the thread that
+    /// finished the last one, before any part of the next stage runs:
+    /// opens the next stage (true) or ends the work (false).
+    fn next(&self) -> bool;
+}
+
+/// How long the caller waits for a part another thread is running before
+/// it counts that thread as away from its core (another process has it):
+/// the imbalance of a stage on free cores is a few microseconds, a thread
+/// taken off its core is gone for a time slice (milliseconds).
+pub const LATE: Duration = Duration::from_micros(200);
+
+/// Where the threads of [`Team::run_stages`] are: stage s's parts are the
+/// tickets `s · parts .. (s + 1) · parts`, taken in order by whichever
+/// thread asks first.
+struct Staging {
+    parts: usize,
+    /// The next ticket to take.
+    ticket: AtomicUsize,
+    /// Parts finished, every stage's.
+    done: AtomicUsize,
+    /// The stage open now.
+    open: AtomicUsize,
+    /// The work is over ([`Stages::next`] said so, or a part panicked).
+    over: AtomicBool,
+    panicked: AtomicBool,
+    /// The caller waited past [`LATE`] for a part: the workers take no
+    /// more parts, and the caller runs the rest.
+    late: AtomicBool,
+    /// Where the caller waits for a part in flight.
+    parking: Parking,
+}
+
+impl Staging {
+    /// Takes a part of stage `s` if one is left.
+    fn claim(&self, s: usize) -> Option<usize> {
+        let n = self.parts;
+        let mut k = self.ticket.load(Ordering::SeqCst);
+        // stage s opened once every part of s − 1 had finished, so k ≥ s · n
+        while k < (s + 1) * n {
+            match self
+                .ticket
+                .compare_exchange_weak(k, k + 1, Ordering::SeqCst, Ordering::SeqCst)
+            {
+                Ok(_) => return Some(k - s * n),
+                Err(now) => k = now,
+            }
+        }
+        None
+    }
+
+    /// Runs part `p` of stage `s`; the thread that finishes the stage's
+    /// last part opens the next one (or ends the work).
+    fn run_part(&self, work: &impl Stages, s: usize, p: usize) {
+        if catch_unwind(AssertUnwindSafe(|| work.part(p))).is_err() {
+            self.panicked.store(true, Ordering::SeqCst);
+        }
+        if self.done.fetch_add(1, Ordering::SeqCst) + 1 == (s + 1) * self.parts {
+            let more = !self.panicked.load(Ordering::SeqCst)
+                && match catch_unwind(AssertUnwindSafe(|| work.next())) {
+                    Ok(more) => more,
+                    Err(_) => {
+                        self.panicked.store(true, Ordering::SeqCst);
+                        false
+                    }
+                };
+            if !more {
+                self.over.store(true, Ordering::SeqCst);
+            }
+            self.open.store(s + 1, Ordering::SeqCst);
+            self.parking.wake();
+        }
+    }
+
+    /// Thread t's share of the work: every part it can take, until the
+    /// work is over, or (a worker) until it would have to wait long for a
+    /// stage to open.
+    fn work_on(&self, work: &impl Stages, sh: &Shared, t: usize) {
+        let (size, seen) = (sh.size, &sh.seen);
+        loop {
+            let s = self.open.load(Ordering::SeqCst);
+            if self.over.load(Ordering::SeqCst) {
+                return;
+            }
+            // a worker takes no more parts once the caller has found one
+            // late (it is likely to be taken off its core again)
+            while !(t != 0 && self.late.load(Ordering::SeqCst)) {
+                let Some(p) = self.claim(s) else { break };
+                self.run_part(work, s, p);
+            }
+            let ready = || self.open.load(Ordering::SeqCst) != s;
+            if ready() {
+                continue;
+            }
+            let cpu = seen.note(t);
+            if t == 0 {
+                // the parts in flight are other threads'; one away from its
+                // core is waited for, and the workers take no more parts
+                let start = Instant::now();
+                let late = || {
+                    if !self.late.load(Ordering::Relaxed) && start.elapsed() >= LATE {
+                        self.late.store(true, Ordering::SeqCst);
+                    }
+                };
+                self.parking.wait(ready, sh.patience, || {
+                    late();
+                    seen.shares(0, cpu, 1..size)
+                });
+                // (also when it slept at once, sharing its core)
+                late();
+            } else if self.late.load(Ordering::SeqCst)
+                || !spin_for(ready, sh.patience, || seen.shares(t, cpu, 0..1))
+            {
+                // a worker that would wait long, or shares the caller's
+                // core, leaves the rest to the caller (who takes every part
+                // left: it never waits on a thread that is not running one)
+                return;
+            }
+        }
+    }
+}
+
+/// Spins (then yields between looks past [`SPIN_ALONE`]) until `ready()`;
+/// false if `patience` ran out or `hurry()` first.
+fn spin_for(ready: impl Fn() -> bool, patience: Duration, hurry: impl Fn() -> bool) -> bool {
+    let start = Instant::now();
+    loop {
+        for _ in 0..64 {
+            if ready() {
+                return true;
+            }
+            std::hint::spin_loop();
+        }
+        let waited = start.elapsed();
+        if hurry() || waited >= patience {
+            return ready();
+        }
+        if waited >= SPIN_ALONE {
+            std::thread::yield_now();
+        }
+    }
+}
+
+impl Team {
+    /// Runs `work` in stages of `parts` parts ([`Stages`]) on the team's
+    /// threads: each takes the parts of the open stage one at a time, and
+    /// the thread that finishes a stage's last part opens the next. Which
+    /// thread runs a part does not change what it computes, so the result
+    /// depends on `parts`, never on the threads or their scheduling. A
+    /// thread waits only for parts in flight: a worker that would wait long
+    /// (its partners are away from their cores, or it shares the caller's
+    /// core) leaves the rest of the work to the caller, and once the caller
+    /// has waited past [`LATE`] for a worker's part, every worker leaves
+    /// after the part it runs; so with a core taken by another process the
+    /// work goes on at about one core's speed instead of waiting out time
+    /// slices at every stage. A panic in a part ends the work and is
+    /// raised here.
+    pub fn run_stages(&mut self, parts: usize, work: &impl Stages) {
+        let st = Staging {
+            parts: parts.max(1),
+            ticket: AtomicUsize::new(0),
+            done: AtomicUsize::new(0),
+            open: AtomicUsize::new(0),
+            over: AtomicBool::new(false),
+            panicked: AtomicBool::new(false),
+            late: AtomicBool::new(false),
+            parking: Parking::new(),
+        };
+        let shared = Arc::clone(&self.shared);
+        self.run(|t| st.work_on(work, &shared, t));
+        if st.late.load(Ordering::SeqCst) {
+            self.alone.found_late();
+        }
+        if st.panicked.load(Ordering::SeqCst) {
+            panic!("a part of the simulation's staged work panicked");
         }
     }
 }
@@ -446,59 +713,6 @@ impl Drop for Team {
 impl std::fmt::Debug for Team {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Team").field("size", &self.size()).finish()
-    }
-}
-
-/// Sense-reversing barrier whose waiters spin briefly, then yield, then
-/// sleep ([`PATIENCE`]): the machine may be shared, and a thread waiting for
-/// a partner another process has taken the core from must not keep its own.
-pub struct Barrier {
-    n: usize,
-    patience: Duration,
-    count: AtomicUsize,
-    generation: AtomicUsize,
-    parking: Parking,
-    /// Where each thread (by its index in the team) last arrived.
-    seen: Seen,
-}
-
-impl Barrier {
-    pub fn new(n: usize) -> Self {
-        Barrier::with_patience(n, PATIENCE)
-    }
-
-    /// A barrier whose waiters sleep after `patience`.
-    pub fn with_patience(n: usize, patience: Duration) -> Self {
-        Barrier {
-            n,
-            patience,
-            count: AtomicUsize::new(0),
-            generation: AtomicUsize::new(0),
-            parking: Parking::new(),
-            seen: Seen::new(n),
-        }
-    }
-
-    pub fn wait(&self) {
-        if self.n == 1 {
-            return;
-        }
-        let me = INDEX.with(|i| i.get());
-        let cpu = self.seen.note(me);
-        let g = self.generation.load(Ordering::Acquire);
-        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
-            self.count.store(0, Ordering::Relaxed);
-            self.generation.fetch_add(1, Ordering::SeqCst);
-            self.parking.wake();
-            return;
-        }
-        // a partner last seen on this CPU runs only once this thread gives
-        // it up
-        self.parking.wait(
-            || self.generation.load(Ordering::SeqCst) != g,
-            self.patience,
-            || self.seen.shares(me, cpu, 0..self.n),
-        );
     }
 }
 
@@ -577,128 +791,287 @@ mod tests {
         assert_eq!(hits.load(Ordering::Relaxed), 2);
     }
 
-    /// A relaxation over `x` in rounds, each thread owning a contiguous
-    /// range and reading its neighbours' values across the barrier, as the
-    /// PCG does: `x_i ← (x_{i−1} + x_i + x_{i+1}) / 3 + b_i`, then a sum of
-    /// the thread's range. `nap(t, round)` sleeps where a descheduled thread
-    /// would. Returns x and the sums, every round's, in thread order.
-    fn relax(team: &mut Team, rounds: usize, nap: impl Fn(usize, usize) + Sync) -> Vec<f64> {
-        let n = 1000;
-        let nt = team.size();
-        let barrier = Barrier::new(nt);
-        let x: Vec<AtomicU64> = (0..n)
-            .map(|i| AtomicU64::new((i as f64).sin().to_bits()))
-            .collect();
-        let next: Vec<AtomicU64> = (0..n).map(|_| AtomicU64::new(0)).collect();
-        let sums: Vec<AtomicU64> = (0..rounds * nt).map(|_| AtomicU64::new(0)).collect();
-        let get = |v: &[AtomicU64], i: usize| f64::from_bits(v[i].load(Ordering::Relaxed));
-        team.run(|t| {
-            let (lo, hi) = (t * n / nt, (t + 1) * n / nt);
-            for round in 0..rounds {
-                nap(t, round);
-                let mut sum = 0.0;
-                for i in lo..hi {
-                    let l = if i > 0 { get(&x, i - 1) } else { 0.0 };
-                    let r = if i + 1 < n { get(&x, i + 1) } else { 0.0 };
-                    let v = (l + get(&x, i) + r) / 3.0 + 1e-3 * (i as f64).cos();
-                    next[i].store(v.to_bits(), Ordering::Relaxed);
-                    sum += v;
-                }
-                sums[round * nt + t].store(sum.to_bits(), Ordering::Relaxed);
-                // every thread has written next before anyone copies it
-                barrier.wait();
-                for i in lo..hi {
-                    x[i].store(next[i].load(Ordering::Relaxed), Ordering::Relaxed);
-                }
-                // every thread has copied before anyone reads x again
-                barrier.wait();
+    /// A relaxation over `x` in rounds of two stages, as the PCG's: in the
+    /// first each of `parts` contiguous ranges computes
+    /// `next_i = (x_{i−1} + x_i + x_{i+1}) / 3 + b_i` (reading its
+    /// neighbours' values) and the sum of its range, in the second copies
+    /// `next` to `x`. `nap(part, round, thread)` sleeps where a descheduled
+    /// thread would. The sums are added in range order by [`Stages::next`],
+    /// which also counts its calls.
+    struct Relax<F> {
+        parts: usize,
+        rounds: usize,
+        x: Vec<AtomicU64>,
+        next: Vec<AtomicU64>,
+        sums: Vec<AtomicU64>,
+        /// Per round, the sum of the ranges' sums (added by `next`).
+        totals: Vec<AtomicU64>,
+        /// The stage open now (round · 2 + which), kept by `next`.
+        stage: AtomicUsize,
+        /// Parts run, per stage, and by a worker (any stage).
+        runs: Vec<AtomicUsize>,
+        by_workers: AtomicUsize,
+        nap: F,
+    }
+
+    const N: usize = 1000;
+
+    impl<F: Fn(usize, usize, usize) + Sync> Relax<F> {
+        fn new(parts: usize, rounds: usize, nap: F) -> Self {
+            let zeros = |n: usize| (0..n).map(|_| AtomicU64::new(0)).collect::<Vec<_>>();
+            Relax {
+                parts,
+                rounds,
+                x: (0..N)
+                    .map(|i| AtomicU64::new((i as f64).sin().to_bits()))
+                    .collect(),
+                next: zeros(N),
+                sums: zeros(parts),
+                totals: zeros(rounds),
+                stage: AtomicUsize::new(0),
+                runs: (0..2 * rounds).map(|_| AtomicUsize::new(0)).collect(),
+                by_workers: AtomicUsize::new(0),
+                nap,
             }
-        });
-        let mut out: Vec<f64> = (0..n).map(|i| get(&x, i)).collect();
-        out.extend((0..rounds * nt).map(|k| get(&sums, k)));
-        out
+        }
+
+        fn get(v: &[AtomicU64], i: usize) -> f64 {
+            f64::from_bits(v[i].load(Ordering::Relaxed))
+        }
+
+        /// x, then every round's total.
+        fn result(&self) -> Vec<f64> {
+            let mut out: Vec<f64> = (0..N).map(|i| Self::get(&self.x, i)).collect();
+            out.extend((0..self.rounds).map(|r| Self::get(&self.totals, r)));
+            out
+        }
+    }
+
+    impl<F: Fn(usize, usize, usize) + Sync> Stages for Relax<F> {
+        fn part(&self, p: usize) {
+            let stage = self.stage.load(Ordering::Relaxed);
+            self.runs[stage].fetch_add(1, Ordering::Relaxed);
+            let me = INDEX.with(|i| i.get());
+            if me != 0 {
+                self.by_workers.fetch_add(1, Ordering::Relaxed);
+            }
+            let (round, copy) = (stage / 2, stage % 2 == 1);
+            let (lo, hi) = (p * N / self.parts, (p + 1) * N / self.parts);
+            if copy {
+                for i in lo..hi {
+                    self.x[i].store(self.next[i].load(Ordering::Relaxed), Ordering::Relaxed);
+                }
+                return;
+            }
+            (self.nap)(p, round, me);
+            let x = |i: usize| Self::get(&self.x, i);
+            let mut sum = 0.0;
+            for i in lo..hi {
+                let l = if i > 0 { x(i - 1) } else { 0.0 };
+                let r = if i + 1 < N { x(i + 1) } else { 0.0 };
+                let v = (l + x(i) + r) / 3.0 + 1e-3 * (i as f64).cos();
+                self.next[i].store(v.to_bits(), Ordering::Relaxed);
+                sum += v;
+            }
+            self.sums[p].store(sum.to_bits(), Ordering::Relaxed);
+        }
+
+        fn next(&self) -> bool {
+            let stage = self.stage.load(Ordering::Relaxed);
+            if stage % 2 == 0 {
+                let total: f64 = (0..self.parts).map(|p| Self::get(&self.sums, p)).sum();
+                self.totals[stage / 2].store(total.to_bits(), Ordering::Relaxed);
+            }
+            self.stage.store(stage + 1, Ordering::Relaxed);
+            stage + 1 < 2 * self.rounds
+        }
+    }
+
+    /// The relaxation's result done in order on one thread.
+    fn relax_serial(parts: usize, rounds: usize) -> Vec<f64> {
+        let mut x: Vec<f64> = (0..N).map(|i| (i as f64).sin()).collect();
+        let mut totals = Vec::new();
+        for _ in 0..rounds {
+            let next: Vec<f64> = (0..N)
+                .map(|i| {
+                    let l = if i > 0 { x[i - 1] } else { 0.0 };
+                    let r = if i + 1 < N { x[i + 1] } else { 0.0 };
+                    (l + x[i] + r) / 3.0 + 1e-3 * (i as f64).cos()
+                })
+                .collect();
+            let sums =
+                (0..parts).map(|p| next[p * N / parts..(p + 1) * N / parts].iter().sum::<f64>());
+            totals.push(sums.sum::<f64>());
+            x = next;
+        }
+        x.extend(totals);
+        x
     }
 
     #[test]
-    fn napping_threads_give_the_serial_result() {
+    fn staged_work_gives_the_serial_result_whatever_runs_it() {
         let rounds = 300;
-        // the reference: the same ranges run one after another, each round's
-        // sums added in thread order
-        let serial = |nt: usize| {
-            let n = 1000;
-            let mut x: Vec<f64> = (0..n).map(|i| (i as f64).sin()).collect();
-            let mut sums = Vec::new();
-            for _ in 0..rounds {
-                let next: Vec<f64> = (0..n)
-                    .map(|i| {
-                        let l = if i > 0 { x[i - 1] } else { 0.0 };
-                        let r = if i + 1 < n { x[i + 1] } else { 0.0 };
-                        (l + x[i] + r) / 3.0 + 1e-3 * (i as f64).cos()
-                    })
-                    .collect();
-                for t in 0..nt {
-                    let (lo, hi) = (t * n / nt, (t + 1) * n / nt);
-                    sums.push(next[lo..hi].iter().sum::<f64>());
-                }
-                x = next;
-            }
-            x.extend(sums);
-            x
-        };
-        for nt in [1, 2, 3] {
-            // workers, and then the caller, sleep past the waits' patience
-            // in some rounds: their partners must wait (and sleep) for them
-            for sleeper in 0..nt {
-                let mut team = Team::new(nt);
-                let got = relax(&mut team, rounds, |t, round| {
-                    if t == sleeper && round % 7 == 3 {
-                        std::thread::sleep(PATIENCE * 3);
-                    } else if round % 11 == 5 {
-                        std::thread::yield_now();
+        for parts in [1, 2, 3] {
+            let want = relax_serial(parts, rounds);
+            for size in [1, 2, 3] {
+                // parts that sleep past the waits' patience in some rounds
+                // (a thread taken off its core), others that yield
+                for sleeper in 0..parts {
+                    let mut team = Team::new(size);
+                    let work = Relax::new(parts, rounds, |p, round, _| {
+                        if p == sleeper && round % 7 == 3 {
+                            std::thread::sleep(PATIENCE * 3);
+                        } else if round % 11 == 5 {
+                            std::thread::yield_now();
+                        }
+                    });
+                    team.run_stages(parts, &work);
+                    let got = work.result();
+                    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+                        assert_eq!(
+                            g.to_bits(),
+                            w.to_bits(),
+                            "{parts} parts on {size} threads, sleeper {sleeper}, value {k}"
+                        );
                     }
-                });
-                let want = serial(nt);
-                assert_eq!(got.len(), want.len());
-                for (k, (g, w)) in got.iter().zip(&want).enumerate() {
-                    assert_eq!(
-                        g.to_bits(),
-                        w.to_bits(),
-                        "{nt} threads, sleeper {sleeper}, value {k}: {g} != {w}"
-                    );
+                    // every part of every stage ran once
+                    for (stage, runs) in work.runs.iter().enumerate() {
+                        assert_eq!(runs.load(Ordering::Relaxed), parts, "stage {stage}");
+                    }
                 }
             }
         }
     }
 
     #[test]
+    fn a_worker_found_late_leaves_the_rest_to_the_caller() {
+        // a worker away from its core for 5 ms in every part it takes (far
+        // past LATE; the caller's parts take 0.1 ms, so the worker comes
+        // in before the caller has run them all): once the caller has
+        // waited for it, it takes no more, and the work ends at the
+        // caller's pace, with the serial result
+        let (parts, rounds) = (2, 200);
+        let mut team = Team::new(2);
+        let work = Relax::new(parts, rounds, |_, _, thread| {
+            std::thread::sleep(Duration::from_micros(if thread == 0 { 100 } else { 5000 }));
+        });
+        team.run_stages(parts, &work);
+        assert_eq!(work.result(), relax_serial(parts, rounds));
+        // 800 parts, of which a worker that went on taking them would take
+        // hundreds; it takes a few while the caller is itself away from its
+        // core, at most
+        let by_workers = work.by_workers.load(Ordering::Relaxed);
+        assert!(
+            by_workers <= 10,
+            "the late worker took {by_workers} parts of 800"
+        );
+    }
+
+    #[test]
+    fn after_a_late_worker_the_caller_runs_alone_for_a_while() {
+        let mut team = Team::with_alone(2, Duration::from_millis(300));
+        let on_worker = AtomicUsize::new(0);
+        let count = |t: usize| {
+            if t != 0 && INDEX.with(|i| i.get()) != 0 {
+                on_worker.fetch_add(1, Ordering::Relaxed);
+            }
+        };
+        // the worker away from its core 5 ms in its item (the caller, 2 ms
+        // in its own, waits for it: an item in flight is not taken back);
+        // again if the worker was not there in time to take it
+        for _ in 0..20 {
+            team.run(|t| {
+                count(t);
+                let on_worker = INDEX.with(|i| i.get()) != 0;
+                std::thread::sleep(Duration::from_millis(if on_worker { 5 } else { 2 }));
+            });
+            if on_worker.load(Ordering::Relaxed) > 0 {
+                break;
+            }
+        }
+        let before = on_worker.load(Ordering::Relaxed);
+        assert_eq!(before, 1, "the worker never took its item");
+        // the caller's items take 1 ms, so a worker woken for a phase
+        // comes in time for its own (below), but the next 50 phases run
+        // every item on the caller
+        let slow_caller = |t: usize| {
+            count(t);
+            if t == 0 {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+        };
+        for _ in 0..50 {
+            team.run(slow_caller);
+        }
+        assert_eq!(
+            on_worker.load(Ordering::Relaxed),
+            before,
+            "a worker ran an item"
+        );
+        // and after the while, the workers again
+        std::thread::sleep(Duration::from_millis(400));
+        for _ in 0..200 {
+            team.run(slow_caller);
+            if on_worker.load(Ordering::Relaxed) > before {
+                break;
+            }
+        }
+        assert!(
+            on_worker.load(Ordering::Relaxed) > before,
+            "the worker never came back"
+        );
+    }
+
+    #[test]
+    fn a_panic_in_a_part_reaches_the_caller_and_the_team_goes_on() {
+        struct Fails(AtomicUsize);
+        impl Stages for Fails {
+            fn part(&self, p: usize) {
+                if self.0.fetch_add(1, Ordering::SeqCst) == 5 {
+                    panic!("part {p} fails");
+                }
+            }
+            fn next(&self) -> bool {
+                true
+            }
+        }
+        for size in [1, 2] {
+            let mut team = Team::new(size);
+            let fails = Fails(AtomicUsize::new(0));
+            let r = catch_unwind(AssertUnwindSafe(|| team.run_stages(2, &fails)));
+            assert!(r.is_err(), "{size} threads");
+            // the work stopped at the stage of the panic
+            assert!(fails.0.load(Ordering::SeqCst) <= 6);
+            let work = Relax::new(2, 10, |_, _, _| {});
+            team.run_stages(2, &work);
+            assert_eq!(work.result(), relax_serial(2, 10));
+        }
+    }
+
+    #[test]
     fn sleeping_waiters_are_always_woken() {
-        // no patience: every wait that is not over at once sleeps, so a
-        // wake-up lost between a waiter's last look and its sleep would hang
-        // a round; the rounds run on a thread of their own, watched
+        // no patience: every wait that is not over at once sleeps (the
+        // caller's) or leaves (a worker's), so a wake-up lost between the
+        // caller's last look and its sleep would hang a stage; the work runs
+        // on a thread of its own, watched
         let (tx, rx) = std::sync::mpsc::channel();
         std::thread::spawn(move || {
             for size in [2, 3] {
                 let mut team = Team::with_waits(size, Duration::ZERO, Duration::ZERO);
-                let barrier = Barrier::with_patience(size, Duration::ZERO);
-                let hits = AtomicU64::new(0);
-                for _ in 0..5000 {
-                    team.run(|_| {
-                        hits.fetch_add(1, Ordering::Relaxed);
-                        barrier.wait();
-                        hits.fetch_add(1, Ordering::Relaxed);
-                        barrier.wait();
-                    });
+                // (every stage with workers: a slow wake-up must not send the
+                // caller alone)
+                team.alone = Alone::new(Duration::ZERO);
+                for _ in 0..200 {
+                    let work = Relax::new(size, 20, |_, _, _| {});
+                    team.run_stages(size, &work);
+                    assert_eq!(work.result(), relax_serial(size, 20));
                 }
-                tx.send((size, hits.load(Ordering::Relaxed))).unwrap();
+                tx.send(size).unwrap();
             }
         });
         for size in [2, 3] {
             let got = rx.recv_timeout(Duration::from_secs(120));
-            assert_eq!(
-                got,
-                Ok((size, 2 * 5000 * size as u64)),
-                "a sleeping waiter was not woken"
-            );
+            assert_eq!(got, Ok(size), "a sleeping waiter was not woken");
         }
     }
 
