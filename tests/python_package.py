@@ -175,7 +175,9 @@ def test_ctrl_c_stops_the_run_cleanly():
     def progress(phase, done, of):
         if not sent:
             sent.append(phase)
-            os.kill(os.getpid(), signal.SIGINT)
+            # delivered to this thread before it returns (os.kill to the
+            # process may be delivered to another of its threads, later)
+            signal.raise_signal(signal.SIGINT)
 
     with pytest.raises(KeyboardInterrupt):
         garment_sim.run_trial(str(SKIRT), out=d, progress=progress, **SMALL)
