@@ -61,10 +61,16 @@ pub fn kes(a: KesArgs) -> Result<()> {
         let label = format!("kes {} {}", t.name(), d.name());
         let mut pr = crate::progress_printer(label);
         let dur = kes_lab::protocol_duration(&fabric, t, d);
-        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f * dur, dur))
-            .with_context(|| {
-                format!("{}: the virtual KES {} {} test", a.fabric.display(), t.name(), d.name())
-            })?;
+        let run = kes_lab::run_test(&fabric, t, d, &opt, &mut |f| pr(f * dur, dur)).with_context(
+            || {
+                format!(
+                    "{}: the virtual KES {} {} test",
+                    a.fabric.display(),
+                    t.name(),
+                    d.name()
+                )
+            },
+        )?;
         kes_lab::write_outputs(&run, &a.out)?;
         print!("{}", kes_lab::format_run(&run));
         runs.push(run);

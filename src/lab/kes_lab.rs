@@ -350,9 +350,8 @@ pub fn run_test(
     run.curve = branches(&run.path, test);
     run.summary = compare(
         test,
-        &summarise(test, &run.curve).with_context(|| {
-            format!("the simulated {} {} loop", dir.name(), test.name())
-        })?,
+        &summarise(test, &run.curve)
+            .with_context(|| format!("the simulated {} {} loop", dir.name(), test.name()))?,
         &input_summary(fabric, test, dir, &input)?,
     );
     let (_, _, _, sy) = test.units();

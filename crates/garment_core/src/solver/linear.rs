@@ -687,7 +687,12 @@ impl Lead {
     fn go_on<'a, P: RowPrecond<'a>>(&mut self, args: &PcgArgs) -> Result<Flow> {
         let ratio = P::ratio(self.dnew, self.target, self.delta0, args.tol);
         capped(self.it, ratio, args.tol, args.max_iter, args.early)?;
-        Ok(Flow::Go(Work::Direction(self.beta)))
+        // the first direction needs a stage of its own only for a product
+        // in two parts
+        Ok(Flow::Go(match (self.beta, P::PRODUCT_FIRST) {
+            (None, false) => Work::Product,
+            (beta, _) => Work::Direction(beta),
+        }))
     }
 }
 
@@ -933,6 +938,9 @@ trait RowPrecond<'a>: Sized {
     /// residual ([`Work::Confirm`]).
     const CONFIRMS: bool;
 
+    /// The product has a first part ([`RowPrecond::product_first`]).
+    const PRODUCT_FIRST: bool;
+
     /// Its state on `rows`.
     fn new(rows: &Rows<'a>) -> Self;
 
@@ -999,6 +1007,7 @@ struct JacobiRows<'a> {
 
 impl<'a> RowPrecond<'a> for JacobiRows<'a> {
     const CONFIRMS: bool = false;
+    const PRODUCT_FIRST: bool = false;
 
     #[inline(always)]
     fn new(rows: &Rows<'a>) -> Self {
@@ -1160,6 +1169,7 @@ fn sweeps<'s>(
 
 impl<'a> RowPrecond<'a> for SgsRows<'a> {
     const CONFIRMS: bool = true;
+    const PRODUCT_FIRST: bool = true;
 
     #[inline(always)]
     fn new(rows: &Rows<'a>) -> Self {

@@ -28,7 +28,7 @@
 
 use std::cell::{Cell, UnsafeCell};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -215,11 +215,20 @@ pub struct Team {
     alone: Alone,
 }
 
-/// How long the caller runs every phase alone after a worker was found late
-/// (away from its core in the middle of a phase, [`LATE`]), the first time:
-/// the worker's core is likely taken for a while (a process sharing the
-/// machine), and a phase that waits for it waits out a time slice.
-pub const ALONE_FIRST: Duration = Duration::from_millis(5);
+/// A wait for a worker in the middle of a phase at least this long says its
+/// core is taken by a process as busy as the simulation (an equal share of
+/// the core is a time slice of milliseconds); shorter ones (a process of
+/// lower priority, an interrupt) are waited out.
+pub const AWAY: Duration = Duration::from_millis(2);
+
+/// Two waits of [`AWAY`] or more within this say the worker's core is taken
+/// for a while (one alone is waited out).
+pub const RECUR: Duration = Duration::from_millis(50);
+
+/// How long the caller runs every phase alone after it waited [`AWAY`] for
+/// a worker twice within [`RECUR`], the first time: every phase that waits
+/// for the worker would wait out a time slice.
+pub const ALONE_FIRST: Duration = Duration::from_millis(20);
 
 /// The longest a caller runs alone: a worker found late again soon after it
 /// came back doubles the time, up to this; the next phase after it tries
@@ -233,7 +242,8 @@ struct Alone {
     first: Duration,
     until: Option<Instant>,
     length: Duration,
-    last_late: Option<Instant>,
+    /// The last wait of [`AWAY`] or more.
+    last_away: Option<Instant>,
 }
 
 impl Alone {
@@ -242,7 +252,7 @@ impl Alone {
             first,
             until: None,
             length: first,
-            last_late: None,
+            last_away: None,
         }
     }
 
@@ -250,22 +260,30 @@ impl Alone {
         self.until.is_some_and(|u| Instant::now() < u)
     }
 
-    /// A worker was found late: alone for [`ALONE_FIRST`], or twice as long
-    /// as the last time if that ended a short while ago.
-    fn found_late(&mut self) {
+    /// The caller waited `waited` for a worker in the middle of a phase: the
+    /// second wait of [`AWAY`] or more within [`RECUR`] sends it alone for
+    /// [`ALONE_FIRST`], or twice as long as the last time if that ended a
+    /// short while ago.
+    fn waited(&mut self, waited: Duration) {
         let now = Instant::now();
-        if self.until.is_some_and(|u| now < u) {
+        if waited < AWAY || self.until.is_some_and(|u| now < u) {
+            return;
+        }
+        let recurs = self
+            .last_away
+            .is_some_and(|l| now.duration_since(l) < RECUR);
+        self.last_away = Some(now);
+        if !recurs {
             return;
         }
         let again = self
-            .last_late
-            .is_some_and(|l| now.duration_since(l) < 4 * self.length);
+            .until
+            .is_some_and(|u| now.duration_since(u) < 4 * self.length);
         self.length = match again {
             true => (2 * self.length).min(ALONE_MAX),
             false => self.first,
         };
         self.until = Some(now + self.length);
-        self.last_late = Some(now);
     }
 }
 
@@ -432,8 +450,8 @@ impl Team {
         let epoch = sh.epoch.fetch_add(1, Ordering::SeqCst) + 1;
         sh.idle.wake();
         // the caller waits only for items in flight on workers (it runs the
-        // others): one it waits for past LATE was taken off its core
-        struct Wait<'a>(&'a Shared, Option<u32>, &'a Cell<bool>);
+        // others): how long says whether one was taken off its core
+        struct Wait<'a>(&'a Shared, Option<u32>, &'a Cell<Duration>);
         impl Drop for Wait<'_> {
             fn drop(&mut self) {
                 let sh = self.0;
@@ -444,11 +462,11 @@ impl Team {
                     sh.patience,
                     || sh.seen.shares(0, self.1, 1..sh.size),
                 );
-                self.2.set(start.elapsed() >= LATE);
+                self.2.set(start.elapsed());
             }
         }
-        let late = Cell::new(false);
-        let wait = Wait(sh, cpu, &late);
+        let waited = Cell::new(Duration::ZERO);
+        let wait = Wait(sh, cpu, &waited);
         f(0);
         // items no worker has taken yet (their workers are not running:
         // another process has their cores) run here (a worker's share of
@@ -460,9 +478,7 @@ impl Team {
             }
         }
         drop(wait);
-        if late.get() {
-            self.alone.found_late();
-        }
+        self.alone.waited(waited.get());
         if sh.panicked.swap(false, Ordering::Relaxed) {
             panic!("a worker thread of the simulation panicked");
         }
@@ -508,6 +524,8 @@ struct Staging {
     late: AtomicBool,
     /// Where the caller waits for a part in flight.
     parking: Parking,
+    /// The caller's longest wait for a part in flight, ns.
+    longest_wait: AtomicU64,
 }
 
 impl Staging {
@@ -587,6 +605,8 @@ impl Staging {
                 });
                 // (also when it slept at once, sharing its core)
                 late();
+                let waited = start.elapsed().as_nanos().min(u64::MAX as u128) as u64;
+                self.longest_wait.fetch_max(waited, Ordering::Relaxed);
             } else if self.late.load(Ordering::SeqCst)
                 || !spin_for(ready, sh.patience, || seen.shares(t, cpu, 0..1))
             {
@@ -644,12 +664,12 @@ impl Team {
             panicked: AtomicBool::new(false),
             late: AtomicBool::new(false),
             parking: Parking::new(),
+            longest_wait: AtomicU64::new(0),
         };
         let shared = Arc::clone(&self.shared);
         self.run(|t| st.work_on(work, &shared, t));
-        if st.late.load(Ordering::SeqCst) {
-            self.alone.found_late();
-        }
+        self.alone
+            .waited(Duration::from_nanos(st.longest_wait.load(Ordering::SeqCst)));
         if st.panicked.load(Ordering::SeqCst) {
             panic!("a part of the simulation's staged work panicked");
         }
@@ -719,7 +739,6 @@ impl std::fmt::Debug for Team {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::atomic::AtomicU64;
 
     #[test]
     fn every_thread_runs_each_phase_once() {
@@ -976,21 +995,22 @@ mod tests {
                 on_worker.fetch_add(1, Ordering::Relaxed);
             }
         };
-        // the worker away from its core 5 ms in its item (the caller, 2 ms
-        // in its own, waits for it: an item in flight is not taken back);
-        // again if the worker was not there in time to take it
-        for _ in 0..20 {
+        // the worker away from its core 8 ms in its item (the caller, 2 ms
+        // in its own, waits for it: an item in flight is not taken back),
+        // twice (once is waited out); again if the worker was not there in
+        // time to take it
+        for _ in 0..40 {
             team.run(|t| {
                 count(t);
                 let on_worker = INDEX.with(|i| i.get()) != 0;
-                std::thread::sleep(Duration::from_millis(if on_worker { 5 } else { 2 }));
+                std::thread::sleep(Duration::from_millis(if on_worker { 8 } else { 2 }));
             });
-            if on_worker.load(Ordering::Relaxed) > 0 {
+            if on_worker.load(Ordering::Relaxed) == 2 {
                 break;
             }
         }
         let before = on_worker.load(Ordering::Relaxed);
-        assert_eq!(before, 1, "the worker never took its item");
+        assert_eq!(before, 2, "the worker did not take its item twice");
         // the caller's items take 1 ms, so a worker woken for a phase
         // comes in time for its own (below), but the next 50 phases run
         // every item on the caller
