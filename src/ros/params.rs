@@ -354,7 +354,8 @@ pub const PARAMETERS: &[Parameter] = &[
         runtime: false,
         description: "threads of the assembly, the PCG and the contacts, 0 to 64 (default 1: \
                       the other cores left to the machine's other nodes; a thread whose core \
-                      another process takes leaves its share to the node's main thread; 0: one \
+                      another process takes leaves its share to the node's main thread, so a \
+                      busy core slows the node to about one core's speed, not below; 0: one \
                       per core from 500 vertices, for a machine of its own; they sleep between \
                       steps)",
         get: |s| Value::Int(s.threads),
