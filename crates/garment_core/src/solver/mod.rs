@@ -96,6 +96,13 @@ pub struct Params {
     /// of eq. 4.59).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub cell_shear: bool,
+    /// A vertex in a crease (two surfaces within its contact distance that
+    /// fold towards each other) is held by both in the same step, free only
+    /// along the crease ([`Filter::Crease`], `vertices::hold_in_crease`).
+    /// Off: by the nearest surface alone, pushed out of the other after the
+    /// step.
+    #[serde(skip_serializing_if = "Clone::clone")]
+    pub creases: bool,
 }
 
 /// The gap the cloth keeps from a triangle-mesh obstacle's vertices and
@@ -136,6 +143,7 @@ impl Default for Params {
             hysteresis: true,
             threads: 0,
             friction_bound_now: false,
+            creases: true,
             self_collision: false,
             obstacle_edges: false,
             cell_shear: false,
@@ -1261,6 +1269,7 @@ impl Simulation {
             mass: &self.cloth.mass,
             force: &self.force,
             gravity: self.params.gravity,
+            creases: self.params.creases,
             edge: if self.params.obstacle_edges {
                 self.ws.self_contact.as_deref()
             } else {

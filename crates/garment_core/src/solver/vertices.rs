@@ -42,6 +42,8 @@ pub(super) struct Scene<'a> {
     pub force: &'a [Vector3<f64>],
     /// Gravity, m/s².
     pub gravity: Vector3<f64>,
+    /// Hold a vertex in a crease by both surfaces ([`super::Params::creases`]).
+    pub creases: bool,
     /// The cloth–cloth pass whose last step's contacts with the obstacles'
     /// vertices and edges hold vertices (`Params::obstacle_edges`; see
     /// [`crate::self_contact::SelfContact::obstacle_contact`]).
@@ -282,7 +284,7 @@ fn crease_of(
         e,
     };
     let first = surface(pr, e, ob.friction);
-    if !first.touches(s, i, held) {
+    if !s.creases || !first.touches(s, i, held) {
         return None;
     }
     // within the contact zone as the nearest surface is found
@@ -323,14 +325,18 @@ fn crease_of(
         .enumerate()
         .find(|(_, (_, f))| f.touches(s, i, held))?;
     let axis = first.n.cross(&second.n).try_normalize(1e-9);
-    let third = axis.and_then(|a| {
-        near.found[k2 + 1..]
-            .iter()
-            .find(|(q, f)| {
-                f.n.dot(&a).abs() > 0.5 && crease_between(pr2, q, eps) && f.touches(s, i, held)
-            })
-            .map(|(_, f)| *f)
-    });
+    // a corner holds the vertex only while last step's force presses it
+    // into all three (within the contact distance alone, a vertex the
+    // cloth pulls out of the corner would be held there whatever the pull)
+    let pressed = |f: &Surface| f.pressed(s, i, held);
+    let third = axis
+        .filter(|_| pressed(&first) && pressed(second))
+        .and_then(|a| {
+            near.found[k2 + 1..]
+                .iter()
+                .find(|(q, f)| f.n.dot(&a).abs() > 0.5 && crease_between(pr2, q, eps) && pressed(f))
+                .map(|(_, f)| *f)
+        });
     Some(Crease {
         first,
         second: *second,
@@ -348,14 +354,17 @@ fn in_plane(n1: &Vector3<f64>, n2: &Vector3<f64>, c: f64, t1: f64, t2: f64) -> V
 /// The constraint of vertex `i` (row `k`) held in crease `c`: free only
 /// along the crease's axis `a = n1 × n2` (`S = a aᵀ`), the velocity along
 /// each surface's normal prescribed as a single contact's is (inelastic, a
-/// separating velocity kept, a landing vertex ending the step on it), both
-/// gaps closed by the position correction, and Coulomb friction along the
-/// axis from the sum of the normal impulses with the smaller coefficient of
-/// the two (static: the vertex moves with the surfaces; kinetic: a force
-/// against the sliding). Normals less than 30° from opposite
-/// ([`CREASE_COS`]: a slot the vertex is wedged in), or a third surface
-/// across the axis, leave no free direction: the vertex moves with the
-/// surfaces (`Fixed`).
+/// landing vertex ending the step on it; stopped along the normal of a
+/// surface that presses it), both gaps closed by the position correction,
+/// and Coulomb friction along the axis from the sum of the normal impulses
+/// with the smaller coefficient of the two (static: the vertex moves with
+/// the surfaces; kinetic: a force against the sliding). Normals less than
+/// 30° from opposite ([`CREASE_COS`]: a slot the vertex is squeezed in)
+/// constrain one direction, their difference `n̄ = (n1 − n2)/|n1 − n2|`
+/// (`Normal(n̄)`, the two constraints nearly one), the vertex free to slide
+/// through the slot with the friction of both; a third surface across the
+/// axis leaves no free direction: the vertex moves with the surfaces
+/// (`Fixed`).
 fn hold_in_crease(
     s: &Scene,
     i: usize,
@@ -368,45 +377,75 @@ fn hold_in_crease(
     let (s1, s2) = (&c.first, &c.second);
     let (n1, n2) = (s1.n, s2.n);
     let cos = n1.dot(&n2);
-    let axis = n1
-        .cross(&n2)
-        .try_normalize(1e-9)
-        .filter(|_| cos > -CREASE_COS && c.third.is_none());
     let mu = s1.mu.min(s2.mu);
     let floor = floor_force(s.mass[i], s.gravity.norm());
     let v = s.v[i];
     let gap_fix = |sf: &Surface| (-sf.gap).max(0.0);
-    let Some(a) = axis else {
-        // wedged: moves with the surfaces (their mean velocity), the gaps
-        // closed as far as they can be (least squares, damped for nearly
-        // opposite normals)
-        let mut m = Matrix3::identity() * 0.05;
-        let mut rhs = Vector3::zeros();
-        let mut vo = Vector3::zeros();
-        let all = [Some(*s1), Some(*s2), c.third];
-        let count = all.iter().flatten().count() as f64;
-        for sf in all.iter().flatten() {
-            m += sf.n * sf.n.transpose();
-            rhs += sf.n * gap_fix(sf);
-            vo += sf.velocity / count;
+    o.contacts += 1;
+    o.normals[k] = n1;
+    o.normals2[k] = n2;
+    let axis = n1.cross(&n2).try_normalize(1e-9);
+    let (filter, vo, z) = match (axis, c.third) {
+        (Some(a), None) if cos > -CREASE_COS => {
+            // the velocity the crease carries the vertex with: each
+            // surface's along its normal, the nearest one's along the axis
+            let vo = in_plane(&n1, &n2, cos, s1.velocity.dot(&n1), s2.velocity.dot(&n2))
+                + a * a.dot(&s1.velocity);
+            o.y[k] = in_plane(&n1, &n2, cos, gap_fix(s1), gap_fix(s2));
+            // a surface the vertex is pressed against stops it along its
+            // normal, also when it was leaving (the other surface's
+            // constraint would otherwise keep that velocity, pushing it off
+            // at a constant speed against the force that presses it)
+            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
+            let target = |sf: &Surface| {
+                let vrel = (v - sf.velocity).dot(&sf.n);
+                if sf.landing() {
+                    -sf.gap / h - vrel
+                } else if sf.pressed(s, i, held) {
+                    -vrel
+                } else {
+                    (-vrel).max(0.0)
+                }
+            };
+            let z = in_plane(&n1, &n2, cos, target(s1), target(s2));
+            (Filter::Crease(a), vo, z)
         }
-        o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
-        o.filter[k] = Filter::Fixed;
-        o.z[k] = vo - v;
-        o.contact_of[k] = Some((mu, vo));
-        o.normals[k] = n1;
-        o.normals2[k] = n2;
-        o.contacts += 1;
-        return;
+        (_, None) => {
+            // a slot: its walls' mean velocity, the squeeze stopped, the
+            // gaps closed as far as they can be (least squares, damped:
+            // nearly opposite normals)
+            let nb = (n1 - n2).normalize();
+            let vo = (s1.velocity + s2.velocity) * 0.5;
+            let mut m = Matrix3::identity() * 0.05;
+            let mut rhs = Vector3::zeros();
+            for sf in [s1, s2] {
+                m += sf.n * sf.n.transpose();
+                rhs += sf.n * gap_fix(sf);
+            }
+            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            (Filter::Normal(nb), vo, nb * nb.dot(&(vo - v)))
+        }
+        (_, Some(t)) => {
+            // a corner: moves with the surfaces (their mean velocity), the
+            // gaps closed as above
+            let vo = (s1.velocity + s2.velocity + t.velocity) / 3.0;
+            let mut m = Matrix3::identity() * 0.05;
+            let mut rhs = Vector3::zeros();
+            for sf in [s1, s2, &t] {
+                m += sf.n * sf.n.transpose();
+                rhs += sf.n * gap_fix(sf);
+            }
+            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            o.filter[k] = Filter::Fixed;
+            o.z[k] = vo - v;
+            o.contact_of[k] = Some((mu, vo));
+            return;
+        }
     };
-    // the velocity the crease carries the vertex with: each surface's along
-    // its normal, the nearest one's along the axis
-    let vo = in_plane(&n1, &n2, cos, s1.velocity.dot(&n1), s2.velocity.dot(&n2))
-        + a * a.dot(&s1.velocity);
-    o.y[k] = in_plane(&n1, &n2, cos, gap_fix(s1), gap_fix(s2));
+    o.contact_of[k] = Some((mu, vo));
     let landing = s1.landing() || s2.landing();
     let holds = in_cone(
-        a.dot(&driving).abs() * h,
+        filter.apply(&driving).norm() * h,
         o.friction[k].impulse,
         mu,
         floor * h,
@@ -416,38 +455,18 @@ fn hold_in_crease(
         o.z[k] = vo - v;
         o.stuck += 1;
     } else {
-        // a surface the vertex is pressed against stops it along its
-        // normal, also when it was leaving (the other surface's constraint
-        // would otherwise keep that velocity, pushing it off at a constant
-        // speed against the force that presses it)
-        let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
-        let target = |sf: &Surface| {
-            let vrel = (v - sf.velocity).dot(&sf.n);
-            if sf.landing() {
-                -sf.gap / h - vrel
-            } else if sf.pressed(s, i, held) {
-                -vrel
-            } else {
-                (-vrel).max(0.0)
-            }
-        };
-        o.filter[k] = Filter::Crease(a);
-        o.z[k] = in_plane(&n1, &n2, cos, target(s1), target(s2));
+        o.filter[k] = filter;
+        o.z[k] = z;
         if mu > 0.0 {
-            let rel = v - vo;
             o.friction_force[k] = kinetic_friction(
                 s.mass[i],
-                a * a.dot(&rel),
+                filter.apply(&(v - vo)),
                 driving,
                 mu * o.friction[k].impulse,
                 h,
             );
         }
     }
-    o.contact_of[k] = Some((mu, vo));
-    o.normals[k] = n1;
-    o.normals2[k] = n2;
-    o.contacts += 1;
 }
 
 /// [`FRICTION_FLOOR`] times the weight of a vertex of mass `m` under
@@ -521,11 +540,12 @@ pub(super) struct StateRows<'a> {
 
 /// The friction state after the step of vertex `i` held in a crease, from
 /// its constraint impulse `r`: the normal impulse is the sum of the two
-/// surfaces' (`r` resolved along their normals; the pressing parts); a
-/// sliding vertex sticks once slower than [`STICK_SPEED`] along the axis
-/// (or its sliding reversed on a moving surface: `before` and `after`, its
-/// velocity relative to the crease's at the step's start and end), a held
-/// one while the impulse off the normals' plane stays in the cone.
+/// surfaces' (`r` resolved along their normals, the pressing parts; in a
+/// slot, `r` along the squeeze); a sliding vertex sticks once slower than
+/// [`STICK_SPEED`] in its free directions (or its sliding reversed on a
+/// moving surface: `before` and `after`, its velocity relative to the
+/// crease's at the step's start and end), a held one while the impulse off
+/// the normals stays in the cone.
 fn crease_friction(
     s: &Solved,
     i: usize,
@@ -536,23 +556,27 @@ fn crease_friction(
 ) -> FrictionState {
     let (n1, n2) = (s.normals[i], s.normals2[i]);
     let c = n1.dot(&n2);
-    // nearly opposite normals (wedged) resolve only the difference
-    let d = (1.0 - c * c).max(1e-3);
-    let (r1, r2) = (r.dot(&n1), r.dot(&n2));
-    let (l1, l2) = ((r1 - c * r2) / d, (r2 - c * r1) / d);
-    let impulse = l1.max(0.0) + l2.max(0.0);
+    let (impulse, normal) = if c > -CREASE_COS {
+        let d = 1.0 - c * c;
+        let (r1, r2) = (r.dot(&n1), r.dot(&n2));
+        let (l1, l2) = ((r1 - c * r2) / d, (r2 - c * r1) / d);
+        (l1.max(0.0) + l2.max(0.0), n1 * l1 + n2 * l2)
+    } else {
+        let nb = (n1 - n2).normalize();
+        (r.dot(&nb).abs(), nb * r.dot(&nb))
+    };
     let stick = match s.filter[i] {
-        Filter::Crease(a) => {
-            let (ra, ba) = (a.dot(&after), a.dot(&before));
-            ra.abs() < STICK_SPEED
-                || (s.contact_of[i].is_some_and(|(_, vo)| vo != Vector3::zeros()) && ra * ba < 0.0)
-        }
-        _ => in_cone(
-            (r - n1 * l1 - n2 * l2).norm(),
+        Filter::Fixed => in_cone(
+            (r - normal).norm(),
             impulse,
             mu,
             floor_force(s.mass[i], s.gravity) * s.h,
         ),
+        f => {
+            let (ra, ba) = (f.apply(&after), f.apply(&before));
+            let moving = s.contact_of[i].is_some_and(|(_, vo)| vo != Vector3::zeros());
+            ra.norm() < STICK_SPEED || (moving && ra.dot(&ba) < 0.0)
+        }
     };
     FrictionState { impulse, stick }
 }
