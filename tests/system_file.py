@@ -45,7 +45,8 @@ def drape(name, scene, steps, *args):
 
 def free_basis(v):
     """Columns spanning the free directions: 3 for a free vertex, the 2 of the
-    tangent plane for one in contact, none for a fixed one."""
+    tangent plane for one in contact, the crease's axis for one in a crease,
+    none for a fixed one."""
     rows, cols, vals = [], [], []
     k = 0
     for i, f in enumerate(v["filter"]):
@@ -56,6 +57,8 @@ def free_basis(v):
             t1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
             t1 /= np.linalg.norm(t1)
             dirs = np.stack([t1, np.cross(n, t1)])
+        elif f == "crease":
+            dirs = np.array([[v["normal_x"][i], v["normal_y"][i], v["normal_z"][i]]])
         else:
             dirs = np.zeros((0, 3))
         for t in dirs:

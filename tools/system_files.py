@@ -32,7 +32,8 @@ def vec(v, prefix):
 
 def filter_matrix(v):
     """The constraint filter S (3n x 3n, block diagonal): I for a free vertex,
-    I - n n^T for one in contact along n, 0 for a fixed one."""
+    I - n n^T for one in contact along n, a a^T for one in a crease of axis a
+    (given in the normal columns), 0 for a fixed one."""
     blocks = []
     for i, f in enumerate(v["filter"]):
         if f == "free":
@@ -40,6 +41,9 @@ def filter_matrix(v):
         elif f == "normal":
             nv = np.array([v["normal_x"][i], v["normal_y"][i], v["normal_z"][i]])
             blocks.append(np.eye(3) - np.outer(nv, nv))
+        elif f == "crease":
+            av = np.array([v["normal_x"][i], v["normal_y"][i], v["normal_z"][i]])
+            blocks.append(np.outer(av, av))
         else:
             blocks.append(np.zeros((3, 3)))
     return sp.block_diag(blocks, format="csr")

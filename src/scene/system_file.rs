@@ -118,6 +118,7 @@ pub fn write_system(dir: &Path, s: &LinearSystem) -> Result<()> {
             let (kind, nrm) = match s.filter[i] {
                 Filter::Free => ("free", [0.0; 3]),
                 Filter::Normal(m) => ("normal", [m.x, m.y, m.z]),
+                Filter::Crease(a) => ("crease", [a.x, a.y, a.z]),
                 Filter::Fixed => ("fixed", [0.0; 3]),
             };
             write!(w, "{i},{kind}")?;
@@ -149,9 +150,9 @@ pub fn write_system(dir: &Path, s: &LinearSystem) -> Result<()> {
         "files": {
             "A.mtx": "the system matrix A (kg), 3n x 3n; row and column 3i + c are vertex i's coordinate c",
             "b.mtx": "the right-hand side b (N s)",
-            "vertices.csv": "per vertex: the filter (free; normal: the velocity change along normal is prescribed; fixed: all of it), z the prescribed part (m/s), the solve's first guess and answer dv (m/s), position (m), mass (kg)",
+            "vertices.csv": "per vertex: the filter (free; normal: the velocity change along normal is prescribed; crease: all of it but along the crease's axis, given in the normal columns; fixed: all of it), z the prescribed part (m/s), the solve's first guess and answer dv (m/s), position (m), mass (kg)",
         },
-        "system": "A dv = b for the free directions (S (A dv - b) = 0), dv = S dv + z; S is I (free), I - n n^T (normal) or 0 (fixed)",
+        "system": "A dv = b for the free directions (S (A dv - b) = 0), dv = S dv + z; S is I (free), I - n n^T (normal), a a^T (crease, a its axis) or 0 (fixed)",
         "stopping_test": "the filtered residual r = S (b - A dv) in the norm of the inverse 3x3 diagonal blocks D of A: r^T D^-1 r <= tolerance^2 max((S b)^T D^-1 (S b), (S w)^T D^-1 (S w)), w_i = m_i g dt",
     });
     let text = serde_json::to_string_pretty(&meta)? + "\n";

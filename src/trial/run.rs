@@ -583,6 +583,13 @@ fn dress(
         crate::limits::check_range("--max-time", m, 0.0, 600.0, "s", why)?;
     }
     let wall = Instant::now();
+    // a vertex in a crease is held by the nearest surface alone: held by
+    // both, the sleeve drawn over the hand's mesh catches in the folds
+    // between its fingers (275 N on the arm past the wrist in the first half
+    // of the cuff's path, against under 1 N; docs/garments.md, "Creases")
+    let mut p = sim.params().clone();
+    p.creases = false;
+    sim.set_params(p)?;
     let (sew, st) = (&t.file.sewing, &t.file.settle);
     let mut stats = sew_and_drape(sim, Some(body), sew, st, Some(0.0), observe)?.into_result()?;
     let dressing = Dressing::set_up(sim, g, body, d)?;

@@ -113,6 +113,22 @@ impl std::fmt::Debug for Obstacle {
     }
 }
 
+/// Cosine of the least angle between two contact normals for the two
+/// surfaces to hold a vertex together, in a crease (30°): closer normals are
+/// one surface, bent, and hold it along the nearer one's normal alone.
+pub const CREASE_COS: f64 = 0.866_025_403_784_438_6;
+
+/// Whether the surfaces of contacts `a` and `b` of one point make a crease:
+/// their normals differ by more than 30° ([`CREASE_COS`]) and each closest
+/// point lies in front of the other's tangent plane by more than `eps`, m (a
+/// concave fold: the neighbouring faces of a flat or convex surface, whose
+/// closest points lie on or behind the other's plane, do not).
+pub fn crease_between(a: &Proximity, b: &Proximity, eps: f64) -> bool {
+    a.normal.dot(&b.normal) < CREASE_COS
+        && (b.point - a.point).dot(&a.normal) > eps
+        && (a.point - b.point).dot(&b.normal) > eps
+}
+
 /// Closest-feature answer of a point query.
 #[derive(Debug, Clone, Copy)]
 pub struct Proximity {
@@ -417,6 +433,67 @@ impl Obstacle {
             point: c,
             velocity,
         }
+    }
+
+    /// A triangle mesh's other surfaces near `p`, besides the nearest one
+    /// `first` ([`Obstacle::proximity`]): for each triangle within `reach`
+    /// (m) of `p` that `p` is in front of (either side of an open mesh), its
+    /// closest point as a [`Proximity`] whose normal points from that point
+    /// to `p`, kept where it makes a crease with `first` ([`crease_between`]
+    /// within `eps`, m), appended to `out` nearest first. Primitives (convex)
+    /// have none.
+    pub fn crease_surfaces(
+        &self,
+        p: &Vector3<f64>,
+        first: &Proximity,
+        reach: f64,
+        eps: f64,
+        out: &mut Vec<Proximity>,
+    ) {
+        let start = out.len();
+        let closed = self.closed;
+        let mut keep = |point: Vector3<f64>, face: Vector3<f64>, velocity: Vector3<f64>| {
+            let d = p - point;
+            let dn = d.norm();
+            if !(dn > 1e-12 && dn <= reach) || (closed && d.dot(&face) <= 0.0) {
+                return;
+            }
+            let pr = Proximity {
+                distance: dn,
+                normal: d / dn,
+                point,
+                velocity,
+            };
+            if crease_between(first, &pr, eps) {
+                out.push(pr);
+            }
+        };
+        if let Some(b) = &self.deforming {
+            b.near(p, reach, |_, point, face, velocity| {
+                keep(point, face, velocity)
+            });
+        } else if let Some(m) = self.shape.as_trimesh() {
+            let iso = self.pose * self.shape_pose_offset;
+            let local = iso.inverse_transform_point(&Point3::from(*p));
+            let r = Vector3::repeat(reach);
+            let aabb = parry3d_f64::bounding_volume::Aabb::new(local - r, local + r);
+            let velocity = self.velocity_at(p);
+            for t in m.bvh().intersect_aabb(&aabb) {
+                let tri = m.triangle(t);
+                let (a, b, c) = (tri.a.coords, tri.b.coords, tri.c.coords);
+                let w = crate::self_contact::geometry::point_triangle(&local.coords, &a, &b, &c);
+                let q = a * w[0] + b * w[1] + c * w[2];
+                let Some(face) = (b - a).cross(&(c - a)).try_normalize(0.0) else {
+                    continue;
+                };
+                keep(
+                    (iso * Point3::from(q)).coords,
+                    iso.rotation * face,
+                    velocity,
+                );
+            }
+        }
+        out[start..].sort_by(|a, b| a.distance.total_cmp(&b.distance));
     }
 
     /// Velocity of the obstacle's material at `p` (world frame), m/s.

@@ -515,6 +515,26 @@ impl DeformingBody {
         self.face_n[t]
     }
 
+    /// For each triangle within `reach` of `p` (its box grown by `reach`
+    /// meets `p`), `f` with its closest point to `p`: the triangle, the
+    /// point, its face normal, and the velocity that surface carries `p`
+    /// with (as in [`Closest::velocity`]).
+    pub fn near(&self, p: &V, reach: f64, mut f: impl FnMut(usize, V, V, V)) {
+        let r = V::repeat(reach);
+        let q = Aabb {
+            lo: p - r,
+            hi: p + r,
+        };
+        self.bvh.overlapping(&q, |t| {
+            let [a, b, c] = self.corners(t, &self.x);
+            let w = point_triangle(p, &a, &b, &c);
+            let point = a * w[0] + b * w[1] + c * w[2];
+            let n = self.face_n[t];
+            let velocity = self.velocity_on(t, w) + self.face_rate[t] * (p - point).dot(&n);
+            f(t, point, n, velocity);
+        });
+    }
+
     /// Closest point of the surface now to `p`.
     pub fn closest(&self, p: &V) -> Closest {
         let (t, _) = self

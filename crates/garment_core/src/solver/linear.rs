@@ -76,6 +76,10 @@ pub enum Filter {
     Free,
     /// In contact: motion along `normal` is prescribed.
     Normal(Vector3<f64>),
+    /// In a crease, in contact with two surfaces: motion is free only along
+    /// the unit `axis` (the crease's line, the two normals' cross product);
+    /// both normals' directions are prescribed. `S = a aᵀ`.
+    Crease(Vector3<f64>),
     /// Fully prescribed (pinned).
     Fixed,
 }
@@ -87,6 +91,7 @@ impl Filter {
         match self {
             Filter::Free => *v,
             Filter::Normal(n) => v - n * n.dot(v),
+            Filter::Crease(a) => a * a.dot(v),
             Filter::Fixed => Vector3::zeros(),
         }
     }
@@ -96,6 +101,7 @@ impl Filter {
         match self {
             Filter::Free => *m,
             Filter::Normal(n) => m - n * (n.transpose() * m),
+            Filter::Crease(a) => a * (a.transpose() * m),
             Filter::Fixed => Matrix3::zeros(),
         }
     }
@@ -105,6 +111,7 @@ impl Filter {
         match self {
             Filter::Free => *m,
             Filter::Normal(n) => m - (m * n) * n.transpose(),
+            Filter::Crease(a) => (m * a) * a.transpose(),
             Filter::Fixed => Matrix3::zeros(),
         }
     }
@@ -114,6 +121,7 @@ impl Filter {
         match self {
             Filter::Free => Matrix3::identity(),
             Filter::Normal(n) => Matrix3::identity() - n * n.transpose(),
+            Filter::Crease(a) => a * a.transpose(),
             Filter::Fixed => Matrix3::zeros(),
         }
     }
@@ -1205,6 +1213,10 @@ impl<'a> RowPrecond<'a> for SgsRows<'a> {
             Filter::Normal(nrm) => {
                 let m = f.right(&f.left(d));
                 (m + m.transpose()) * 0.5 + nrm * nrm.transpose() * tau
+            }
+            Filter::Crease(_) => {
+                let m = f.right(&f.left(d));
+                (m + m.transpose()) * 0.5 + (Matrix3::identity() - f.matrix()) * tau
             }
         };
         self.dblk[k] = fd;

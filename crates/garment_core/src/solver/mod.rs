@@ -96,6 +96,13 @@ pub struct Params {
     /// of eq. 4.59).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub cell_shear: bool,
+    /// A vertex in a crease (two surfaces within its contact distance that
+    /// fold towards each other) is held by both in the same step, free only
+    /// along the crease ([`Filter::Crease`], `vertices::hold_in_crease`).
+    /// Off: by the nearest surface alone, pushed out of the other after the
+    /// step.
+    #[serde(skip_serializing_if = "Clone::clone")]
+    pub creases: bool,
 }
 
 /// The gap the cloth keeps from a triangle-mesh obstacle's vertices and
@@ -136,6 +143,7 @@ impl Default for Params {
             hysteresis: true,
             threads: 0,
             friction_bound_now: false,
+            creases: true,
             self_collision: false,
             obstacle_edges: false,
             cell_shear: false,
@@ -494,6 +502,9 @@ struct Workspace {
     contact_of: Vec<Option<(f64, Vector3<f64>)>>,
     /// Normal of each vertex's contact this step (also when it sticks).
     normals: Vec<Vector3<f64>>,
+    /// The second surface's normal of a vertex held in a crease this step
+    /// (zero for one held by one surface or none).
+    normals2: Vec<Vector3<f64>>,
     /// Broad-phase boxes of the obstacles for this step.
     bounds: Vec<vertices::Bounds>,
     pcg: linear::Pcg,
@@ -544,6 +555,7 @@ impl Workspace {
             b: z.clone(),
             y: z.clone(),
             normals: z.clone(),
+            normals2: z.clone(),
             z,
             filter: vec![Filter::Free; n],
             contact_of: vec![None; n],
@@ -903,7 +915,7 @@ impl Simulation {
             // its tangential motion against the force driving it: last step's
             // force (the constraint phase's bound), or with
             // `Params::friction_bound_now` this step's
-            if let (true, Filter::Normal(nrm), Some((mu, vo))) = (
+            if let (true, f @ (Filter::Normal(_) | Filter::Crease(_)), Some((mu, vo))) = (
                 self.params.friction_bound_now,
                 self.ws.filter[i],
                 self.ws.contact_of[i],
@@ -912,7 +924,7 @@ impl Simulation {
                     let rel = self.cloth.v[i] - vo;
                     self.friction_force[i] = vertices::kinetic_friction(
                         self.cloth.mass[i],
-                        rel - nrm * rel.dot(&nrm),
+                        f.apply(&rel),
                         self.force[i],
                         mu * self.friction[i].impulse,
                         h,
@@ -1257,6 +1269,7 @@ impl Simulation {
             mass: &self.cloth.mass,
             force: &self.force,
             gravity: self.params.gravity,
+            creases: self.params.creases,
             edge: if self.params.obstacle_edges {
                 self.ws.self_contact.as_deref()
             } else {
@@ -1272,6 +1285,7 @@ impl Simulation {
                 contact_of: &mut self.ws.contact_of,
                 friction_force: &mut self.friction_force,
                 normals: &mut self.ws.normals,
+                normals2: &mut self.ws.normals2,
                 friction: &mut self.friction,
             },
             contacts: 0,
@@ -1307,6 +1321,7 @@ impl Simulation {
             filter: &self.ws.filter,
             contact_of: &self.ws.contact_of,
             normals: &self.ws.normals,
+            normals2: &self.ws.normals2,
             pinned: &self.pinned,
             obstacles: self.obstacles.as_slice(),
             bounds: &self.ws.bounds,

@@ -60,16 +60,19 @@ pub(super) fn spd_grid_sized(nx: usize, ny: usize, seed: u64) -> (BlockMatrix, V
     (a, mass)
 }
 
-/// Every fifth vertex in contact along one normal, every fifth pinned, the
-/// rest free; a right-hand side, and prescribed parts z only in the
-/// constrained directions.
+/// Every tenth vertex in contact along one normal, every tenth in a crease
+/// (free along one axis only), every fifth pinned, the rest free; a
+/// right-hand side, and prescribed parts z only in the constrained
+/// directions.
 #[allow(clippy::type_complexity)]
 pub(super) fn mixed_constraints(n: usize) -> (Vec<Filter>, Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
     let nrm = Vector3::new(0.3, -0.2, 0.9).normalize();
+    let axis = Vector3::new(-0.5, 0.8, 0.1).normalize();
     let filter: Vec<Filter> = (0..n)
-        .map(|i| match i % 5 {
+        .map(|i| match i % 10 {
             1 => Filter::Normal(nrm),
-            3 => Filter::Fixed,
+            6 => Filter::Crease(axis),
+            3 | 8 => Filter::Fixed,
             _ => Filter::Free,
         })
         .collect();
@@ -79,6 +82,7 @@ pub(super) fn mixed_constraints(n: usize) -> (Vec<Filter>, Vec<Vector3<f64>>, Ve
     let z: Vec<Vector3<f64>> = (0..n)
         .map(|i| match filter[i] {
             Filter::Normal(m) => m * 0.05,
+            Filter::Crease(a) => Vector3::new(0.02, 0.01, -0.04).cross(&a),
             Filter::Fixed => Vector3::new(0.01, -0.02, 0.03),
             Filter::Free => Vector3::zeros(),
         })

@@ -8,9 +8,9 @@
 use super::linear::Filter;
 use super::sparse::BlockMatrix;
 use super::{FrictionState, Pin, FRICTION_FLOOR, STICK_SPEED};
-use crate::collision::{Obstacle, Proximity};
+use crate::collision::{crease_between, Obstacle, Proximity, CREASE_COS};
 use crate::deforming::HIT_TOLERANCE;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Axis-aligned box (min, max corners).
 pub(super) type Bounds = ([f64; 3], [f64; 3]);
@@ -42,6 +42,8 @@ pub(super) struct Scene<'a> {
     pub force: &'a [Vector3<f64>],
     /// Gravity, m/s².
     pub gravity: Vector3<f64>,
+    /// Hold a vertex in a crease by both surfaces ([`super::Params::creases`]).
+    pub creases: bool,
     /// The cloth–cloth pass whose last step's contacts with the obstacles'
     /// vertices and edges hold vertices (`Params::obstacle_edges`; see
     /// [`crate::self_contact::SelfContact::obstacle_contact`]).
@@ -57,6 +59,8 @@ pub(super) struct ConstraintRows<'a> {
     pub contact_of: &'a mut [Option<(f64, Vector3<f64>)>],
     pub friction_force: &'a mut [Vector3<f64>],
     pub normals: &'a mut [Vector3<f64>],
+    /// The second surface's normal of a vertex held in a crease (else zero).
+    pub normals2: &'a mut [Vector3<f64>],
     pub friction: &'a mut [FrictionState],
     /// Vertices in contact.
     pub contacts: usize,
@@ -69,12 +73,14 @@ pub(super) struct ConstraintRows<'a> {
 pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
     let h = s.h;
     let g = s.gravity.norm();
+    let mut near = Near::default();
     for k in 0..o.filter.len() {
         let i = o.first + k;
         o.filter[k] = Filter::Free;
         o.z[k] = Vector3::zeros();
         o.y[k] = Vector3::zeros();
         o.contact_of[k] = None;
+        o.normals2[k] = Vector3::zeros();
         // last step's force without its friction: what drives the sliding
         let driving = s.force[i] - o.friction_force[k];
         o.friction_force[k] = Vector3::zeros();
@@ -132,8 +138,17 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
                 .and_then(|sc| sc.obstacle_contact(i))
                 .map(|(n, vo, mu)| (n, vo, mu, 0.0, f64::INFINITY)),
         };
+        // a crease: the nearest surface and another one (a second
+        // obstacle's, or another fold of the same mesh) both touching
+        let crease = best.as_ref().and_then(|(ob_i, pr, e)| {
+            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
+            crease_of(s, i, free, held, *ob_i, pr, *e, &mut near)
+        });
         let mut touching = false;
-        if let Some((n, velocity, mu, gap, e)) = contact {
+        if let Some(c) = crease {
+            touching = true;
+            hold_in_crease(s, i, k, &c, driving, o);
+        } else if let Some((n, velocity, mu, gap, e)) = contact {
             let rel = s.v[i] - velocity;
             let vrel = rel.dot(&n);
             // pressed against it by last step's force (resting contact); one
@@ -190,6 +205,270 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
     }
 }
 
+/// One surface a vertex touches: its outward normal, the velocity it
+/// carries the vertex with, its friction coefficient, the gap to the
+/// contact distance (m, negative inside it) and that distance `e`, m.
+#[derive(Debug, Clone, Copy)]
+struct Surface {
+    n: Vector3<f64>,
+    velocity: Vector3<f64>,
+    mu: f64,
+    gap: f64,
+    e: f64,
+}
+
+impl Surface {
+    /// Beyond the margin (10 % of `e`): reached within this step at the
+    /// present speed.
+    fn landing(&self) -> bool {
+        self.gap >= 0.1 * self.e
+    }
+
+    /// Whether it holds vertex `i` this step: landing, approached, pressed
+    /// by last step's force (`held`: in contact last step, then unless
+    /// pulled off by more than the friction floor) or inside the contact
+    /// distance — the single contact's test in [`constrain`].
+    fn touches(&self, s: &Scene, i: usize, held: bool) -> bool {
+        let vrel = (s.v[i] - self.velocity).dot(&self.n);
+        self.landing() || vrel < 0.0 || self.pressed(s, i, held) || self.gap < 0.0
+    }
+
+    /// Pressed against it by last step's force (see [`Surface::touches`]).
+    fn pressed(&self, s: &Scene, i: usize, held: bool) -> bool {
+        let floor = floor_force(s.mass[i], s.gravity.norm());
+        s.force[i].dot(&self.n) < if held { floor } else { 0.0 }
+    }
+}
+
+/// A vertex in a crease: the two surfaces that hold it (the nearest first),
+/// and a third one that blocks the crease's axis, if any.
+#[derive(Debug, Clone, Copy)]
+struct Crease {
+    first: Surface,
+    second: Surface,
+    third: Option<Surface>,
+}
+
+/// Scratch of [`crease_of`], kept across a chunk's vertices.
+#[derive(Default)]
+struct Near {
+    prox: Vec<Proximity>,
+    found: Vec<(Proximity, Surface)>,
+}
+
+/// The crease vertex `i` is in, if any: besides its nearest surface `pr` (of
+/// obstacle `ob_i`, contact distance `e`), the nearest other surface within
+/// its contact zone that makes a crease with it ([`crease_between`]: the
+/// other obstacles' nearest points, and the nearest obstacle's own other
+/// folds, [`Obstacle::crease_surfaces`]), both touching it
+/// ([`Surface::touches`]); and a third that makes a crease with both and
+/// whose normal is more than 30° off the plane of theirs.
+#[allow(clippy::too_many_arguments)]
+fn crease_of(
+    s: &Scene,
+    i: usize,
+    free: Vector3<f64>,
+    held: bool,
+    ob_i: usize,
+    pr: &Proximity,
+    e: f64,
+    near: &mut Near,
+) -> Option<Crease> {
+    let h = s.h;
+    let ob = &s.obstacles[ob_i];
+    let surface = |pr: &Proximity, e: f64, mu: f64| Surface {
+        n: pr.normal,
+        velocity: pr.velocity,
+        mu,
+        gap: pr.distance - e,
+        e,
+    };
+    let first = surface(pr, e, ob.friction);
+    if !s.creases || !first.touches(s, i, held) {
+        return None;
+    }
+    // within the contact zone as the nearest surface is found
+    let in_zone = |pr: &Proximity, e: f64| {
+        let approach = -(free - pr.velocity).dot(&pr.normal) * h;
+        pr.distance - e < approach.max(0.1 * e)
+    };
+    let eps = 1e-3 * e;
+    near.found.clear();
+    for (ob_j, other) in s.obstacles.iter().enumerate() {
+        if ob_j == ob_i {
+            continue;
+        }
+        let ahead = s.x[i] + (free - other.linear_velocity) * h;
+        if !overlaps(&s.bounds[ob_j], &s.x[i], &ahead) {
+            continue;
+        }
+        let ej = other.thickness + s.cloth_thickness;
+        let q = other.proximity(&s.x[i]);
+        if in_zone(&q, ej) && crease_between(pr, &q, eps) {
+            near.found.push((q, surface(&q, ej, other.friction)));
+        }
+    }
+    // the nearest obstacle's other folds within reach: its contact zone at
+    // the present speed, at most twice the contact distance
+    let reach = e + ((free - pr.velocity).norm() * h).max(0.1 * e).min(e);
+    near.prox.clear();
+    ob.crease_surfaces(&s.x[i], pr, reach, eps, &mut near.prox);
+    for q in &near.prox {
+        if in_zone(q, e) {
+            near.found.push((*q, surface(q, e, ob.friction)));
+        }
+    }
+    near.found.sort_by(|a, b| a.1.gap.total_cmp(&b.1.gap));
+    let (k2, (pr2, second)) = near
+        .found
+        .iter()
+        .enumerate()
+        .find(|(_, (_, f))| f.touches(s, i, held))?;
+    let axis = first.n.cross(&second.n).try_normalize(1e-9);
+    // a corner holds the vertex only while last step's force presses it
+    // into all three (within the contact distance alone, a vertex the
+    // cloth pulls out of the corner would be held there whatever the pull)
+    let pressed = |f: &Surface| f.pressed(s, i, held);
+    let third = axis
+        .filter(|_| pressed(&first) && pressed(second))
+        .and_then(|a| {
+            near.found[k2 + 1..]
+                .iter()
+                .find(|(q, f)| f.n.dot(&a).abs() > 0.5 && crease_between(pr2, q, eps) && pressed(f))
+                .map(|(_, f)| *f)
+        });
+    Some(Crease {
+        first,
+        second: *second,
+        third,
+    })
+}
+
+/// `x` with `x · n1 = t1` and `x · n2 = t2` in the plane of the unit
+/// vectors `n1` and `n2` (`c = n1 · n2`, |c| < 1).
+fn in_plane(n1: &Vector3<f64>, n2: &Vector3<f64>, c: f64, t1: f64, t2: f64) -> Vector3<f64> {
+    let d = 1.0 - c * c;
+    n1 * ((t1 - c * t2) / d) + n2 * ((t2 - c * t1) / d)
+}
+
+/// The constraint of vertex `i` (row `k`) held in crease `c`: free only
+/// along the crease's axis `a = n1 × n2` (`S = a aᵀ`), the velocity along
+/// each surface's normal prescribed as a single contact's is (inelastic, a
+/// landing vertex ending the step on it; stopped along the normal of a
+/// surface that presses it), both gaps closed by the position correction,
+/// and Coulomb friction along the axis from the sum of the normal impulses
+/// with the smaller coefficient of the two (static: the vertex moves with
+/// the surfaces; kinetic: a force against the sliding). Normals less than
+/// 30° from opposite ([`CREASE_COS`]: a slot the vertex is squeezed in)
+/// constrain one direction, their difference `n̄ = (n1 − n2)/|n1 − n2|`
+/// (`Normal(n̄)`, the two constraints nearly one), the vertex free to slide
+/// through the slot with the friction of both; a third surface across the
+/// axis leaves no free direction: the vertex moves with the surfaces
+/// (`Fixed`).
+fn hold_in_crease(
+    s: &Scene,
+    i: usize,
+    k: usize,
+    c: &Crease,
+    driving: Vector3<f64>,
+    o: &mut ConstraintRows,
+) {
+    let h = s.h;
+    let (s1, s2) = (&c.first, &c.second);
+    let (n1, n2) = (s1.n, s2.n);
+    let cos = n1.dot(&n2);
+    let mu = s1.mu.min(s2.mu);
+    let floor = floor_force(s.mass[i], s.gravity.norm());
+    let v = s.v[i];
+    let gap_fix = |sf: &Surface| (-sf.gap).max(0.0);
+    o.contacts += 1;
+    o.normals[k] = n1;
+    o.normals2[k] = n2;
+    let axis = n1.cross(&n2).try_normalize(1e-9);
+    let (filter, vo, z) = match (axis, c.third) {
+        (Some(a), None) if cos > -CREASE_COS => {
+            // the velocity the crease carries the vertex with: each
+            // surface's along its normal, the nearest one's along the axis
+            let vo = in_plane(&n1, &n2, cos, s1.velocity.dot(&n1), s2.velocity.dot(&n2))
+                + a * a.dot(&s1.velocity);
+            o.y[k] = in_plane(&n1, &n2, cos, gap_fix(s1), gap_fix(s2));
+            // a surface the vertex is pressed against stops it along its
+            // normal, also when it was leaving (the other surface's
+            // constraint would otherwise keep that velocity, pushing it off
+            // at a constant speed against the force that presses it)
+            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
+            let target = |sf: &Surface| {
+                let vrel = (v - sf.velocity).dot(&sf.n);
+                if sf.landing() {
+                    -sf.gap / h - vrel
+                } else if sf.pressed(s, i, held) {
+                    -vrel
+                } else {
+                    (-vrel).max(0.0)
+                }
+            };
+            let z = in_plane(&n1, &n2, cos, target(s1), target(s2));
+            (Filter::Crease(a), vo, z)
+        }
+        (_, None) => {
+            // a slot: its walls' mean velocity, the squeeze stopped, the
+            // gaps closed as far as they can be (least squares, damped:
+            // nearly opposite normals)
+            let nb = (n1 - n2).normalize();
+            let vo = (s1.velocity + s2.velocity) * 0.5;
+            let mut m = Matrix3::identity() * 0.05;
+            let mut rhs = Vector3::zeros();
+            for sf in [s1, s2] {
+                m += sf.n * sf.n.transpose();
+                rhs += sf.n * gap_fix(sf);
+            }
+            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            (Filter::Normal(nb), vo, nb * nb.dot(&(vo - v)))
+        }
+        (_, Some(t)) => {
+            // a corner: moves with the surfaces (their mean velocity), the
+            // gaps closed as above
+            let vo = (s1.velocity + s2.velocity + t.velocity) / 3.0;
+            let mut m = Matrix3::identity() * 0.05;
+            let mut rhs = Vector3::zeros();
+            for sf in [s1, s2, &t] {
+                m += sf.n * sf.n.transpose();
+                rhs += sf.n * gap_fix(sf);
+            }
+            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            o.filter[k] = Filter::Fixed;
+            o.z[k] = vo - v;
+            o.contact_of[k] = Some((mu, vo));
+            return;
+        }
+    };
+    o.contact_of[k] = Some((mu, vo));
+    let landing = s1.landing() || s2.landing();
+    let holds = in_cone(
+        filter.apply(&driving).norm() * h,
+        o.friction[k].impulse,
+        mu,
+        floor * h,
+    );
+    if o.friction[k].stick && mu > 0.0 && !landing && holds {
+        o.filter[k] = Filter::Fixed;
+        o.z[k] = vo - v;
+        o.stuck += 1;
+    } else {
+        o.filter[k] = filter;
+        o.z[k] = z;
+        if mu > 0.0 {
+            o.friction_force[k] = kinetic_friction(
+                s.mass[i],
+                filter.apply(&(v - vo)),
+                driving,
+                mu * o.friction[k].impulse,
+                h,
+            );
+        }
+    }
+}
+
 /// [`FRICTION_FLOOR`] times the weight of a vertex of mass `m` under
 /// gravity of norm `g`, N: the force below which a contact's forces are
 /// taken as the solve's error.
@@ -242,6 +521,8 @@ pub(super) struct Solved<'a> {
     pub filter: &'a [Filter],
     pub contact_of: &'a [Option<(f64, Vector3<f64>)>],
     pub normals: &'a [Vector3<f64>],
+    /// See [`ConstraintRows::normals2`].
+    pub normals2: &'a [Vector3<f64>],
     pub pinned: &'a [Option<usize>],
     /// The obstacles where they are at the end of the step.
     pub obstacles: &'a [Obstacle],
@@ -255,6 +536,49 @@ pub(super) struct StateRows<'a> {
     pub x: &'a mut [Vector3<f64>],
     pub v: &'a mut [Vector3<f64>],
     pub friction: &'a mut [FrictionState],
+}
+
+/// The friction state after the step of vertex `i` held in a crease, from
+/// its constraint impulse `r`: the normal impulse is the sum of the two
+/// surfaces' (`r` resolved along their normals, the pressing parts; in a
+/// slot, `r` along the squeeze); a sliding vertex sticks once slower than
+/// [`STICK_SPEED`] in its free directions (or its sliding reversed on a
+/// moving surface: `before` and `after`, its velocity relative to the
+/// crease's at the step's start and end), a held one while the impulse off
+/// the normals stays in the cone.
+fn crease_friction(
+    s: &Solved,
+    i: usize,
+    r: Vector3<f64>,
+    mu: f64,
+    before: Vector3<f64>,
+    after: Vector3<f64>,
+) -> FrictionState {
+    let (n1, n2) = (s.normals[i], s.normals2[i]);
+    let c = n1.dot(&n2);
+    let (impulse, normal) = if c > -CREASE_COS {
+        let d = 1.0 - c * c;
+        let (r1, r2) = (r.dot(&n1), r.dot(&n2));
+        let (l1, l2) = ((r1 - c * r2) / d, (r2 - c * r1) / d);
+        (l1.max(0.0) + l2.max(0.0), n1 * l1 + n2 * l2)
+    } else {
+        let nb = (n1 - n2).normalize();
+        (r.dot(&nb).abs(), nb * r.dot(&nb))
+    };
+    let stick = match s.filter[i] {
+        Filter::Fixed => in_cone(
+            (r - normal).norm(),
+            impulse,
+            mu,
+            floor_force(s.mass[i], s.gravity) * s.h,
+        ),
+        f => {
+            let (ra, ba) = (f.apply(&after), f.apply(&before));
+            let moving = s.contact_of[i].is_some_and(|(_, vo)| vo != Vector3::zeros());
+            ra.norm() < STICK_SPEED || (moving && ra.dot(&ba) < 0.0)
+        }
+    };
+    FrictionState { impulse, stick }
 }
 
 /// Velocities and positions; Coulomb stick/slip from the constraint impulse
@@ -271,34 +595,38 @@ pub(super) fn finish(s: &Solved, o: &mut StateRows) {
             for q in s.a.row_ptr[i]..s.a.row_ptr[i + 1] {
                 r += s.a.val[q] * s.dv[s.a.col[q] as usize];
             }
-            let nrm = match s.filter[i] {
-                Filter::Normal(nrm) => nrm,
-                _ => s.normals[i],
-            };
-            let rn = r.dot(&nrm);
-            let st = &mut o.friction[k];
-            st.impulse = rn.max(0.0);
-            st.stick = if s.filter[i] == Filter::Fixed {
-                // static friction holds while the tangential impulse stays in
-                // the cone, widened by the friction floor (the impulses of a
-                // contact that carries next to nothing are the solve's error)
-                in_cone(
-                    (r - nrm * rn).norm(),
-                    rn,
-                    mu,
-                    floor_force(s.mass[i], s.gravity) * h,
-                )
+            if s.normals2[i] != Vector3::zeros() {
+                o.friction[k] = crease_friction(s, i, r, mu, o.v[k] - vo, v - vo);
             } else {
-                // slow; or, on a moving surface, its sliding reversed over
-                // the step (it passed through rest relative to the surface,
-                // whose own velocity changes from step to step by more than
-                // the stick speed)
-                let rel = v - vo;
-                let rt = rel - nrm * rel.dot(&nrm);
-                let before = o.v[k] - vo;
-                let bt = before - nrm * before.dot(&nrm);
-                rt.norm() < STICK_SPEED || (vo != Vector3::zeros() && rt.dot(&bt) < 0.0)
-            };
+                let nrm = match s.filter[i] {
+                    Filter::Normal(nrm) => nrm,
+                    _ => s.normals[i],
+                };
+                let rn = r.dot(&nrm);
+                let st = &mut o.friction[k];
+                st.impulse = rn.max(0.0);
+                st.stick = if s.filter[i] == Filter::Fixed {
+                    // static friction holds while the tangential impulse stays in
+                    // the cone, widened by the friction floor (the impulses of a
+                    // contact that carries next to nothing are the solve's error)
+                    in_cone(
+                        (r - nrm * rn).norm(),
+                        rn,
+                        mu,
+                        floor_force(s.mass[i], s.gravity) * h,
+                    )
+                } else {
+                    // slow; or, on a moving surface, its sliding reversed over
+                    // the step (it passed through rest relative to the surface,
+                    // whose own velocity changes from step to step by more than
+                    // the stick speed)
+                    let rel = v - vo;
+                    let rt = rel - nrm * rel.dot(&nrm);
+                    let before = o.v[k] - vo;
+                    let bt = before - nrm * before.dot(&nrm);
+                    rt.norm() < STICK_SPEED || (vo != Vector3::zeros() && rt.dot(&bt) < 0.0)
+                };
+            }
         }
         o.v[k] = v;
         let x0 = o.x[k];
@@ -395,4 +723,44 @@ pub(super) fn chunks<'a, T>(mut s: &'a mut [T], bounds: &[usize]) -> Vec<&'a mut
         s = tail;
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A crease's filter is the projection on its axis: `S = a aᵀ`, its
+    /// one-sided products `S m` and `m S`, `S² = S`, and it removes both
+    /// normals of the surfaces whose cross product the axis is.
+    #[test]
+    fn a_crease_filter_projects_on_its_axis() {
+        let n1 = Vector3::new(0.0, 0.6, 0.8);
+        let n2 = Vector3::new(0.3, -0.5, 0.7).normalize();
+        let a = n1.cross(&n2).normalize();
+        let f = Filter::Crease(a);
+        let s = f.matrix();
+        assert!((s - a * a.transpose()).amax() < 1e-15);
+        assert!((s * s - s).amax() < 1e-15);
+        let m = Matrix3::new(1.0, 2.0, -3.0, 0.5, -1.5, 4.0, 2.5, 0.25, -0.75);
+        assert!((f.left(&m) - s * m).amax() < 1e-14);
+        assert!((f.right(&m) - m * s).amax() < 1e-14);
+        for n in [n1, n2] {
+            assert!(f.apply(&n).norm() < 1e-15);
+        }
+        let v = Vector3::new(0.7, -0.2, 0.4);
+        assert!((f.apply(&v) - a * a.dot(&v)).norm() < 1e-15);
+    }
+
+    /// The prescribed part in the normals' plane meets both targets and has
+    /// nothing along the crease's axis.
+    #[test]
+    fn the_prescribed_part_meets_both_normals_targets() {
+        let n1 = Vector3::new(0.0, 0.6, 0.8);
+        let n2 = Vector3::new(0.3, -0.5, 0.7).normalize();
+        let c = n1.dot(&n2);
+        let x = in_plane(&n1, &n2, c, 0.25, -0.1);
+        assert!((x.dot(&n1) - 0.25).abs() < 1e-15);
+        assert!((x.dot(&n2) + 0.1).abs() < 1e-15);
+        assert!(x.dot(&n1.cross(&n2)).abs() < 1e-15);
+    }
 }
