@@ -40,12 +40,7 @@ fn fabric() -> Fabric {
         cloth_friction: None,
         warp: dir(),
         weft: dir(),
-        damping: Damping {
-            alpha: 0.0,
-            beta_bend: 0.0,
-            beta_shear: 0.0,
-            beta_tension: 0.0,
-        },
+        damping: Damping::NONE,
     };
     Fabric::from_file(file, &|name| {
         Err(std::io::Error::other(format!("no curve {name}")))

@@ -120,6 +120,16 @@ pub struct Damping {
     pub beta_tension: f64,
 }
 
+impl Damping {
+    /// No damping at all.
+    pub const NONE: Damping = Damping {
+        alpha: 0.0,
+        beta_bend: 0.0,
+        beta_shear: 0.0,
+        beta_tension: 0.0,
+    };
+}
+
 /// A fabric file as written on disk (KES units).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -254,12 +264,7 @@ impl Fabric {
     /// The same fabric with all damping set to zero.
     pub fn undamped(&self) -> Fabric {
         let mut f = self.clone();
-        f.damping = Damping {
-            alpha: 0.0,
-            beta_bend: 0.0,
-            beta_shear: 0.0,
-            beta_tension: 0.0,
-        };
+        f.damping = Damping::NONE;
         f
     }
 

@@ -1117,12 +1117,7 @@ mod tests {
             cloth_friction: None,
             warp: dir(0.65, 8.68, 62.0, 5.34, 0.60, 0.70, 1.50, 0.040, 0.030),
             weft: dir(0.62, 9.5, 60.0, 6.1, 0.58, 0.68, 1.45, 0.030, 0.025),
-            damping: Damping {
-                alpha: 0.0,
-                beta_bend: 0.0,
-                beta_shear: 0.0,
-                beta_tension: 0.0,
-            },
+            damping: Damping::NONE,
         };
         let no_curves = |name: &str| -> Result<crate::fabric::kes::KesCurve> {
             Err(Error::invalid(format!("no curve files here ({name})")))

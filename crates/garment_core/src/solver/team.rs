@@ -155,24 +155,8 @@ impl Parking {
     /// with `SeqCst` what the waker writes with `SeqCst` before
     /// [`Parking::wake`].
     fn wait(&self, ready: impl Fn() -> bool, patience: Duration, hurry: impl Fn() -> bool) {
-        if ready() {
+        if spin_for(&ready, patience, hurry) {
             return;
-        }
-        let start = Instant::now();
-        while !hurry() {
-            for _ in 0..64 {
-                if ready() {
-                    return;
-                }
-                std::hint::spin_loop();
-            }
-            let waited = start.elapsed();
-            if waited >= patience {
-                break;
-            }
-            if waited >= SPIN_ALONE {
-                std::thread::yield_now();
-            }
         }
         let mut g = self.lock.lock().unwrap_or_else(|e| e.into_inner());
         // counted before the last look: a waker that made `ready` true after
@@ -620,10 +604,14 @@ impl Staging {
 }
 
 /// Spins (then yields between looks past [`SPIN_ALONE`]) until `ready()`;
-/// false if `patience` ran out or `hurry()` first.
+/// false if `patience` ran out or `hurry()` (looked at before and between
+/// spins) first.
 fn spin_for(ready: impl Fn() -> bool, patience: Duration, hurry: impl Fn() -> bool) -> bool {
+    if ready() {
+        return true;
+    }
     let start = Instant::now();
-    loop {
+    while !hurry() {
         for _ in 0..64 {
             if ready() {
                 return true;
@@ -631,13 +619,14 @@ fn spin_for(ready: impl Fn() -> bool, patience: Duration, hurry: impl Fn() -> bo
             std::hint::spin_loop();
         }
         let waited = start.elapsed();
-        if hurry() || waited >= patience {
-            return ready();
+        if waited >= patience {
+            break;
         }
         if waited >= SPIN_ALONE {
             std::thread::yield_now();
         }
     }
+    ready()
 }
 
 impl Team {

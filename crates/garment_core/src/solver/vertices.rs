@@ -140,26 +140,29 @@ pub(super) fn constrain(s: &Scene, o: &mut ConstraintRows) {
         };
         // a crease: the nearest surface and another one (a second
         // obstacle's, or another fold of the same mesh) both touching
-        let crease = best.as_ref().and_then(|(ob_i, pr, e)| {
-            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
-            crease_of(s, i, free, held, *ob_i, pr, *e, &mut near)
-        });
+        let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
+        let crease = best
+            .as_ref()
+            .and_then(|(ob_i, pr, e)| crease_of(s, i, free, held, *ob_i, pr, *e, &mut near));
         let mut touching = false;
         if let Some(c) = crease {
             touching = true;
-            hold_in_crease(s, i, k, &c, driving, o);
+            hold_in_crease(s, i, k, &c, held, driving, o);
         } else if let Some((n, velocity, mu, gap, e)) = contact {
             let rel = s.v[i] - velocity;
             let vrel = rel.dot(&n);
-            // pressed against it by last step's force (resting contact); one
-            // in contact last step stays so unless pulled off by more than
-            // the friction floor, a force the solve does not resolve
             let floor = floor_force(s.mass[i], g);
-            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
-            let pressed = s.force[i].dot(&n) < if held { floor } else { 0.0 };
-            // beyond the margin: reached within this step at the present speed
-            let landing = gap >= 0.1 * e;
-            if landing || vrel < 0.0 || pressed || gap < 0.0 {
+            let surface = Surface {
+                n,
+                velocity,
+                mu,
+                gap,
+                e,
+            };
+            // landing, approaching, pressed against it by last step's force
+            // (resting contact) or inside the contact distance
+            if surface.touches(s, i, held) {
+                let landing = surface.landing();
                 touching = true;
                 o.y[k] = n * (-gap).max(0.0);
                 // a slow vertex sticks if static friction can hold it against the
@@ -233,7 +236,9 @@ impl Surface {
         self.landing() || vrel < 0.0 || self.pressed(s, i, held) || self.gap < 0.0
     }
 
-    /// Pressed against it by last step's force (see [`Surface::touches`]).
+    /// Pressed against it by last step's force (resting contact): one in
+    /// contact last step (`held`) stays so unless pulled off by more than
+    /// the friction floor, a force the solve does not resolve.
     fn pressed(&self, s: &Scene, i: usize, held: bool) -> bool {
         let floor = floor_force(s.mass[i], s.gravity.norm());
         s.force[i].dot(&self.n) < if held { floor } else { 0.0 }
@@ -344,6 +349,19 @@ fn crease_of(
     })
 }
 
+/// The position correction that closes the gaps of `surfaces` as far as
+/// they can be: least squares, damped (their normals may be nearly
+/// opposite or dependent).
+fn close_gaps(surfaces: &[&Surface]) -> Vector3<f64> {
+    let mut m = Matrix3::identity() * 0.05;
+    let mut rhs = Vector3::zeros();
+    for sf in surfaces {
+        m += sf.n * sf.n.transpose();
+        rhs += sf.n * (-sf.gap).max(0.0);
+    }
+    m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs)
+}
+
 /// `x` with `x · n1 = t1` and `x · n2 = t2` in the plane of the unit
 /// vectors `n1` and `n2` (`c = n1 · n2`, |c| < 1).
 fn in_plane(n1: &Vector3<f64>, n2: &Vector3<f64>, c: f64, t1: f64, t2: f64) -> Vector3<f64> {
@@ -365,11 +383,13 @@ fn in_plane(n1: &Vector3<f64>, n2: &Vector3<f64>, c: f64, t1: f64, t2: f64) -> V
 /// through the slot with the friction of both; a third surface across the
 /// axis leaves no free direction: the vertex moves with the surfaces
 /// (`Fixed`).
+#[allow(clippy::too_many_arguments)]
 fn hold_in_crease(
     s: &Scene,
     i: usize,
     k: usize,
     c: &Crease,
+    held: bool,
     driving: Vector3<f64>,
     o: &mut ConstraintRows,
 ) {
@@ -396,7 +416,6 @@ fn hold_in_crease(
             // normal, also when it was leaving (the other surface's
             // constraint would otherwise keep that velocity, pushing it off
             // at a constant speed against the force that presses it)
-            let held = o.friction[k].impulse > 0.0 || o.friction[k].stick;
             let target = |sf: &Surface| {
                 let vrel = (v - sf.velocity).dot(&sf.n);
                 if sf.landing() {
@@ -412,30 +431,17 @@ fn hold_in_crease(
         }
         (_, None) => {
             // a slot: its walls' mean velocity, the squeeze stopped, the
-            // gaps closed as far as they can be (least squares, damped:
-            // nearly opposite normals)
+            // gaps closed as far as they can be
             let nb = (n1 - n2).normalize();
             let vo = (s1.velocity + s2.velocity) * 0.5;
-            let mut m = Matrix3::identity() * 0.05;
-            let mut rhs = Vector3::zeros();
-            for sf in [s1, s2] {
-                m += sf.n * sf.n.transpose();
-                rhs += sf.n * gap_fix(sf);
-            }
-            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            o.y[k] = close_gaps(&[s1, s2]);
             (Filter::Normal(nb), vo, nb * nb.dot(&(vo - v)))
         }
         (_, Some(t)) => {
             // a corner: moves with the surfaces (their mean velocity), the
-            // gaps closed as above
+            // gaps closed as far as they can be
             let vo = (s1.velocity + s2.velocity + t.velocity) / 3.0;
-            let mut m = Matrix3::identity() * 0.05;
-            let mut rhs = Vector3::zeros();
-            for sf in [s1, s2, &t] {
-                m += sf.n * sf.n.transpose();
-                rhs += sf.n * gap_fix(sf);
-            }
-            o.y[k] = m.try_inverse().map_or(Vector3::zeros(), |mi| mi * rhs);
+            o.y[k] = close_gaps(&[s1, s2, &t]);
             o.filter[k] = Filter::Fixed;
             o.z[k] = vo - v;
             o.contact_of[k] = Some((mu, vo));
