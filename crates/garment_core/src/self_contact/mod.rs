@@ -99,6 +99,12 @@ pub const COLLISION_SEPARATION: f64 = 0.1;
 /// Distance at a coplanarity time below which a pair counts as colliding,
 /// as a fraction of the thickness.
 pub const HIT_DISTANCE: f64 = 1e-3;
+/// Distance, as a fraction of the thickness, within which a cloth vertex
+/// lying on another part of the cloth's border at the start counts as
+/// joined to it: at most that far apart, the pair would count as
+/// colliding at every time of every step (twice [`HIT_DISTANCE`], so
+/// round-off in the placement cannot leave such a pair just outside).
+pub const JOINED_DISTANCE: f64 = 2.0 * HIT_DISTANCE;
 /// Longest run of plain searches before a candidate list is tried again.
 const MAX_PLAIN_GAP: u32 = 16;
 
@@ -254,6 +260,95 @@ pub struct SelfContact {
     active: Vec<Active>,
 }
 
+/// Vertex pairs to join where two border edges of the mesh (edges of one
+/// triangle) that share no vertex lie within `tol` of each other at
+/// positions `x`: an end of one on the other
+/// is joined to the other's ends it lies on, or to both when it lies
+/// between them; two edges crossing between their ends (where coplanar
+/// panels meet) join all four ends. A spatial hash with cells one longest
+/// edge wide holds each edge in the cells its box meets; each edge looks
+/// in those its box grown by `tol` meets.
+fn touching_at_start(x: &[V], tris: &[[usize; 3]], tol: f64) -> Vec<[usize; 2]> {
+    let mut all: Vec<[usize; 2]> = tris
+        .iter()
+        .flat_map(|t| (0..3).map(move |j| [t[j].min(t[(j + 1) % 3]), t[j].max(t[(j + 1) % 3])]))
+        .filter(|e| {
+            e.iter()
+                .all(|&v| v < x.len() && x[v].iter().all(|c| c.is_finite()))
+        })
+        .collect();
+    all.sort_unstable();
+    // the border's edges: those of one triangle
+    let edges: Vec<[usize; 2]> = all
+        .chunk_by(|a, b| a == b)
+        .filter(|run| run.len() == 1)
+        .map(|run| run[0])
+        .collect();
+    let longest = edges
+        .iter()
+        .map(|&[a, b]| (x[a] - x[b]).norm())
+        .fold(0.0, f64::max);
+    if edges.is_empty() || longest <= 0.0 {
+        return Vec::new();
+    }
+    let cell = longest + 2.0 * tol;
+    let key = |p: &V| -> [i64; 3] { std::array::from_fn(|k| (p[k] / cell).floor() as i64) };
+    let cells = |e: &[usize; 2], grow: f64| {
+        let (lo, hi) = (
+            key(&(x[e[0]].inf(&x[e[1]]) - V::repeat(grow))),
+            key(&(x[e[0]].sup(&x[e[1]]) + V::repeat(grow))),
+        );
+        (lo[0]..=hi[0]).flat_map(move |i| {
+            (lo[1]..=hi[1]).flat_map(move |j| (lo[2]..=hi[2]).map(move |k| [i, j, k]))
+        })
+    };
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<u32>> = Default::default();
+    for (k, e) in edges.iter().enumerate() {
+        for c in cells(e, 0.0) {
+            grid.entry(c).or_default().push(k as u32);
+        }
+    }
+    let mut found = Vec::new();
+    let mut seen = Vec::new();
+    for (k, e) in edges.iter().enumerate() {
+        seen.clear();
+        for c in cells(e, tol) {
+            seen.extend(grid.get(&c).into_iter().flatten().copied());
+        }
+        seen.sort_unstable();
+        seen.dedup();
+        for &m in &seen {
+            let f = edges[m as usize];
+            if m as usize <= k || e.iter().any(|v| f.contains(v)) {
+                continue;
+            }
+            let (s, t) = segment_segment(&x[e[0]], &x[e[1]], &x[f[0]], &x[f[1]]);
+            if (x[e[0]].lerp(&x[e[1]], s) - x[f[0]].lerp(&x[f[1]], t)).norm() >= tol {
+                continue;
+            }
+            let before = found.len();
+            for (p, g) in e.iter().map(|&p| (p, f)).chain(f.iter().map(|&p| (p, *e))) {
+                let (_, u) = segment_segment(&x[p], &x[p], &x[g[0]], &x[g[1]]);
+                if (x[p] - x[g[0]].lerp(&x[g[1]], u)).norm() >= tol {
+                    continue;
+                }
+                let on: Vec<usize> = g
+                    .iter()
+                    .copied()
+                    .filter(|&q| (x[p] - x[q]).norm() < tol)
+                    .collect();
+                for q in if on.is_empty() { g.to_vec() } else { on } {
+                    found.push([p, q]);
+                }
+            }
+            if found.len() == before {
+                found.extend([[e[0], f[0]], [e[0], f[1]], [e[1], f[0]], [e[1], f[1]]]);
+            }
+        }
+    }
+    found
+}
+
 impl SelfContact {
     /// The pass for a cloth of `n` vertices and triangles `tris`; `stitches`
     /// are the vertex pairs seams join; per-vertex thickness (m) and
@@ -390,6 +485,15 @@ impl SelfContact {
                 adj[a].push(b as u32);
                 adj[b].push(a as u32);
             }
+        }
+        // border edges the pattern places on another panel's border (the
+        // apex of a V neck where two halves meet, coplanar panels side by
+        // side): their ends are joined there by design, like a seam's two
+        // edges
+        let tol = JOINED_DISTANCE * thickness[..nc].iter().copied().fold(0.0, f64::max);
+        for [p, q] in touching_at_start(&x[..nc], tris, tol) {
+            adj[p].push(q as u32);
+            adj[q].push(p as u32);
         }
         let mut sewn_ptr = vec![0u32];
         let mut sewn = Vec::new();
@@ -1521,6 +1625,60 @@ mod tests {
             }
         }
         (x, t)
+    }
+
+    /// Two panels laid side by side in one plane, unsewn, the second's
+    /// border on the first's (vertex on vertex, or shifted half a spacing
+    /// along it: vertex on edge, edges along each other): their border
+    /// vertices are joined, nothing else is, and as the second folds down
+    /// about the shared line every step ends with no collision left. (Not
+    /// joined, the touching pairs counted as colliding at every time of
+    /// every pass: a step ran all its impact-zone passes and gave up.)
+    #[test]
+    fn panels_laid_edge_to_edge_are_joined_there_and_fold_freely() {
+        for shift in [0.0, 0.01] {
+            let (n, s) = (5, 0.02);
+            let half = 0.5 * s * (n - 1) as f64;
+            let (mut x, mut tris) = grid(n, s, 0.0, 0.0, 0);
+            let (xb, tb) = grid(n, s, 0.0, 0.0, n * n);
+            x.iter_mut().for_each(|p| p.x -= half);
+            x.extend(xb.iter().map(|p| p + V::new(half, shift, 0.0)));
+            tris.extend(tb);
+            let m = x.len();
+            let mut sc = SelfContact::new(&x, &tris, &[], vec![0.4e-3; m], vec![0.3; m]).unwrap();
+            // A's right column (i = n-1) lies on B's left column (i = 0)
+            let a_edge = |j: usize| j * n + n - 1;
+            let b_edge = |j: usize| n * n + j * n;
+            for j in 0..n {
+                assert!(sc.related(a_edge(j), b_edge(j)), "shift {shift}: row {j}");
+                assert!(
+                    !sc.related(a_edge(j) - 1, b_edge(j)),
+                    "shift {shift}: row {j}"
+                );
+                assert!(
+                    !sc.related(a_edge(j), b_edge(j) + 1),
+                    "shift {shift}: row {j}"
+                );
+            }
+            let mass = vec![1e-3; m];
+            // A falls; B falls and turns down about the shared line
+            let mut v: Vec<V> = (0..m)
+                .map(|i| {
+                    let fold = if i >= n * n { -2.0 * x[i].x } else { 0.0 };
+                    V::new(0.0, 0.0, -0.1 + fold)
+                })
+                .collect();
+            let h = 1.0 / 200.0;
+            for step in 0..20 {
+                sc.begin(&x, step == 0).unwrap();
+                for (xi, vi) in x.iter_mut().zip(&v) {
+                    *xi += vi * h;
+                }
+                let st = sc.resolve(h, &mut x, &mut v, &mass, &|_| false, &|_| false);
+                assert_eq!(st.unresolved, 0, "shift {shift}, step {step}: {st:?}");
+                assert_eq!(st.zones, 0, "shift {shift}, step {step}: {st:?}");
+            }
+        }
     }
 
     /// A sheet falling onto a pinned one and landing on it, run with the

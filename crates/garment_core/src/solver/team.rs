@@ -886,7 +886,7 @@ mod tests {
 
         fn next(&self) -> bool {
             let stage = self.stage.load(Ordering::Relaxed);
-            if stage % 2 == 0 {
+            if stage.is_multiple_of(2) {
                 let total: f64 = (0..self.parts).map(|p| Self::get(&self.sums, p)).sum();
                 self.totals[stage / 2].store(total.to_bits(), Ordering::Relaxed);
             }
