@@ -1449,3 +1449,61 @@ fn a_pattern_shrunk_20_percent_is_named_too_small_not_settled() {
     );
     assert!(stderr.iter().any(|l| l.starts_with("outcome: not_settled")));
 }
+
+/// Sewing bounded by `sewing.max_force` (20 garment weights here): every
+/// sewing step ends with no vertex faster than `20 g dt` (what 20 of its
+/// own weights stop in one step, so a panel stopped by the body presses it
+/// with no more) and with the stitches' pull `Σ k |g|` within the bound it
+/// was scaled to at the step's start (the gaps close over a step, up to the
+/// step's own motion: 10 % allowed). Unbounded (the default) the same
+/// skirt's stitches pull with more than twice that and throw vertices
+/// faster.
+#[test]
+fn sewing_with_max_force_pulls_and_moves_within_its_bound() {
+    use garment_sim::run::{Control, Phase};
+    let mut t = Trial::load(Path::new("config/trials/skirt_on_anny.yaml")).unwrap();
+    assert_eq!(t.file.sewing.max_force, None);
+    let ov = trial::Overrides {
+        spacing: Some(0.02),
+        ..Default::default()
+    };
+    let sew = |t: &Trial| {
+        let (mut pull, mut speed, mut weight, mut dt) = (0.0f64, 0.0f64, 0.0, 0.0);
+        trial::run_trial(t, &ov, &mut |s| {
+            if s.phase != Phase::Sewing {
+                return Ok(Control::Stop);
+            }
+            let sim = s.sim;
+            weight = sim.cloth.total_mass() * 9.80665;
+            dt = sim.params().dt;
+            let x = sim.cloth.positions();
+            let p: f64 = sim
+                .cloth
+                .seams()
+                .iter()
+                .map(|st| st.k * st.gap(x).norm())
+                .sum();
+            pull = pull.max(p);
+            for v in sim.cloth.velocities() {
+                speed = speed.max(v.norm());
+            }
+            Ok(Control::Continue)
+        })
+        .unwrap();
+        (pull / weight, speed, weight, dt)
+    };
+    let bound = 20.0;
+    let (pull, speed, _, _) = sew(&t);
+    println!("unbounded: pull {pull:.2} weights, fastest {speed:.3} m/s");
+    t.file.sewing.max_force = Some(bound);
+    let (bounded_pull, bounded_speed, weight, dt) = sew(&t);
+    let top = bound * 9.80665 * dt;
+    println!(
+        "bounded: pull {bounded_pull:.2} weights, fastest {bounded_speed:.3} m/s (at most \
+         {top:.3}), weight {weight:.3} N"
+    );
+    assert!(bounded_pull <= 1.1 * bound, "pull {bounded_pull} weights");
+    assert!(bounded_speed <= top * (1.0 + 1e-9), "{bounded_speed} m/s");
+    assert!(pull > 2.0 * bound, "unbounded pull {pull} weights");
+    assert!(speed > top, "unbounded {speed} m/s");
+}

@@ -99,7 +99,8 @@ pub struct SewingFile {
     /// A bound on the stitches' pull while sewing, in weights of the
     /// garment: before each step their stiffness is scaled down together so
     /// that `Σ k |g|` is at most `max_force` times the garment's weight
-    /// (absent: no bound).
+    /// (absent: no bound). Bounded, no vertex keeps a speed above
+    /// `max_force · g · dt` either (see `limit_sewing_speed`).
     #[serde(default)]
     pub max_force: Option<f64>,
     /// The sewing ends once every stitch's gap is at most this, m (absent:

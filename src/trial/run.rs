@@ -279,6 +279,9 @@ fn sewing(
         if !r.step(sim) {
             break;
         }
+        if let Some(w) = sew.max_force {
+            limit_sewing_speed(sim, w);
+        }
         let step = Step {
             sim,
             phase: Phase::Sewing,
@@ -410,6 +413,33 @@ fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f6
     sim.cloth
         .set_seam_gains(&gains)
         .expect("scaled gains of checked seams");
+}
+
+/// While sewing with its pull bounded at `weights` garment weights, no
+/// vertex keeps a speed it could not be stopped from in one step by that
+/// many of its own weights, `weights · g · dt`: stopped by the body, the
+/// garment presses it with at most `weights` of its weight, besides the
+/// stitches' bounded pull.
+fn limit_sewing_speed(sim: &mut Simulation, weights: f64) {
+    let top = weights * STANDARD_GRAVITY * sim.params().dt;
+    let v = sim.cloth.velocities();
+    if v.iter().all(|v| v.norm() <= top) {
+        return;
+    }
+    let capped: Vec<Vector3<f64>> = v
+        .iter()
+        .map(|v| {
+            let s = v.norm();
+            if s > top {
+                v * (top / s)
+            } else {
+                *v
+            }
+        })
+        .collect();
+    sim.cloth
+        .set_velocities(&capped)
+        .expect("finite velocities scaled down");
 }
 
 /// The widest gap of any stitch, m.
