@@ -417,9 +417,9 @@ fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f6
 
 /// While sewing with its pull bounded at `weights` garment weights, no
 /// vertex keeps a speed it could not be stopped from in one step by that
-/// many of its own weights, `weights · g · dt`: stopped by the body, the
-/// garment presses it with at most `weights` of its weight, besides the
-/// stitches' bounded pull.
+/// many of its own weights, `weights · g · dt`: a vertex the body stops
+/// hits it with at most that many of its own weights (cloth wedged in a
+/// fold still presses both sides harder, docs/garments.md).
 fn limit_sewing_speed(sim: &mut Simulation, weights: f64) {
     let top = weights * STANDARD_GRAVITY * sim.params().dt;
     let v = sim.cloth.velocities();
