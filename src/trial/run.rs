@@ -422,14 +422,11 @@ fn bound_sewing(sim: &mut Simulation, own: &[(f64, f64)], factor: f64, bound: f6
 /// fold still presses both sides harder, docs/garments.md).
 fn limit_sewing_speed(sim: &mut Simulation, weights: f64) {
     let top = weights * STANDARD_GRAVITY * sim.params().dt;
-    let v = sim.cloth.velocities();
-    if v.iter().all(|v| v.norm() <= top) {
-        return;
-    }
-    let capped: Vec<Vector3<f64>> = v
-        .iter()
+    let mut over = false;
+    let capped: Vec<Vector3<f64>> = (sim.cloth.velocities().iter())
         .map(|v| {
             let s = v.norm();
+            over |= s > top;
             if s > top {
                 v * (top / s)
             } else {
@@ -437,9 +434,11 @@ fn limit_sewing_speed(sim: &mut Simulation, weights: f64) {
             }
         })
         .collect();
-    sim.cloth
-        .set_velocities(&capped)
-        .expect("finite velocities scaled down");
+    if over {
+        sim.cloth
+            .set_velocities(&capped)
+            .expect("finite velocities scaled down");
+    }
 }
 
 /// The widest gap of any stitch, m.

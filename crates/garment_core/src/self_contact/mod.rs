@@ -260,30 +260,15 @@ pub struct SelfContact {
     active: Vec<Active>,
 }
 
-/// Vertex pairs to join where two border edges of the mesh (edges of one
-/// triangle) that share no vertex lie within `tol` of each other at
-/// positions `x`: an end of one on the other
-/// is joined to the other's ends it lies on, or to both when it lies
-/// between them; two edges crossing between their ends (where coplanar
-/// panels meet) join all four ends. A spatial hash with cells one longest
-/// edge wide holds each edge in the cells its box meets; each edge looks
-/// in those its box grown by `tol` meets.
-fn touching_at_start(x: &[V], tris: &[[usize; 3]], tol: f64) -> Vec<[usize; 2]> {
-    let mut all: Vec<[usize; 2]> = tris
-        .iter()
-        .flat_map(|t| (0..3).map(move |j| [t[j].min(t[(j + 1) % 3]), t[j].max(t[(j + 1) % 3])]))
-        .filter(|e| {
-            e.iter()
-                .all(|&v| v < x.len() && x[v].iter().all(|c| c.is_finite()))
-        })
-        .collect();
-    all.sort_unstable();
-    // the border's edges: those of one triangle
-    let edges: Vec<[usize; 2]> = all
-        .chunk_by(|a, b| a == b)
-        .filter(|run| run.len() == 1)
-        .map(|run| run[0])
-        .collect();
+/// Vertex pairs to join where two of the border edges `edges` (edges of
+/// one triangle) that share no vertex lie within `tol` of each other at
+/// positions `x`: an end of one on the other is joined to the other's ends
+/// it lies on, or to both when it lies between them; two edges crossing
+/// between their ends (where coplanar panels meet) join all four ends. A
+/// spatial hash with cells one longest edge wide holds each edge in the
+/// cells its box meets; each edge looks in those its box grown by `tol`
+/// meets.
+fn touching_at_start(x: &[V], edges: &[[usize; 2]], tol: f64) -> Vec<[usize; 2]> {
     let longest = edges
         .iter()
         .map(|&[a, b]| (x[a] - x[b]).norm())
@@ -455,6 +440,7 @@ impl SelfContact {
         let mut index = std::collections::HashMap::new();
         let mut tri_edges = Vec::with_capacity(tris.len());
         let mut edge_owner = Vec::new();
+        let mut edge_tris: Vec<u8> = Vec::new();
         let mut vert_owner = vec![u32::MAX; n];
         for (k, t) in tris.iter().enumerate() {
             let mut te = [0u32; 3];
@@ -464,8 +450,10 @@ impl SelfContact {
                 let e = *index.entry(key).or_insert_with(|| {
                     edges.push(key);
                     edge_owner.push(k as u32);
+                    edge_tris.push(0);
                     edges.len() - 1
                 });
+                edge_tris[e] = edge_tris[e].saturating_add(1);
                 te[j] = e as u32;
                 if vert_owner[t[j]] == u32::MAX {
                     vert_owner[t[j]] = k as u32;
@@ -491,7 +479,13 @@ impl SelfContact {
         // side): their ends are joined there by design, like a seam's two
         // edges
         let tol = JOINED_DISTANCE * thickness[..nc].iter().copied().fold(0.0, f64::max);
-        for [p, q] in touching_at_start(&x[..nc], tris, tol) {
+        let border: Vec<[usize; 2]> = (edges.iter().zip(&edge_tris))
+            .filter(|&(e, &count)| {
+                count == 1 && e[1] < nc && e.iter().all(|&v| x[v].iter().all(|c| c.is_finite()))
+            })
+            .map(|(e, _)| *e)
+            .collect();
+        for [p, q] in touching_at_start(x, &border, tol) {
             adj[p].push(q as u32);
             adj[q].push(p as u32);
         }
